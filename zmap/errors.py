@@ -1,0 +1,69 @@
+"""One exception family for zmap.
+
+Every error a user can meet derives from :class:`ZMapError`; those caused by a bad value
+passed by the caller also derive from :class:`ValueError`. The CLI prints ``str(err)`` in
+one line and exits non-zero.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "ZMapError",
+    "ZMapFileError",
+    "OutOfDomainError",
+    "StepImportError",
+    "GCodeError",
+    "ToolError",
+    "StageError",
+    "SimFileError",
+    "GridTooLargeError",
+]
+
+
+class ZMapError(Exception):
+    """Base class of every zmap error."""
+
+
+class ZMapFileError(ZMapError):
+    """A ``.npz`` (or other zmap file) that is missing, corrupt or not a zmap file."""
+
+    def __init__(self, path: str, problem: str):
+        self.path = str(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+class OutOfDomainError(ZMapError, ValueError):
+    """A query point where the model has no height, raised under ``strict=True``."""
+
+
+class StepImportError(ZMapError):
+    """A STEP file that cannot be read, or one with no usable faces."""
+
+
+class GridTooLargeError(ZMapError, ValueError):
+    """A grid whose arrays would not fit in memory; the message gives the estimate."""
+
+
+class GCodeError(ZMapError, ValueError):
+    """A G-code block the reader cannot run, located by file, line and column."""
+
+    def __init__(self, file: str, line: int, column: int, word: str, problem: str):
+        self.file = str(file)
+        self.line = int(line)
+        self.column = int(column)
+        self.word = word
+        self.problem = problem
+        super().__init__(f"{self.file}:{self.line}:{self.column}: {word!s}: {problem}")
+
+
+class ToolError(ZMapError, ValueError):
+    """A cutter definition or tool table that is invalid or lacks a tool."""
+
+
+class StageError(ZMapError, ValueError):
+    """A simulation stage outside 0..n_stages."""
+
+
+class SimFileError(ZMapFileError):
+    """A simulation run file that is missing, corrupt or of a foreign format."""

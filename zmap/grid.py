@@ -1,0 +1,350 @@
+"""The z-map grid: heights on a regular xy grid (paper 004, Eq. 2).
+
+``z[i, j]`` is the height at ``x = x0 + i*dx``, ``y = y0 + j*dy``; NaN marks a grid point
+with no surface. A map may carry a local frame (rotation angle and origin) so that the
+rotated core maps (CZ-maps) of the refinement step are the same type: ``x0, y0, dx, dy``
+are then measured in the local frame, and ``world = origin + R(angle) @ local``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from .errors import ZMapFileError
+
+__all__ = ["ZMap", "FORMAT_NAME", "FORMAT_VERSION", "atomic_write"]
+
+FORMAT_NAME = "zmap.ZMap"
+FORMAT_VERSION = 1
+_LAYER_PREFIX = "layer__"
+
+
+def _finite_float(name: str, value: Any) -> float:
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a real number, got {value!r}") from None
+    if not math.isfinite(f):
+        raise ValueError(f"{name} must be finite, got {f!r}")
+    return f
+
+
+def _positive_float(name: str, value: Any) -> float:
+    f = _finite_float(name, value)
+    if f <= 0.0:
+        raise ValueError(f"{name} must be positive, got {f!r}")
+    return f
+
+
+def atomic_write(path: str | os.PathLike, write: Callable[[str], None], suffix: str = "") -> Path:
+    """Write a file through a temporary name in the same folder, then rename it.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        Final file name.
+    write : callable
+        ``write(tmp_path)`` writes the whole file to ``tmp_path``.
+    suffix : str
+        Suffix of the temporary name (some writers, like ``np.savez``, append one).
+
+    Returns
+    -------
+    Path
+        The final path. An exception inside ``write`` leaves no file behind.
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    folder.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp" + suffix, dir=folder)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        # Clean up on any interruption (KeyboardInterrupt too), then re-raise it unchanged.
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+@dataclass(eq=False)
+class ZMap:
+    """Heights on a regular grid, NaN where there is no surface.
+
+    Parameters
+    ----------
+    x0, y0 : float
+        Grid origin in mm (in the local frame when ``angle`` or ``origin`` is set).
+    dx, dy : float
+        Grid intervals in mm, positive; they may differ.
+    z : ndarray of shape (nx, ny), float64
+        Heights in mm, ``z[i, j]`` at ``(x0 + i*dx, y0 + j*dy)``; NaN = no surface.
+    angle : float
+        Rotation of the local frame about +z, radians (0 for a plain map).
+    origin : tuple of float
+        World position of the local frame's origin (``(0, 0)`` for a plain map).
+    meta : dict
+        JSON-serialisable metadata: ``units``, ``source``, ``method`` and anything else.
+    layers : dict of str to ndarray of shape (nx, ny)
+        Side arrays saved with the map, e.g. which face and which method gave each height.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> zm = ZMap(0.0, 0.0, 1.0, 1.0, np.zeros((3, 4)))
+    >>> zm.shape, zm.bounds
+    ((3, 4), (0.0, 0.0, 2.0, 3.0))
+    """
+
+    x0: float
+    y0: float
+    dx: float
+    dy: float
+    z: np.ndarray
+    angle: float = 0.0
+    origin: tuple[float, float] = (0.0, 0.0)
+    meta: dict = field(default_factory=dict)
+    layers: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.x0 = _finite_float("x0", self.x0)
+        self.y0 = _finite_float("y0", self.y0)
+        self.dx = _positive_float("dx", self.dx)
+        self.dy = _positive_float("dy", self.dy)
+        self.angle = _finite_float("angle", self.angle)
+        if np.shape(self.origin) != (2,):
+            raise ValueError(f"origin must be a pair (ox, oy), got {self.origin!r}")
+        self.origin = (_finite_float("origin[0]", self.origin[0]), _finite_float("origin[1]", self.origin[1]))
+        z = np.asarray(self.z)
+        if z.ndim != 2:
+            raise ValueError(f"z must be a 2D array of shape (nx, ny), got shape {z.shape}")
+        if z.shape[0] < 2 or z.shape[1] < 2:
+            raise ValueError(f"z must have at least 2 grid points along each axis, got shape {z.shape}")
+        if not np.issubdtype(z.dtype, np.number) or np.iscomplexobj(z):
+            raise ValueError(f"z must hold real numbers, got dtype {z.dtype}")
+        if np.isinf(z).any():
+            raise ValueError("z holds infinite heights; use NaN to mark 'no surface'")
+        self.z = np.ascontiguousarray(z, dtype=np.float64)
+        self.meta = dict(self.meta)
+        self.meta.setdefault("units", "mm")
+        layers = {}
+        for name, arr in dict(self.layers).items():
+            arr = np.asarray(arr)
+            if arr.shape != self.z.shape:
+                raise ValueError(f"layer {name!r} must have the shape of z {self.z.shape}, got {arr.shape}")
+            layers[str(name)] = arr
+        self.layers = layers
+
+    # ---- construction -------------------------------------------------------------------
+
+    @classmethod
+    def from_function(
+        cls,
+        f: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        bounds: tuple[float, float, float, float],
+        dx: float,
+        dy: float | None = None,
+        **kwargs: Any,
+    ) -> "ZMap":
+        """Sample ``z = f(x, y)`` on the grid covering ``bounds = (x0, y0, x1, y1)``.
+
+        The last grid line is the last one at or before ``x1`` (``y1``), within 1e-9 of an
+        interval.
+
+        Examples
+        --------
+        >>> zm = ZMap.from_function(lambda x, y: x + 2 * y, (0, 0, 10, 5), 1.0)
+        >>> zm.shape
+        (11, 6)
+        """
+        dy = dx if dy is None else dy
+        x0, y0, x1, y1 = (_finite_float(n, v) for n, v in zip(("x0", "y0", "x1", "y1"), bounds))
+        dx = _positive_float("dx", dx)
+        dy = _positive_float("dy", dy)
+        nx = int(math.floor((x1 - x0) / dx + 1e-9)) + 1
+        ny = int(math.floor((y1 - y0) / dy + 1e-9)) + 1
+        xs = x0 + dx * np.arange(nx)
+        ys = y0 + dy * np.arange(ny)
+        X, Y = np.meshgrid(xs, ys, indexing="ij")
+        z = np.asarray(f(X, Y), dtype=np.float64)
+        return cls(x0, y0, dx, dy, z, **kwargs)
+
+    # ---- geometry -----------------------------------------------------------------------
+
+    @property
+    def nx(self) -> int:
+        return int(self.z.shape[0])
+
+    @property
+    def ny(self) -> int:
+        return int(self.z.shape[1])
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.nx, self.ny)
+
+    @property
+    def x(self) -> np.ndarray:
+        """Local x of the grid lines, shape (nx,)."""
+        return self.x0 + self.dx * np.arange(self.nx)
+
+    @property
+    def y(self) -> np.ndarray:
+        """Local y of the grid lines, shape (ny,)."""
+        return self.y0 + self.dy * np.arange(self.ny)
+
+    @property
+    def x1(self) -> float:
+        return self.x0 + self.dx * (self.nx - 1)
+
+    @property
+    def y1(self) -> float:
+        return self.y0 + self.dy * (self.ny - 1)
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """Local domain ``(x0, y0, x1, y1)``."""
+        return (self.x0, self.y0, self.x1, self.y1)
+
+    @property
+    def has_frame(self) -> bool:
+        return self.angle != 0.0 or self.origin != (0.0, 0.0)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held by the heights and side layers."""
+        return int(self.z.nbytes + sum(a.nbytes for a in self.layers.values()))
+
+    def world_to_local(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World xy to the map's local frame (identity for a plain map)."""
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        if not self.has_frame:
+            return x, y
+        c, s = math.cos(self.angle), math.sin(self.angle)
+        px, py = x - self.origin[0], y - self.origin[1]
+        return c * px + s * py, -s * px + c * py
+
+    def local_to_world(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Local xy to world xy (identity for a plain map)."""
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        if not self.has_frame:
+            return x, y
+        c, s = math.cos(self.angle), math.sin(self.angle)
+        return self.origin[0] + c * x - s * y, self.origin[1] + s * x + c * y
+
+    def index_of(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fractional grid indices ``(i, j)`` of world points (Eq. 3 of paper 004)."""
+        lx, ly = self.world_to_local(x, y)
+        return (lx - self.x0) / self.dx, (ly - self.y0) / self.dy
+
+    def world_of(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World xy of (possibly fractional) grid indices."""
+        i = np.asarray(i, dtype=np.float64)
+        j = np.asarray(j, dtype=np.float64)
+        return self.local_to_world(self.x0 + i * self.dx, self.y0 + j * self.dy)
+
+    def grid_points(self) -> tuple[np.ndarray, np.ndarray]:
+        """World x and y of every grid point, each of shape (nx, ny)."""
+        X, Y = np.meshgrid(self.x, self.y, indexing="ij")
+        return self.local_to_world(X, Y)
+
+    def contains(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """True where a world point lies in the closed grid domain."""
+        fi, fj = self.index_of(x, y)
+        return (fi >= 0) & (fi <= self.nx - 1) & (fj >= 0) & (fj <= self.ny - 1)
+
+    def copy(self) -> "ZMap":
+        return ZMap(self.x0, self.y0, self.dx, self.dy, self.z.copy(), self.angle, self.origin,
+                    json.loads(json.dumps(self.meta)), {k: v.copy() for k, v in self.layers.items()})
+
+    def __repr__(self) -> str:
+        frame = f", angle={self.angle:.6g}, origin={self.origin}" if self.has_frame else ""
+        return (f"ZMap(nx={self.nx}, ny={self.ny}, x0={self.x0:g}, y0={self.y0:g}, dx={self.dx:g}, "
+                f"dy={self.dy:g}{frame}, empty={int(np.isnan(self.z).sum())}, layers={list(self.layers)})")
+
+    # ---- persistence --------------------------------------------------------------------
+
+    def header(self) -> dict:
+        """The JSON metadata stored with the map."""
+        return {
+            "format": FORMAT_NAME,
+            "version": FORMAT_VERSION,
+            "x0": self.x0, "y0": self.y0, "dx": self.dx, "dy": self.dy,
+            "nx": self.nx, "ny": self.ny,
+            "angle": self.angle, "origin": list(self.origin),
+            "layers": sorted(self.layers),
+            "meta": self.meta,
+        }
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the map to one ``.npz`` file (atomic: no half-written file on failure).
+
+        Examples
+        --------
+        >>> import tempfile, os, numpy as np
+        >>> zm = ZMap(0, 0, 0.5, 0.5, np.ones((3, 3)), meta={"source": "doc"})
+        >>> p = zm.save(os.path.join(tempfile.mkdtemp(), "a.zmap.npz"))
+        >>> ZMap.load(p).z.sum()
+        9.0
+        """
+        arrays = {"z": self.z, "header": np.array(json.dumps(self.header()))}
+        for name, arr in self.layers.items():
+            arrays[_LAYER_PREFIX + name] = arr
+
+        def write(tmp: str) -> None:
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, **arrays)
+
+        return atomic_write(path, write)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "ZMap":
+        """Read a map written by :meth:`save`; a foreign or corrupt file raises ZMapFileError."""
+        path = Path(path)
+        if not path.exists():
+            raise ZMapFileError(str(path), "no such file")
+        try:
+            with np.load(path, allow_pickle=False) as npz:
+                names = set(npz.files)
+                if "header" not in names or "z" not in names:
+                    raise ZMapFileError(str(path), f"not a zmap file (arrays {sorted(names)}, expected 'header' and 'z')")
+                header = json.loads(str(npz["header"][()]))
+                z = npz["z"]
+                layers = {n[len(_LAYER_PREFIX):]: npz[n] for n in names if n.startswith(_LAYER_PREFIX)}
+        except ZMapFileError:
+            raise
+        except (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError) as exc:
+            raise ZMapFileError(str(path), f"corrupt or not an .npz file ({type(exc).__name__}: {exc})") from None
+        return cls._from_header(str(path), header, z, layers)
+
+    @classmethod
+    def _from_header(cls, where: str, header: Any, z: np.ndarray, layers: dict) -> "ZMap":
+        if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
+            got = header.get("format") if isinstance(header, dict) else type(header).__name__
+            raise ZMapFileError(where, f"format is {got!r}, expected {FORMAT_NAME!r}")
+        version = header.get("version")
+        if not isinstance(version, int) or version > FORMAT_VERSION or version < 1:
+            raise ZMapFileError(where, f"format version {version!r} is not supported (this zmap reads 1..{FORMAT_VERSION})")
+        try:
+            if tuple(z.shape) != (header["nx"], header["ny"]):
+                raise ZMapFileError(where, f"z has shape {z.shape}, header says ({header['nx']}, {header['ny']})")
+            return cls(header["x0"], header["y0"], header["dx"], header["dy"], z,
+                       angle=header.get("angle", 0.0), origin=tuple(header.get("origin", (0.0, 0.0))),
+                       meta=header.get("meta", {}), layers=layers)
+        except KeyError as exc:
+            raise ZMapFileError(where, f"header lacks field {exc}") from None
+        except ValueError as exc:
+            raise ZMapFileError(where, f"invalid content: {exc}") from None

@@ -1,0 +1,1 @@
+"""Histories of a simulation run: z-trace, time-trace and Interval Treap."""
