@@ -1,0 +1,299 @@
+"""Numba kernels of the dexel workpiece and of the histories recorded while cutting.
+
+Private: the callers in :mod:`zmap.sim.dexel`, :mod:`zmap.sim.session` and
+:mod:`zmap.sim.history` own validation and allocation. Kernels take contiguous arrays and
+preallocated outputs and never raise for data reasons; when a pool is full they return
+early with a status code so that the caller can grow the pool and resume (cutting is
+idempotent, so re-running a partly cut position changes nothing twice).
+
+Ray ``r = i * ny + j`` is the vertical line at ``(x0 + i*pitch, y0 + j*pitch)``. Its dexels
+are ``near[r, :cnt[r]]``, ``far[r, :cnt[r]]``, sorted by z and disjoint, float32 in mm.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ._tool_kernels import _envelope
+
+__all__: list[str] = []
+
+# status codes returned by cut_positions in stats[ST_STATUS]
+OK = 0
+NEED_SLOTS = 1   # a ray has no free dexel slot
+NEED_POOL = 2    # a history pool is full
+
+# indices of the int64 stats vector
+ST_CREATED = 0   # dexels created (splits)
+ST_DELETED = 1   # dexels deleted
+ST_FRONT = 2     # fronts shortened (NearZ raised)
+ST_BACK = 3      # backs shortened (FarZ lowered)
+ST_ZT_N = 4      # z-trace elements used
+ST_TT_N = 5      # time-trace elements used
+ST_TR_N = 6      # treap nodes used
+ST_STATUS = 7
+ST_RAYS_CUT = 8  # ray/position pairs visited
+N_STATS = 9
+
+NO_STAGE = np.int32(2147483647)  # deletion stage of a Z-element still alive
+
+# Interval Treap node encoding: kids = (first_child << 2) | mask; mask bit 0 = left child,
+# bit 1 = right child; children of a node are created together and stored contiguously.
+# Each node stores the one boundary it introduced (tr_z): a left child stores its Zmax,
+# a right child its Zmin, the other boundary is inherited from the parent; an empty leaf
+# (deletion) stores NaN. Roots store Zmin in tr_z and Zmax in the separate root_hi array.
+
+
+@njit(cache=True)
+def _zt_new(zt_z, zt_c, zt_d, zt_ray, stats, z, stage, ray):
+    k = stats[ST_ZT_N]
+    zt_z[k] = z
+    zt_c[k] = stage
+    zt_d[k] = NO_STAGE
+    zt_ray[k] = ray
+    stats[ST_ZT_N] = k + 1
+    return np.int32(k)
+
+
+@njit(cache=True)
+def _tr_children(tr_z, tr_s, tr_k, stats, parent, mask, zl, zr, stage):
+    """Append the children of leaf ``parent`` (mask 1 left, 2 right, 3 both); return first."""
+    k = stats[ST_TR_N]
+    n = 0
+    if mask & 1:
+        tr_z[k] = zl
+        tr_s[k] = stage
+        tr_k[k] = 0
+        n += 1
+    if mask & 2:
+        tr_z[k + n] = zr
+        tr_s[k + n] = stage
+        tr_k[k + n] = 0
+        n += 1
+    tr_k[parent] = (k << 2) | mask
+    stats[ST_TR_N] = k + n
+    return k
+
+
+@njit(cache=True)
+def cut_ray(r, a, b, stage, near, far, cnt,
+            rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+            rec_t, tt_z, tt_s, tt_ray,
+            rec_tr, leaf, tr_z, tr_s, tr_k, stats):
+    """Subtract the tool interval ``[a, b]`` (float32 values) from ray ``r`` at ``stage``.
+
+    The dexels are scanned bottom-up; a dexel is touched only if condition (1) of paper 000
+    holds (tool FarZ > part NearZ and part FarZ > tool NearZ) and the scan stops for good at
+    the first dexel whose NearZ >= tool FarZ (condition (2)). The four cases of paper 001
+    (create by split, delete, shorten front, shorten back) update the history in place.
+    """
+    c = cnt[r]
+    old_top = far[r, c - 1] if c > 0 else np.float32(np.nan)
+    w = 0
+    j = 0
+    done = False
+    while j < c:
+        n0 = near[r, j]
+        f0 = far[r, j]
+        if done or f0 <= a or n0 >= b:
+            if n0 >= b:
+                done = True
+            if w != j:
+                near[r, w] = n0
+                far[r, w] = f0
+                if rec_z:
+                    zid_near[r, w] = zid_near[r, j]
+                    zid_far[r, w] = zid_far[r, j]
+                if rec_tr:
+                    leaf[r, w] = leaf[r, j]
+            w += 1
+            j += 1
+            continue
+        if a > n0 and b < f0:
+            # case 1 of paper 001: the tool is inside the dexel, split it in two.
+            # No dexel was deleted before (intervals are disjoint), so w == j here.
+            for m in range(c - 1, j, -1):
+                near[r, m + 1] = near[r, m]
+                far[r, m + 1] = far[r, m]
+                if rec_z:
+                    zid_near[r, m + 1] = zid_near[r, m]
+                    zid_far[r, m + 1] = zid_far[r, m]
+                if rec_tr:
+                    leaf[r, m + 1] = leaf[r, m]
+            far[r, j] = a
+            near[r, j + 1] = b
+            far[r, j + 1] = f0
+            if rec_z:
+                zf = zid_far[r, j]
+                zid_far[r, j] = _zt_new(zt_z, zt_c, zt_d, zt_ray, stats, a, stage, r)
+                zid_near[r, j + 1] = _zt_new(zt_z, zt_c, zt_d, zt_ray, stats, b, stage, r)
+                zid_far[r, j + 1] = zf
+            if rec_tr:
+                k = _tr_children(tr_z, tr_s, tr_k, stats, leaf[r, j], 3, a, b, stage)
+                leaf[r, j] = k
+                leaf[r, j + 1] = k + 1
+            stats[ST_CREATED] += 1
+            c += 1
+            w = c
+            j = c
+            break
+        if a <= n0 and b >= f0:
+            # case 2: the tool covers the dexel, delete it
+            if rec_z:
+                zt_d[zid_near[r, j]] = stage
+                zt_d[zid_far[r, j]] = stage
+            if rec_tr:
+                _tr_children(tr_z, tr_s, tr_k, stats, leaf[r, j], 1, np.float32(np.nan),
+                             np.float32(0.0), stage)
+            stats[ST_DELETED] += 1
+            j += 1
+            continue
+        if a > n0:
+            # case 4: shorten the back, FarZ goes down to the tool's NearZ
+            far[r, w] = a
+            near[r, w] = n0
+            if rec_z:
+                zt_d[zid_far[r, j]] = stage
+                zid_near[r, w] = zid_near[r, j]
+                zid_far[r, w] = _zt_new(zt_z, zt_c, zt_d, zt_ray, stats, a, stage, r)
+            if rec_tr:
+                k = _tr_children(tr_z, tr_s, tr_k, stats, leaf[r, j], 1, a, np.float32(0.0), stage)
+                leaf[r, w] = k
+            stats[ST_BACK] += 1
+        else:
+            # case 3: shorten the front, NearZ goes up to the tool's FarZ
+            near[r, w] = b
+            far[r, w] = f0
+            if rec_z:
+                zt_d[zid_near[r, j]] = stage
+                zid_near[r, w] = _zt_new(zt_z, zt_c, zt_d, zt_ray, stats, b, stage, r)
+                zid_far[r, w] = zid_far[r, j]
+            if rec_tr:
+                k = _tr_children(tr_z, tr_s, tr_k, stats, leaf[r, j], 2, np.float32(0.0), b, stage)
+                leaf[r, w] = k
+            stats[ST_FRONT] += 1
+            done = True
+        w += 1
+        j += 1
+    cnt[r] = w
+    if rec_t:
+        new_top = far[r, w - 1] if w > 0 else np.float32(np.nan)
+        same = (new_top == old_top) or (math.isnan(new_top) and math.isnan(old_top))
+        if not same:
+            # rule 6 of paper 001: the displayed value is the last FarZ; it changed
+            k = stats[ST_TT_N]
+            tt_z[k] = new_top
+            tt_s[k] = stage
+            tt_ray[k] = r
+            stats[ST_TT_N] = k + 1
+
+
+@njit(cache=True)
+def cut_positions(xyz, tslot, tcode, trad, tcr, tlen, start, stop, stage0,
+                  x0, y0, pitch, nx, ny, near, far, cnt,
+                  rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+                  rec_t, tt_z, tt_s, tt_ray,
+                  rec_tr, leaf, tr_z, tr_s, tr_k, stats):
+    """Cut positions ``start..stop-1``; position p makes stage ``stage0 + p + 1``.
+
+    Returns the index of the first position not (fully) cut: ``stop`` when done, else the
+    position to resume from after growing what ``stats[ST_STATUS]`` names.
+    """
+    K = near.shape[1]
+    zt_cap = zt_z.shape[0]
+    tt_cap = tt_z.shape[0]
+    tr_cap = tr_z.shape[0]
+    stats[ST_STATUS] = OK
+    for p in range(start, stop):
+        s = tslot[p]
+        code = tcode[s]
+        R = trad[s]
+        rc = tcr[s]
+        L = tlen[s]
+        tx = xyz[p, 0]
+        ty = xyz[p, 1]
+        tz = xyz[p, 2]
+        stage = np.int32(stage0 + p + 1)
+        i0 = int(math.ceil((tx - R - x0) / pitch)) - 1
+        i1 = int(math.floor((tx + R - x0) / pitch)) + 1
+        j0 = int(math.ceil((ty - R - y0) / pitch)) - 1
+        j1 = int(math.floor((ty + R - y0) / pitch)) + 1
+        if i0 < 0:
+            i0 = 0
+        if j0 < 0:
+            j0 = 0
+        if i1 > nx - 1:
+            i1 = nx - 1
+        if j1 > ny - 1:
+            j1 = ny - 1
+        b = np.float32(tz + L)
+        R2 = R * R
+        for i in range(i0, i1 + 1):
+            dxr = x0 + i * pitch - tx
+            for j in range(j0, j1 + 1):
+                dyr = y0 + j * pitch - ty
+                d2 = dxr * dxr + dyr * dyr
+                if d2 > R2:
+                    continue
+                r = i * ny + j
+                c = cnt[r]
+                if c == 0:
+                    continue
+                a = np.float32(tz + _envelope(code, R, rc, math.sqrt(d2)))
+                # quick reject: conditions (1)/(2) against the whole ray
+                if far[r, c - 1] <= a or near[r, 0] >= b:
+                    continue
+                if c >= K:
+                    stats[ST_STATUS] = NEED_SLOTS
+                    return p
+                if (rec_z and stats[ST_ZT_N] + 2 > zt_cap) or (rec_t and stats[ST_TT_N] + 1 > tt_cap) \
+                        or (rec_tr and stats[ST_TR_N] + 2 > tr_cap):
+                    stats[ST_STATUS] = NEED_POOL
+                    return p
+                stats[ST_RAYS_CUT] += 1
+                cut_ray(r, a, b, stage, near, far, cnt,
+                        rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+                        rec_t, tt_z, tt_s, tt_ray,
+                        rec_tr, leaf, tr_z, tr_s, tr_k, stats)
+    return stop
+
+
+@njit(cache=True)
+def top_of(near, far, cnt, out):
+    """Last FarZ of every ray (rule 6 of paper 001), NaN where the ray is empty."""
+    for r in range(cnt.shape[0]):
+        c = cnt[r]
+        out[r] = far[r, c - 1] if c > 0 else np.nan
+
+
+@njit(cache=True)
+def heightfield_cut(xyz, tslot, tcode, trad, tcr, x0, y0, dx, dy, z):
+    """Height-field cut: ``z[i, j] = min(z[i, j], tip_z + envelope(d))`` (NaN stays NaN)."""
+    nx = z.shape[0]
+    ny = z.shape[1]
+    for p in range(xyz.shape[0]):
+        s = tslot[p]
+        code = tcode[s]
+        R = trad[s]
+        rc = tcr[s]
+        tx = xyz[p, 0]
+        ty = xyz[p, 1]
+        tz = xyz[p, 2]
+        i0 = max(int(math.ceil((tx - R - x0) / dx)) - 1, 0)
+        i1 = min(int(math.floor((tx + R - x0) / dx)) + 1, nx - 1)
+        j0 = max(int(math.ceil((ty - R - y0) / dy)) - 1, 0)
+        j1 = min(int(math.floor((ty + R - y0) / dy)) + 1, ny - 1)
+        R2 = R * R
+        for i in range(i0, i1 + 1):
+            ddx = x0 + i * dx - tx
+            for j in range(j0, j1 + 1):
+                ddy = y0 + j * dy - ty
+                d2 = ddx * ddx + ddy * ddy
+                if d2 > R2:
+                    continue
+                h = tz + _envelope(code, R, rc, math.sqrt(d2))
+                if h < z[i, j]:
+                    z[i, j] = h

@@ -1,0 +1,312 @@
+"""Numba kernels of the histories: finalising the pools and reading a stage back.
+
+Private to :mod:`zmap.sim.history`. Stages are int32, z values float32 (NaN = nothing).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__: list[str] = []
+
+
+@njit(cache=True)
+def group_by_ray(ray, n_rays, order_out, offsets_out):
+    """Stable counting sort of element indices by ray; fills ``order_out`` and ``offsets_out``."""
+    n = ray.shape[0]
+    for r in range(n_rays + 1):
+        offsets_out[r] = 0
+    for e in range(n):
+        offsets_out[ray[e] + 1] += 1
+    for r in range(n_rays):
+        offsets_out[r + 1] += offsets_out[r]
+    fill = offsets_out[:-1].copy()
+    for e in range(n):
+        r = ray[e]
+        order_out[fill[r]] = e
+        fill[r] += 1
+
+
+@njit(cache=True)
+def sort_segments_by_z(offsets, z, order):
+    """Insertion-sort ``order`` within each ray segment by ``z[order]`` (stable)."""
+    for r in range(offsets.shape[0] - 1):
+        lo = offsets[r]
+        hi = offsets[r + 1]
+        for a in range(lo + 1, hi):
+            e = order[a]
+            v = z[e]
+            b = a - 1
+            while b >= lo and z[order[b]] > v:
+                order[b + 1] = order[b]
+                b -= 1
+            order[b + 1] = e
+
+
+# ---- z-trace ---------------------------------------------------------------------------
+
+@njit(cache=True)
+def ztrace_count(offsets, zc, zd, k, cnt_out):
+    """Alive Z-elements per ray at stage k (creation <= k < deletion), halved: dexels."""
+    for r in range(offsets.shape[0] - 1):
+        m = 0
+        for e in range(offsets[r], offsets[r + 1]):
+            if zc[e] <= k and zd[e] > k:
+                m += 1
+        cnt_out[r] = m // 2
+
+
+@njit(cache=True)
+def ztrace_fill(offsets, zz, zc, zd, k, out_off, near, far):
+    """Pair the alive Z-elements of each ray (sorted by z) into dexels [near, far]."""
+    for r in range(offsets.shape[0] - 1):
+        q = out_off[r]
+        first = True
+        for e in range(offsets[r], offsets[r + 1]):
+            if zc[e] <= k and zd[e] > k:
+                if first:
+                    near[q] = zz[e]
+                else:
+                    far[q] = zz[e]
+                    q += 1
+                first = not first
+
+
+@njit(cache=True)
+def ztrace_top(offsets, zz, zc, zd, k, out):
+    """Largest alive Z of each ray at stage k (the last FarZ), NaN when none."""
+    for r in range(offsets.shape[0] - 1):
+        out[r] = np.nan
+        for e in range(offsets[r + 1] - 1, offsets[r] - 1, -1):
+            if zc[e] <= k and zd[e] > k:
+                out[r] = zz[e]
+                break
+
+
+# ---- time-trace ------------------------------------------------------------------------
+
+@njit(cache=True)
+def ttrace_display(offsets, tz, ts, k, out):
+    """Value of the last time-element created at or before stage k, per ray (binary search)."""
+    for r in range(offsets.shape[0] - 1):
+        lo = offsets[r]
+        hi = offsets[r + 1]  # ts[lo] == 0 <= k always
+        if hi <= lo:
+            out[r] = np.nan
+            continue
+        # last index e in [lo, hi) with ts[e] <= k
+        a = lo
+        b = hi - 1
+        while a < b:
+            m = (a + b + 1) // 2
+            if ts[m] <= k:
+                a = m
+            else:
+                b = m - 1
+        out[r] = tz[a]
+
+
+# ---- Interval Treap --------------------------------------------------------------------
+
+@njit(cache=True)
+def treap_reorder(n_rays, root_off, tz, ts, tk, node_off, nz, ns, nk):
+    """Copy the node pool so that each ray's forest is contiguous (children adjacent).
+
+    Ray r's roots become nodes ``node_off[r] .. node_off[r] + root_count - 1``; every
+    node's children follow as a contiguous pair/single further in the ray's block. Returns
+    the largest number of nodes of one ray.
+    """
+    stack = np.empty(16, dtype=np.int64)
+    q = 0
+    biggest = 0
+    for r in range(n_rays):
+        node_off[r] = q
+        start = q
+        for t in range(root_off[r], root_off[r + 1]):
+            nz[q] = tz[t]
+            ns[q] = ts[t]
+            nk[q] = 0
+            q += 1
+        # depth-first over old/new index pairs
+        sp = 0
+        for t in range(root_off[r + 1] - 1, root_off[r] - 1, -1):
+            if sp + 2 > stack.shape[0]:
+                stack = _grow(stack)
+            stack[sp] = t
+            stack[sp + 1] = start + (t - root_off[r])
+            sp += 2
+        while sp > 0:
+            sp -= 2
+            old = stack[sp]
+            new = stack[sp + 1]
+            kids = tk[old]
+            mask = kids & 3
+            if mask == 0:
+                continue
+            first = kids >> 2
+            nch = 2 if mask == 3 else 1
+            nk[new] = (q << 2) | mask
+            for c in range(nch):
+                nz[q + c] = tz[first + c]
+                ns[q + c] = ts[first + c]
+                nk[q + c] = 0
+            for c in range(nch):
+                if sp + 2 > stack.shape[0]:
+                    stack = _grow(stack)
+                stack[sp] = first + c
+                stack[sp + 1] = q + c
+                sp += 2
+            q += nch
+        if q - start > biggest:
+            biggest = q - start
+    node_off[n_rays] = q
+    return biggest
+
+
+@njit(cache=True)
+def _grow(a):
+    b = np.empty(2 * a.shape[0], dtype=a.dtype)
+    b[: a.shape[0]] = a
+    return b
+
+
+@njit(cache=True)
+def treap_display(node_off, root_off, root_hi, tz, ts, tk, k, out):
+    """Right-most non-empty leaf of each ray's treap as cut at stage k (its Zmax), or NaN.
+
+    Reverse in-order traversal (right child first); a node whose children were created
+    after stage k is a leaf at stage k.
+    """
+    n_rays = node_off.shape[0] - 1
+    stack_n = np.empty(64, dtype=np.int64)
+    stack_lo = np.empty(64, dtype=np.float32)
+    stack_hi = np.empty(64, dtype=np.float32)
+    for r in range(n_rays):
+        out[r] = np.nan
+        base = node_off[r]
+        nroot = root_off[r + 1] - root_off[r]
+        found = False
+        for t in range(nroot - 1, -1, -1):
+            sp = 0
+            stack_n[0] = base + t
+            stack_lo[0] = tz[base + t]
+            stack_hi[0] = root_hi[root_off[r] + t]
+            sp = 1
+            while sp > 0:
+                sp -= 1
+                node = stack_n[sp]
+                lo = stack_lo[sp]
+                hi = stack_hi[sp]
+                kids = tk[node]
+                mask = kids & 3
+                first = kids >> 2
+                if mask == 0 or ts[first] > k:
+                    if lo < hi:
+                        out[r] = hi
+                        found = True
+                        break
+                    continue
+                if sp + 2 > stack_n.shape[0]:
+                    stack_n = _grow(stack_n)
+                    stack_lo = _grow(stack_lo)
+                    stack_hi = _grow(stack_hi)
+                if mask & 1:
+                    zl = tz[first]
+                    if zl == zl:  # not an empty leaf
+                        stack_n[sp] = first
+                        stack_lo[sp] = lo
+                        stack_hi[sp] = zl
+                        sp += 1
+                if mask & 2:
+                    c = first + (mask & 1)
+                    stack_n[sp] = c
+                    stack_lo[sp] = tz[c]
+                    stack_hi[sp] = hi
+                    sp += 1
+            if found:
+                break
+
+
+@njit(cache=True)
+def treap_reconstruct(node_off, root_off, root_hi, tz, ts, tk, k, cnt_out, near, far):
+    """Non-empty leaves of the treap cut at stage k, left to right: the dexels of stage k.
+
+    A branch stops where both children were created after stage k (they are cut away) or
+    at a leaf. Dexels go to ``near``/``far`` in ray order, counts to ``cnt_out``; returns
+    their total.
+    """
+    n_rays = node_off.shape[0] - 1
+    stack_n = np.empty(64, dtype=np.int64)
+    stack_lo = np.empty(64, dtype=np.float32)
+    stack_hi = np.empty(64, dtype=np.float32)
+    q = 0
+    for r in range(n_rays):
+        q0 = q
+        base = node_off[r]
+        nroot = root_off[r + 1] - root_off[r]
+        for t in range(nroot):
+            stack_n[0] = base + t
+            stack_lo[0] = tz[base + t]
+            stack_hi[0] = root_hi[root_off[r] + t]
+            sp = 1
+            while sp > 0:
+                sp -= 1
+                node = stack_n[sp]
+                lo = stack_lo[sp]
+                hi = stack_hi[sp]
+                kids = tk[node]
+                mask = kids & 3
+                first = kids >> 2
+                if mask == 0 or ts[first] > k:
+                    if lo < hi:
+                        near[q] = lo
+                        far[q] = hi
+                        q += 1
+                    continue
+                if sp + 2 > stack_n.shape[0]:
+                    stack_n = _grow(stack_n)
+                    stack_lo = _grow(stack_lo)
+                    stack_hi = _grow(stack_hi)
+                # push right first so that the left child is visited first (in-order)
+                if mask & 2:
+                    c = first + (mask & 1)
+                    stack_n[sp] = c
+                    stack_lo[sp] = tz[c]
+                    stack_hi[sp] = hi
+                    sp += 1
+                if mask & 1:
+                    zl = tz[first]
+                    if zl == zl:
+                        stack_n[sp] = first
+                        stack_lo[sp] = lo
+                        stack_hi[sp] = zl
+                        sp += 1
+        cnt_out[r] = q - q0
+    return q
+
+
+@njit(cache=True)
+def treap_heights(node_off, root_off, tk, out_mean_depth, out_nodes):
+    """Per ray: mean node depth (roots at depth 1) and node count of its forest."""
+    n_rays = node_off.shape[0] - 1
+    depth = np.zeros(node_off[n_rays], dtype=np.int32)
+    for r in range(n_rays):
+        base = node_off[r]
+        end = node_off[r + 1]
+        nroot = root_off[r + 1] - root_off[r]
+        total = 0
+        for t in range(nroot):
+            depth[base + t] = 1
+        # children always come after their parent within the block
+        for node in range(base, end):
+            total += depth[node]
+            kids = tk[node]
+            mask = kids & 3
+            if mask:
+                first = kids >> 2
+                depth[first] = depth[node] + 1
+                if mask == 3:
+                    depth[first + 1] = depth[node] + 1
+        out_nodes[r] = end - base
+        out_mean_depth[r] = total / (end - base) if end > base else 0.0

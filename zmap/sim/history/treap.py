@@ -1,0 +1,183 @@
+"""Interval Treap of paper 000: one binary tree of intervals per ray, indexed in time.
+
+A node is an interval ``[Zmin, Zmax]`` that appeared at its creation stage. The stock's
+dexels are the roots (stage 0). When the cutter changes a dexel, children are added to the
+leaf that stands for it (section 3), all at the present stage:
+
+* Zmin modified (front shortened): a right child ``[new Zmin, Zmax]``;
+* Zmax modified (back shortened): a left child ``[Zmin, new Zmax]``;
+* interval created (split): a left and a right child;
+* interval deleted: one left child, the *empty leaf* (Zmin = Zmax).
+
+The active dexels are the non-empty leaves, left to right (section 4.1). The cutting kernel
+reaches them in z order, skipping dexels that fail condition (1) and stopping for good at
+condition (2) (section 4.2); the workpiece's slot list keeps, for each active dexel, the
+index of its leaf, so the scan starts at the leaves instead of descending from the roots.
+
+Storage (flat node pool, 12 bytes a node): ``z`` float32, ``stage`` int32 and ``kids``
+int32 = ``(first_child << 2) | mask`` (mask bit 0: left child, bit 1: right child; the
+children of a node are created together and stored side by side). A child stores only the
+boundary it introduced (a left child its Zmax, a right child its Zmin, an empty leaf NaN);
+the other boundary is its parent's, so a traversal carries ``[Zmin, Zmax]`` down from the
+root, whose Zmin is in ``z`` and whose Zmax is in ``root_hi``. Finalising re-lays the pool
+so that each ray's forest is contiguous, which makes the traversals cache-friendly.
+
+Reading stage n (section 4.3): a node whose children were created after n is a leaf of the
+tree cut at n; ``display`` takes the right-most non-empty leaf (reverse in-order) and
+``reconstruct`` all non-empty leaves in order.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from . import _kernels as _hk
+from ._common import grow1, slot_index, widen
+
+__all__ = ["IntervalTreap"]
+
+
+class IntervalTreap:
+    """Forest of Interval Treaps, one per ray of a dexel workpiece.
+
+    Attributes (finalised)
+    ----------------------
+    node_off : ndarray of shape (n_rays + 1,), int64 — ray r owns nodes node_off[r]:node_off[r+1].
+    root_off : ndarray of shape (n_rays + 1,), int64 — ray r has root_off[r+1]-root_off[r] roots,
+        the first nodes of its block.
+    root_hi : ndarray of shape (n_roots,), float32 — Zmax of each root, mm.
+    z : ndarray of shape (m,), float32; stage, kids : ndarray of shape (m,), int32 — the nodes.
+
+    Examples
+    --------
+    >>> from zmap.sim.dexel import DexelWorkpiece
+    >>> it = IntervalTreap.start(DexelWorkpiece.from_box((0, 0, -1, 1, 1, 0), pitch=1.0))
+    >>> it.finalize(); it.n_nodes, it.display(0).tolist()
+    (4, [0.0, 0.0, 0.0, 0.0])
+    """
+
+    kind = "treap"
+
+    def __init__(self, n_rays: int, node_off: np.ndarray | None = None, root_off: np.ndarray | None = None,
+                 root_hi: np.ndarray | None = None, z: np.ndarray | None = None,
+                 stage: np.ndarray | None = None, kids: np.ndarray | None = None, max_block: int = 0):
+        self.n_rays = int(n_rays)
+        self.node_off = node_off
+        self.root_off = root_off
+        self.root_hi = root_hi
+        self.z = z
+        self.stage = stage
+        self.kids = kids
+        self.max_block = int(max_block)
+        self.n = 0 if z is None else int(z.shape[0])
+
+    @classmethod
+    def start(cls, wp: Any, capacity: int | None = None) -> "IntervalTreap":
+        """Start at stage 0: one root per stock dexel, each the leaf of its dexel."""
+        self = cls(wp.n_rays)
+        rows, cols = slot_index(wp.cnt, wp.slots)
+        m = rows.shape[0]
+        cap = max(int(capacity or 0), 4 * m + 1024)
+        self.b_z = np.empty(cap, dtype=np.float32)
+        self.b_s = np.empty(cap, dtype=np.int32)
+        self.b_k = np.empty(cap, dtype=np.int32)
+        self.b_z[:m] = wp.near[rows, cols]
+        self.b_s[:m] = 0
+        self.b_k[:m] = 0
+        self.root_hi = np.ascontiguousarray(wp.far[rows, cols])
+        self.root_off = np.zeros(wp.n_rays + 1, dtype=np.int64)
+        np.cumsum(wp.cnt, out=self.root_off[1:])
+        self.leaf = np.zeros((wp.n_rays, wp.slots), dtype=np.int32)
+        self.leaf[rows, cols] = np.arange(m, dtype=np.int32)
+        self.n = m
+        return self
+
+    @property
+    def capacity(self) -> int:
+        return int(self.b_z.shape[0])
+
+    def grow_pool(self) -> None:
+        cap = 2 * self.capacity
+        if cap >= 2 ** 29:
+            raise MemoryError("Interval Treap node pool would exceed 2**29 nodes")
+        self.b_z, self.b_s, self.b_k = grow1(self.b_z, cap), grow1(self.b_s, cap), grow1(self.b_k, cap)
+
+    def grow_slots(self, slots: int) -> None:
+        self.leaf = widen(self.leaf, slots)
+
+    def finalize(self) -> None:
+        """Re-lay the node pool ray by ray (children adjacent, after their parent)."""
+        n = self.n
+        self.node_off = np.empty(self.n_rays + 1, dtype=np.int64)
+        self.z = np.empty(n, dtype=np.float32)
+        self.stage = np.empty(n, dtype=np.int32)
+        self.kids = np.empty(n, dtype=np.int32)
+        self.max_block = int(_hk.treap_reorder(self.n_rays, self.root_off, self.b_z[:n], self.b_s[:n],
+                                               self.b_k[:n], self.node_off, self.z, self.stage, self.kids))
+        del self.b_z, self.b_s, self.b_k, self.leaf
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.z.shape[0]) if self.z is not None else self.n
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the finalised treap (node pool, roots' Zmax, ray offsets)."""
+        return int(self.z.nbytes + self.stage.nbytes + self.kids.nbytes + self.root_hi.nbytes
+                   + self.node_off.nbytes + self.root_off.nbytes)
+
+    def display(self, stage: int) -> np.ndarray:
+        """Zmax of the right-most non-empty leaf per ray at ``stage`` (NaN: background)."""
+        out = np.empty(self.n_rays, dtype=np.float64)
+        _hk.treap_display(self.node_off, self.root_off, self.root_hi, self.z, self.stage, self.kids,
+                          np.int32(stage), out)
+        return out
+
+    def reconstruct(self, stage: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Dexels at ``stage`` as CSR ``(offsets (n_rays+1,), near (m,) f4, far (m,) f4)``."""
+        cnt = np.empty(self.n_rays, dtype=np.int64)
+        near = np.empty(self.n_nodes, dtype=np.float32)
+        far = np.empty(self.n_nodes, dtype=np.float32)
+        m = _hk.treap_reconstruct(self.node_off, self.root_off, self.root_hi, self.z, self.stage,
+                                  self.kids, np.int32(stage), cnt, near, far)
+        offsets = np.zeros(self.n_rays + 1, dtype=np.int64)
+        np.cumsum(cnt, out=offsets[1:])
+        return offsets, near[:m], far[:m]
+
+    def heights(self) -> dict[str, float]:
+        """Balance figures of paper 000 section 6 over the rays that have nodes.
+
+        Returns
+        -------
+        dict
+            ``mean_height``: mean over rays of the average node depth (roots at 1);
+            ``mean_log2_nodes``: mean over rays of log2(node count);
+            ``mean_nodes``, ``max_nodes``; ``max_mean_height``.
+        """
+        depth = np.empty(self.n_rays, dtype=np.float64)
+        nodes = np.empty(self.n_rays, dtype=np.int64)
+        _hk.treap_heights(self.node_off, self.root_off, self.kids, depth, nodes)
+        has = nodes > 0
+        if not has.any():
+            return {"mean_height": 0.0, "mean_log2_nodes": 0.0, "mean_nodes": 0.0, "max_nodes": 0,
+                    "max_mean_height": 0.0}
+        return {
+            "mean_height": float(depth[has].mean()),
+            "mean_log2_nodes": float(np.log2(nodes[has]).mean()),
+            "mean_nodes": float(nodes[has].mean()),
+            "max_nodes": int(nodes.max()),
+            "max_mean_height": float(depth[has].max()),
+        }
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        return {"node_off": self.node_off, "root_off": self.root_off, "root_hi": self.root_hi,
+                "z": self.z, "stage": self.stage, "kids": self.kids,
+                "max_block": np.array(self.max_block, dtype=np.int64)}
+
+    @classmethod
+    def from_arrays(cls, n_rays: int, a: dict) -> "IntervalTreap":
+        return cls(n_rays, a["node_off"], a["root_off"], a["root_hi"], a["z"], a["stage"], a["kids"],
+                   int(a["max_block"]))
