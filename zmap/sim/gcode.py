@@ -565,7 +565,7 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
     mgroups: dict[int, int] = {}
     for code, k in mcodes:
         grp = _M_GROUP[code]
-        if grp in mgroups:
+        if grp in mgroups and {mgroups[grp], code} != {7, 8}:  # mist and flood may combine
             raise _err(file, lineno, s, k, f"M{code}",
                        f"M{mgroups[grp]} and M{code} are in the same modal group")
         mgroups[grp] = code
@@ -937,6 +937,12 @@ def _junk_error(st: _Interp, s: str, lineno: int, k: int, junk: str) -> None:
         if i == k:
             col = mt.start() + 1
             break
+    if junk.isalpha():
+        nxt = col
+        while nxt < len(s) and s[nxt] in " \t":
+            nxt += 1
+        if nxt < len(s) and s[nxt] in "#[":
+            col, junk = nxt + 1, s[nxt]
     mw = _JUNK_WORD.match(s, col - 1)
     word = mw.group() if mw else junk
     if junk == "#":
