@@ -66,6 +66,9 @@ def info(path: str) -> None:
 
 # ---- subcommands: each lives in the module of its feature and registers here --------------
 # sim commands (zmap/sim/commands.py): simulate, replay
+from .sim.commands import replay_cmd, simulate_cmd  # noqa: E402  (sim commands)
+cli.add_command(simulate_cmd)  # sim commands
+cli.add_command(replay_cmd)  # sim commands
 
 
 def main(argv: list[str] | None = None) -> int:
