@@ -254,7 +254,7 @@ class Program:
 
         Examples
         --------
-        >>> lo, hi = parse("G0 X1 Y0\\nG3 X-1 Y0 I-1 J0\\n").bounds()
+        >>> lo, hi = parse("G0 X1 Y0\\nG3 X-1 Y0 I-1 J0 F10\\n").bounds()
         >>> hi.tolist(), lo.tolist()
         ([1.0, 1.0, 0.0], [-1.0, 0.0, 0.0])
         """
