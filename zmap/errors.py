@@ -17,6 +17,7 @@ __all__ = [
     "StageError",
     "SimFileError",
     "GridTooLargeError",
+    "NurbsError",
 ]
 
 
@@ -67,3 +68,7 @@ class StageError(ZMapError, ValueError):
 
 class SimFileError(ZMapFileError):
     """A simulation run file that is missing, corrupt or of a foreign format."""
+
+
+class NurbsError(ZMapError, ValueError):
+    """A NURBS surface with inconsistent arrays or a degree the evaluator cannot take."""

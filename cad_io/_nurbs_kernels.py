@@ -1,0 +1,251 @@
+"""Numba kernels for NURBS surface evaluation (Piegl & Tiller, The NURBS Book).
+
+Only ``@njit(cache=True)`` code lives here: no validation, no exceptions for data reasons.
+The public front door is :mod:`cad_io.nurbs`. Surfaces come packed (see
+:func:`cad_io.nurbs.pack`):
+
+``deg``   int64 (F, 2)   degrees (p, q), -1 for a face without surface
+``ncp``   int64 (F, 2)   control point counts (nu, nv)
+``koff``  int64 (F, 2)   offsets of face k's u and v knot vectors in ``knots``
+``poff``  int64 (F,)     offset of face k's control points in ``cpw``
+``knots`` float64 (K,)   knot vectors, concatenated, multiplicities expanded
+``cpw``   float64 (N, 4) homogeneous control points (w x, w y, w z, w); face k's pole
+                         (a, b) is row ``poff[k] + a * nv + b``
+
+:func:`eval_point` evaluates one face at one (u, v) with all work arrays on the stack
+(no heap allocation), so the sampler can call it inside its Newton loop.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import carray, njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+__all__ = ["MAX_DEGREE", "eval_point", "eval_many", "find_span", "basis_ders"]
+
+#: Highest degree the fixed-size stack work arrays hold.
+MAX_DEGREE = 15
+_M = MAX_DEGREE + 1
+
+
+@intrinsic
+def _stack_f64(typingctx, n):
+    """A pointer to ``n`` float64 on the stack of the calling function (``n`` literal)."""
+    if not isinstance(n, types.IntegerLiteral):
+        return None
+    count = n.literal_value
+
+    def codegen(context, builder, signature, args):
+        ty = context.get_value_type(types.float64)
+        return cgutils.alloca_once(builder, ty, size=count)
+
+    return types.CPointer(types.float64)(n), codegen
+
+
+@njit(cache=True, inline="always")
+def find_span(knots, off, n, p, u):
+    """Knot span index of ``u`` (A2.1); ``n`` = number of control points - 1.
+
+    Indices are relative to ``off``, the start of the knot vector in ``knots``.
+    """
+    if u >= knots[off + n + 1]:
+        # last non-empty span
+        s = n
+        while s > p and knots[off + s] >= knots[off + n + 1]:
+            s -= 1
+        return s
+    if u <= knots[off + p]:
+        s = p
+        while s < n and knots[off + s + 1] <= knots[off + p]:
+            s += 1
+        return s
+    low = p
+    high = n + 1
+    mid = (low + high) // 2
+    while u < knots[off + mid] or u >= knots[off + mid + 1]:
+        if u < knots[off + mid]:
+            high = mid
+        else:
+            low = mid
+        mid = (low + high) // 2
+    return mid
+
+
+@njit(cache=True, inline="always")
+def basis_ders(knots, off, span, u, p, nd, ders, ndu, a, left, right):
+    """Non-zero basis functions and their derivatives up to ``nd`` (A2.3).
+
+    Fills ``ders[k, j]`` = k-th derivative of N_{span-p+j, p} at ``u`` for k <= nd
+    (zero for k > p). Work arrays: ``ndu`` (M, M), ``a`` (2, M), ``left``, ``right`` (M,).
+    """
+    ndu[0, 0] = 1.0
+    for j in range(1, p + 1):
+        left[j] = u - knots[off + span + 1 - j]
+        right[j] = knots[off + span + j] - u
+        saved = 0.0
+        for r in range(j):
+            ndu[j, r] = right[r + 1] + left[j - r]
+            temp = ndu[r, j - 1] / ndu[j, r]
+            ndu[r, j] = saved + right[r + 1] * temp
+            saved = left[j - r] * temp
+        ndu[j, j] = saved
+    for j in range(p + 1):
+        ders[0, j] = ndu[j, p]
+    for k in range(1, nd + 1):
+        for j in range(p + 1):
+            ders[k, j] = 0.0
+    n = nd if nd < p else p
+    for r in range(p + 1):
+        s1 = 0
+        s2 = 1
+        a[0, 0] = 1.0
+        for k in range(1, n + 1):
+            d = 0.0
+            rk = r - k
+            pk = p - k
+            if r >= k:
+                a[s2, 0] = a[s1, 0] / ndu[pk + 1, rk]
+                d = a[s2, 0] * ndu[rk, pk]
+            j1 = 1 if rk >= -1 else -rk
+            j2 = k - 1 if r - 1 <= pk else p - r
+            for j in range(j1, j2 + 1):
+                a[s2, j] = (a[s1, j] - a[s1, j - 1]) / ndu[pk + 1, rk + j]
+                d += a[s2, j] * ndu[rk + j, pk]
+            if r <= pk:
+                a[s2, k] = -a[s1, k - 1] / ndu[pk + 1, r]
+                d += a[s2, k] * ndu[r, pk]
+            ders[k, r] = d
+            t = s1
+            s1 = s2
+            s2 = t
+    rr = p
+    for k in range(1, n + 1):
+        for j in range(p + 1):
+            ders[k, j] *= rr
+        rr *= p - k
+
+
+@njit(cache=True)
+def eval_point(deg, ncp, koff, poff, knots, cpw, k, u, v, nderiv, out):
+    """Point and derivatives of face ``k`` at (``u``, ``v``), into ``out``.
+
+    Parameters
+    ----------
+    deg, ncp, koff, poff, knots, cpw : packed surfaces (module docstring)
+    k : int
+        Face index; the face must have a surface (``deg[k, 0] >= 0``) and degrees at most
+        :data:`MAX_DEGREE` (checked by :func:`cad_io.nurbs.pack`).
+    u, v : float
+        Parameters; values outside the domain are clamped to it.
+    nderiv : int
+        0: ``out[0]`` = S; 1: also ``out[1]`` = Su, ``out[2]`` = Sv; 2: also ``out[3]`` =
+        Suu, ``out[4]`` = Suv, ``out[5]`` = Svv.
+    out : ndarray of shape (>= 1, 3, or 6, 3), float64
+    """
+    p = deg[k, 0]
+    q = deg[k, 1]
+    nu = ncp[k, 0]
+    nv = ncp[k, 1]
+    ku = koff[k, 0]
+    kv = koff[k, 1]
+    po = poff[k]
+    nd = nderiv
+    if nd > 2:
+        nd = 2
+    if nd < 0:
+        nd = 0
+
+    # clamp to the domain
+    u0 = knots[ku + p]
+    u1 = knots[ku + nu]
+    v0 = knots[kv + q]
+    v1 = knots[kv + nv]
+    if u < u0:
+        u = u0
+    elif u > u1:
+        u = u1
+    if v < v0:
+        v = v0
+    elif v > v1:
+        v = v1
+
+    ndu = carray(_stack_f64(256), (_M, _M))
+    wa = carray(_stack_f64(32), (2, _M))
+    left = carray(_stack_f64(16), (_M,))
+    right = carray(_stack_f64(16), (_M,))
+    du = carray(_stack_f64(48), (3, _M))
+    dv = carray(_stack_f64(48), (3, _M))
+    skl = carray(_stack_f64(36), (3, 3, 4))
+    tmp = carray(_stack_f64(12), (3, 4))
+
+    su = find_span(knots, ku, nu - 1, p, u)
+    sv = find_span(knots, kv, nv - 1, q, v)
+    basis_ders(knots, ku, su, u, p, nd, du, ndu, wa, left, right)
+    basis_ders(knots, kv, sv, v, q, nd, dv, ndu, wa, left, right)
+
+    for a in range(3):
+        for b in range(3):
+            for c in range(4):
+                skl[a, b, c] = 0.0
+    # homogeneous derivatives: sum_i sum_j Nu^(a)_i Nv^(b)_j Pw_ij, a + b <= nd
+    for i in range(p + 1):
+        row = po + (su - p + i) * nv + (sv - q)
+        for b in range(nd + 1):
+            for c in range(4):
+                tmp[b, c] = 0.0
+        for j in range(q + 1):
+            r = row + j
+            x = cpw[r, 0]
+            y = cpw[r, 1]
+            z = cpw[r, 2]
+            w = cpw[r, 3]
+            for b in range(nd + 1):
+                n = dv[b, j]
+                tmp[b, 0] += n * x
+                tmp[b, 1] += n * y
+                tmp[b, 2] += n * z
+                tmp[b, 3] += n * w
+        for a in range(nd + 1):
+            na = du[a, i]
+            for b in range(nd + 1 - a):
+                for c in range(4):
+                    skl[a, b, c] += na * tmp[b, c]
+
+    # rational derivatives (A4.4), binomials of order <= 2 are 1, 1, 2, 1
+    w0 = skl[0, 0, 3]
+    for c in range(3):
+        s = skl[0, 0, c] / w0
+        out[0, c] = s
+    if nd >= 1:
+        wu = skl[1, 0, 3]
+        wv = skl[0, 1, 3]
+        for c in range(3):
+            s = out[0, c]
+            su_ = (skl[1, 0, c] - wu * s) / w0
+            sv_ = (skl[0, 1, c] - wv * s) / w0
+            out[1, c] = su_
+            out[2, c] = sv_
+            if nd >= 2:
+                out[3, c] = (skl[2, 0, c] - 2.0 * wu * su_ - skl[2, 0, 3] * s) / w0
+                out[4, c] = (skl[1, 1, c] - wu * sv_ - wv * su_ - skl[1, 1, 3] * s) / w0
+                out[5, c] = (skl[0, 2, c] - 2.0 * wv * sv_ - skl[0, 2, 3] * s) / w0
+
+
+@njit(cache=True, parallel=True)
+def eval_many(deg, ncp, koff, poff, knots, cpw, face, u, v, nderiv, out):
+    """:func:`eval_point` over flat arrays ``face``, ``u``, ``v`` (n,) into ``out`` (n, r, 3).
+
+    Faces without a surface (``deg[face, 0] < 0``) get NaN.
+    """
+    n = u.shape[0]
+    nrow = out.shape[1]
+    for i in prange(n):
+        k = face[i]
+        if deg[k, 0] < 0 or u[i] != u[i] or v[i] != v[i]:
+            for a in range(nrow):
+                for c in range(3):
+                    out[i, a, c] = np.nan
+        else:
+            eval_point(deg, ncp, koff, poff, knots, cpw, k, u[i], v[i], nderiv, out[i])
