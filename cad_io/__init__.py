@@ -1,1 +1,40 @@
-"""Everything that touches a CAD kernel: STEP reading, NURBS evaluation, z-map sampling."""
+"""Everything that touches a CAD kernel: STEP reading, NURBS evaluation, z-map sampling.
+
+The public functions load lazily: ``import cad_io`` imports neither OCP nor numba kernels;
+``cad_io.read_step`` does on first use.
+
+Examples
+--------
+>>> import cad_io
+>>> callable(cad_io.from_geomdl)
+True
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from cad_io.part import Edge, Face, FaceMesh, NurbsSurface, Part
+
+__all__ = ["read_step", "from_geomdl", "sample", "triangulate",
+           "Part", "Face", "Edge", "NurbsSurface", "FaceMesh"]
+
+_LAZY = {
+    "read_step": "cad_io.step",
+    "from_geomdl": "cad_io.geomdl_io",
+    "sample": "cad_io.sample",
+    "triangulate": "cad_io.mesh",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'cad_io' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
