@@ -468,6 +468,8 @@ def parse(
                 continue
             s = s.replace("/", " ", 1)
         toks = tok_findall(s)
+        if _fast_block(st, toks, lineno):
+            continue
         if lenient:
             snap = st.snapshot()
             try:
@@ -504,6 +506,69 @@ def parse(
         filename=fname,
         tool_table=table,
     )
+
+
+_FAST_LETTERS = frozenset("XYZFN")
+
+
+def _fast_block(st: _Interp, toks: list, lineno: int) -> bool:
+    """Fast path for the common block: coordinates (and F) under modal G0/G1.
+
+    Returns False, having changed nothing, for anything else (the full interpreter runs).
+    """
+    motion = st.motion
+    vals: dict[str, float] = {}
+    for letter, num, junk in toks:
+        if junk or letter in vals:
+            return False
+        if letter == "G":
+            v = float(num)
+            if v == 0.0:
+                motion = 0
+            elif v == 1.0:
+                motion = 10
+            else:
+                return False
+            vals["G"] = v
+        elif letter not in _FAST_LETTERS:
+            return False
+        elif letter != "N":
+            vals[letter] = float(num)
+    if motion != 0 and motion != 10:
+        return False
+    vals.pop("G", None)
+    f = MM_PER_INCH if st.units == "inch" else 1.0
+    feed = st.feed
+    if "F" in vals:
+        v = vals.pop("F")
+        if v < 0:
+            return False
+        feed = v * f
+    if not vals:
+        st.feed = feed
+        st.motion = motion
+        return True
+    if motion == 10 and not feed > 0:
+        return False
+    pos = st.pos
+    if st.absolute:
+        off = st.offsets[st.cs]
+        x = vals["X"] * f + off[0] if "X" in vals else pos[0]
+        y = vals["Y"] * f + off[1] if "Y" in vals else pos[1]
+        z = vals["Z"] * f + off[2] if "Z" in vals else pos[2]
+    else:
+        x = pos[0] + vals["X"] * f if "X" in vals else pos[0]
+        y = pos[1] + vals["Y"] * f if "Y" in vals else pos[1]
+        z = pos[2] + vals["Z"] * f if "Z" in vals else pos[2]
+    nan = math.nan
+    if motion == 0:
+        st.rows.append((0, x, y, z, nan, nan, nan, st.plane, 0, nan, st.tool, lineno, nan))
+    else:
+        st.rows.append((1, x, y, z, nan, nan, nan, st.plane, 0, feed, st.tool, lineno, nan))
+    st.pos = [x, y, z]
+    st.feed = feed
+    st.motion = motion
+    return True
 
 
 def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:

@@ -100,6 +100,18 @@ def test_real_program_facts():
     assert set(np.unique(stella.moves["plane"][stella.moves["kind"] >= 2])) == {18}
 
 
+@needs_data
+@pytest.mark.parametrize("name", ["flower_mold.nc", "cameo.nc", "rgh.ngc", "tort.ngc"])
+def test_fast_path_equals_full_interpreter(name, monkeypatch):
+    import zmap.sim.gcode as gcode
+
+    fast = parse(DATA / name)
+    monkeypatch.setattr(gcode, "_fast_block", lambda *args: False)
+    slow = parse(DATA / name)
+    for field_ in MOVE_DTYPE.names:
+        np.testing.assert_array_equal(fast.moves[field_], slow.moves[field_])
+
+
 def _canon_moves(path: Path) -> list[tuple[str, tuple[str, ...]]]:
     """STRAIGHT_TRAVERSE / STRAIGHT_FEED / ARC_FEED end points from an rs274 -g listing."""
     out = []
@@ -244,6 +256,9 @@ def test_tools_and_tool_table():
     with pytest.raises(GCodeError, match="not in the tool table") as info:
         parse("G0 X1\nT7 M6\n", tool_table=table)
     assert (info.value.line, info.value.word) == (2, "T7")
+    toml = Path(__file__).resolve().parents[3] / "data" / "tools.toml"
+    q = parse("T4 M6\nG0 X1\n", tool_table=toml)
+    assert q.tool_table[4].kind == "flat" and q.moves["tool"].tolist() == [4]
 
 
 def test_dwell_path_modes_and_misc_codes_are_accepted():
