@@ -303,10 +303,6 @@ def _read_source(source: str | os.PathLike, filename: str | None) -> tuple[str, 
     return source, filename if filename is not None else "<string>"
 
 
-class _Skip(Exception):
-    """Internal: a block rejected under lenient mode (carries the GCodeError)."""
-
-
 class _Interp:
     """Modal state of the interpreter; moves are appended as float rows."""
 
@@ -916,7 +912,6 @@ def _cycle(st, words, widx, gk, s, lineno, motion, plane, pos, f, off, absolute,
             raise werr("L", f"L (repeats) must be a non-negative integer, got {_fmt(lv)}")
         repeats = int(lv)
         used.add("L")
-    dwell_ok = motion == 820
     if motion == 820:
         if "P" in words:
             if words["P"] < 0:
@@ -931,7 +926,6 @@ def _cycle(st, words, widx, gk, s, lineno, motion, plane, pos, f, off, absolute,
         if not cycle_q > 0:
             raise werr("Q", "Q (peck depth) must be positive") if "Q" in words else gerr(
                 "Q (peck depth) must be positive")
-    del dwell_ok
     old_cc = pos[n]
     if absolute:
         aa = words[_XYZ[a]] * f + off[a] if _XYZ[a] in words else pos[a]
