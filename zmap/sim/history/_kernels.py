@@ -12,36 +12,39 @@ __all__: list[str] = []
 
 
 @njit(cache=True)
-def group_by_ray(ray, n_rays, order_out, offsets_out):
-    """Stable counting sort of element indices by ray; fills ``order_out`` and ``offsets_out``."""
-    n = ray.shape[0]
+def ray_offsets(ray, n_rays, offsets_out):
+    """CSR offsets of elements grouped by ray: ``offsets_out[r]`` = elements of rays < r."""
     for r in range(n_rays + 1):
         offsets_out[r] = 0
-    for e in range(n):
+    for e in range(ray.shape[0]):
         offsets_out[ray[e] + 1] += 1
     for r in range(n_rays):
         offsets_out[r + 1] += offsets_out[r]
-    fill = offsets_out[:-1].copy()
-    for e in range(n):
-        r = ray[e]
-        order_out[fill[r]] = e
-        fill[r] += 1
 
 
 @njit(cache=True)
-def sort_segments_by_z(offsets, z, order):
-    """Insertion-sort ``order`` within each ray segment by ``z[order]`` (stable)."""
-    for r in range(offsets.shape[0] - 1):
-        lo = offsets[r]
-        hi = offsets[r + 1]
-        for a in range(lo + 1, hi):
-            e = order[a]
-            v = z[e]
-            b = a - 1
-            while b >= lo and z[order[b]] > v:
-                order[b + 1] = order[b]
-                b -= 1
-            order[b + 1] = e
+def scatter3(ray, offsets, a, b, c, out_a, out_b, out_c):
+    """Stable counting-sort scatter of three parallel arrays by ray."""
+    fill = offsets[:-1].copy()
+    for e in range(ray.shape[0]):
+        r = ray[e]
+        q = fill[r]
+        out_a[q] = a[e]
+        out_b[q] = b[e]
+        out_c[q] = c[e]
+        fill[r] = q + 1
+
+
+@njit(cache=True)
+def scatter2(ray, offsets, a, b, out_a, out_b):
+    """Stable counting-sort scatter of two parallel arrays by ray."""
+    fill = offsets[:-1].copy()
+    for e in range(ray.shape[0]):
+        r = ray[e]
+        q = fill[r]
+        out_a[q] = a[e]
+        out_b[q] = b[e]
+        fill[r] = q + 1
 
 
 # ---- z-trace ---------------------------------------------------------------------------
@@ -58,30 +61,38 @@ def ztrace_count(offsets, zc, zd, k, cnt_out):
 
 
 @njit(cache=True)
-def ztrace_fill(offsets, zz, zc, zd, k, out_off, near, far):
-    """Pair the alive Z-elements of each ray (sorted by z) into dexels [near, far]."""
+def ztrace_fill(offsets, zz, zc, zd, k, out_off, near, far, buf):
+    """Sort the alive Z-elements of each ray by z and pair them into dexels [near, far].
+
+    ``buf`` (length >= the largest alive count of a ray) is scratch for the sort.
+    """
     for r in range(offsets.shape[0] - 1):
-        q = out_off[r]
-        first = True
+        m = 0
         for e in range(offsets[r], offsets[r + 1]):
             if zc[e] <= k and zd[e] > k:
-                if first:
-                    near[q] = zz[e]
-                else:
-                    far[q] = zz[e]
-                    q += 1
-                first = not first
+                v = zz[e]
+                b = m - 1
+                while b >= 0 and buf[b] > v:
+                    buf[b + 1] = buf[b]
+                    b -= 1
+                buf[b + 1] = v
+                m += 1
+        q = out_off[r]
+        for t in range(0, m - 1, 2):
+            near[q] = buf[t]
+            far[q] = buf[t + 1]
+            q += 1
 
 
 @njit(cache=True)
 def ztrace_top(offsets, zz, zc, zd, k, out):
     """Largest alive Z of each ray at stage k (the last FarZ), NaN when none."""
     for r in range(offsets.shape[0] - 1):
-        out[r] = np.nan
-        for e in range(offsets[r + 1] - 1, offsets[r] - 1, -1):
-            if zc[e] <= k and zd[e] > k:
-                out[r] = zz[e]
-                break
+        best = -np.inf
+        for e in range(offsets[r], offsets[r + 1]):
+            if zc[e] <= k and zd[e] > k and zz[e] > best:
+                best = zz[e]
+        out[r] = best if best > -np.inf else np.nan
 
 
 # ---- time-trace ------------------------------------------------------------------------
@@ -172,32 +183,25 @@ def _grow(a):
 
 
 @njit(cache=True)
-def treap_display(node_off, root_off, root_hi, tz, ts, tk, k, out):
+def treap_display(node_off, root_off, root_hi, tz, ts, tk, k, out, stack_n, stack_lo, stack_hi):
     """Right-most non-empty leaf of each ray's treap as cut at stage k (its Zmax), or NaN.
 
     Reverse in-order traversal (right child first); a node whose children were created
-    after stage k is a leaf at stage k.
+    after stage k is a leaf at stage k. A node with one child is descended without the
+    stack; the stacks (length >= nodes of the biggest ray + 1) hold pending left children.
     """
     n_rays = node_off.shape[0] - 1
-    stack_n = np.empty(64, dtype=np.int64)
-    stack_lo = np.empty(64, dtype=np.float32)
-    stack_hi = np.empty(64, dtype=np.float32)
     for r in range(n_rays):
         out[r] = np.nan
         base = node_off[r]
-        nroot = root_off[r + 1] - root_off[r]
+        r0 = root_off[r]
         found = False
-        for t in range(nroot - 1, -1, -1):
+        for t in range(root_off[r + 1] - r0 - 1, -1, -1):
+            node = base + t
+            lo = tz[node]
+            hi = root_hi[r0 + t]
             sp = 0
-            stack_n[0] = base + t
-            stack_lo[0] = tz[base + t]
-            stack_hi[0] = root_hi[root_off[r] + t]
-            sp = 1
-            while sp > 0:
-                sp -= 1
-                node = stack_n[sp]
-                lo = stack_lo[sp]
-                hi = stack_hi[sp]
+            while True:
                 kids = tk[node]
                 mask = kids & 3
                 first = kids >> 2
@@ -206,55 +210,55 @@ def treap_display(node_off, root_off, root_hi, tz, ts, tk, k, out):
                         out[r] = hi
                         found = True
                         break
-                    continue
-                if sp + 2 > stack_n.shape[0]:
-                    stack_n = _grow(stack_n)
-                    stack_lo = _grow(stack_lo)
-                    stack_hi = _grow(stack_hi)
-                if mask & 1:
-                    zl = tz[first]
-                    if zl == zl:  # not an empty leaf
-                        stack_n[sp] = first
-                        stack_lo[sp] = lo
-                        stack_hi[sp] = zl
-                        sp += 1
-                if mask & 2:
-                    c = first + (mask & 1)
-                    stack_n[sp] = c
-                    stack_lo[sp] = tz[c]
-                    stack_hi[sp] = hi
+                elif mask == 3:  # split: visit the right piece first, keep the left one
+                    stack_n[sp] = first
+                    stack_lo[sp] = lo
+                    stack_hi[sp] = tz[first]
                     sp += 1
+                    node = first + 1
+                    lo = tz[first + 1]
+                    continue
+                elif mask == 1:
+                    zl = tz[first]
+                    if zl == zl:  # Zmax modified; NaN marks the empty leaf of a deletion
+                        node = first
+                        hi = zl
+                        continue
+                else:
+                    node = first
+                    lo = tz[first]
+                    continue
+                if sp == 0:
+                    break
+                sp -= 1
+                node = stack_n[sp]
+                lo = stack_lo[sp]
+                hi = stack_hi[sp]
             if found:
                 break
 
 
 @njit(cache=True)
-def treap_reconstruct(node_off, root_off, root_hi, tz, ts, tk, k, cnt_out, near, far):
+def treap_reconstruct(node_off, root_off, root_hi, tz, ts, tk, k, cnt_out, near, far,
+                      stack_n, stack_lo, stack_hi):
     """Non-empty leaves of the treap cut at stage k, left to right: the dexels of stage k.
 
-    A branch stops where both children were created after stage k (they are cut away) or
+    A branch stops where the children were created after stage k (they are cut away) or
     at a leaf. Dexels go to ``near``/``far`` in ray order, counts to ``cnt_out``; returns
     their total.
     """
     n_rays = node_off.shape[0] - 1
-    stack_n = np.empty(64, dtype=np.int64)
-    stack_lo = np.empty(64, dtype=np.float32)
-    stack_hi = np.empty(64, dtype=np.float32)
     q = 0
     for r in range(n_rays):
         q0 = q
         base = node_off[r]
-        nroot = root_off[r + 1] - root_off[r]
-        for t in range(nroot):
-            stack_n[0] = base + t
-            stack_lo[0] = tz[base + t]
-            stack_hi[0] = root_hi[root_off[r] + t]
-            sp = 1
-            while sp > 0:
-                sp -= 1
-                node = stack_n[sp]
-                lo = stack_lo[sp]
-                hi = stack_hi[sp]
+        r0 = root_off[r]
+        for t in range(root_off[r + 1] - r0):
+            node = base + t
+            lo = tz[node]
+            hi = root_hi[r0 + t]
+            sp = 0
+            while True:
                 kids = tk[node]
                 mask = kids & 3
                 first = kids >> 2
@@ -263,25 +267,30 @@ def treap_reconstruct(node_off, root_off, root_hi, tz, ts, tk, k, cnt_out, near,
                         near[q] = lo
                         far[q] = hi
                         q += 1
-                    continue
-                if sp + 2 > stack_n.shape[0]:
-                    stack_n = _grow(stack_n)
-                    stack_lo = _grow(stack_lo)
-                    stack_hi = _grow(stack_hi)
-                # push right first so that the left child is visited first (in-order)
-                if mask & 2:
-                    c = first + (mask & 1)
-                    stack_n[sp] = c
-                    stack_lo[sp] = tz[c]
+                elif mask == 3:  # split: left piece now, right piece later
+                    stack_n[sp] = first + 1
+                    stack_lo[sp] = tz[first + 1]
                     stack_hi[sp] = hi
                     sp += 1
-                if mask & 1:
+                    node = first
+                    hi = tz[first]
+                    continue
+                elif mask == 1:
                     zl = tz[first]
                     if zl == zl:
-                        stack_n[sp] = first
-                        stack_lo[sp] = lo
-                        stack_hi[sp] = zl
-                        sp += 1
+                        node = first
+                        hi = zl
+                        continue
+                else:
+                    node = first
+                    lo = tz[first]
+                    continue
+                if sp == 0:
+                    break
+                sp -= 1
+                node = stack_n[sp]
+                lo = stack_lo[sp]
+                hi = stack_hi[sp]
         cnt_out[r] = q - q0
     return q
 

@@ -133,8 +133,13 @@ class IntervalTreap:
         """Zmax of the right-most non-empty leaf per ray at ``stage`` (NaN: background)."""
         out = np.empty(self.n_rays, dtype=np.float64)
         _hk.treap_display(self.node_off, self.root_off, self.root_hi, self.z, self.stage, self.kids,
-                          np.int32(stage), out)
+                          np.int32(stage), out, *self._stacks())
         return out
+
+    def _stacks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        # a ray's pending split pieces never outnumber its nodes
+        m = self.max_block + 2
+        return np.empty(m, dtype=np.int64), np.empty(m, dtype=np.float32), np.empty(m, dtype=np.float32)
 
     def reconstruct(self, stage: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Dexels at ``stage`` as CSR ``(offsets (n_rays+1,), near (m,) f4, far (m,) f4)``."""
@@ -142,7 +147,7 @@ class IntervalTreap:
         near = np.empty(self.n_nodes, dtype=np.float32)
         far = np.empty(self.n_nodes, dtype=np.float32)
         m = _hk.treap_reconstruct(self.node_off, self.root_off, self.root_hi, self.z, self.stage,
-                                  self.kids, np.int32(stage), cnt, near, far)
+                                  self.kids, np.int32(stage), cnt, near, far, *self._stacks())
         offsets = np.zeros(self.n_rays + 1, dtype=np.int64)
         np.cumsum(cnt, out=offsets[1:])
         return offsets, near[:m], far[:m]

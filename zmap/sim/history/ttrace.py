@@ -74,12 +74,12 @@ class TimeTrace:
     def finalize(self) -> None:
         """Group the elements by ray, keeping their time order."""
         n = self.n
-        order = np.empty(n, dtype=np.int64)
-        offsets = np.empty(self.n_rays + 1, dtype=np.int64)
-        _hk.group_by_ray(self.b_ray[:n], self.n_rays, order, offsets)
-        self.offsets = offsets
-        self.z = np.ascontiguousarray(self.b_z[:n][order])
-        self.stage = np.ascontiguousarray(self.b_s[:n][order])
+        ray = self.b_ray[:n]
+        self.offsets = np.empty(self.n_rays + 1, dtype=np.int64)
+        _hk.ray_offsets(ray, self.n_rays, self.offsets)
+        self.z = np.empty(n, dtype=np.float32)
+        self.stage = np.empty(n, dtype=np.int32)
+        _hk.scatter2(ray, self.offsets, self.b_z[:n], self.b_s[:n], self.z, self.stage)
         del self.b_z, self.b_s, self.b_ray
 
     @property

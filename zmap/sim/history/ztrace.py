@@ -2,9 +2,11 @@
 
 Every Z of the extended z-buffer (each NearZ and each FarZ) is a Z-element with its value,
 creation stage and deletion stage (rules 1-5). The elements are recorded by the cutting
-kernel as the dexels change and finalised into one list per ray sorted by z (CSR). The
-workpiece at stage n is rebuilt by keeping the elements with ``creation <= n < deletion``
-and pairing them, in z order, into ``[NearZ, FarZ]`` dexels (section 3.3).
+kernel as the dexels change and finalised into one list per ray (CSR, creation order: the
+paper inserts each element at its z place, here the few elements alive at a stage are
+sorted when they are read). The workpiece at stage n is rebuilt by keeping the elements
+with ``creation <= n < deletion`` and pairing them, in z order, into ``[NearZ, FarZ]``
+dexels (section 3.3).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ class ZTrace:
     Attributes (finalised)
     ----------------------
     offsets : ndarray of shape (n_rays + 1,), int64
-        Ray r owns elements ``offsets[r]:offsets[r+1]``, sorted by z.
+        Ray r owns elements ``offsets[r]:offsets[r+1]``, in creation order.
     z : ndarray of shape (m,), float32 — Z value in mm.
     created, deleted : ndarray of shape (m,), int32 — stages; ``deleted = 2**31 - 1`` while alive.
 
@@ -90,17 +92,16 @@ class ZTrace:
         self.zid_far = widen(self.zid_far, slots)
 
     def finalize(self) -> None:
-        """Sort the recorded elements into one z-ordered list per ray."""
+        """Group the recorded elements by ray (creation order within a ray)."""
         n = self.n
-        order = np.empty(n, dtype=np.int64)
-        offsets = np.empty(self.n_rays + 1, dtype=np.int64)
-        _hk.group_by_ray(self.b_ray[:n], self.n_rays, order, offsets)
-        z = self.b_z[:n]
-        _hk.sort_segments_by_z(offsets, z, order)
-        self.offsets = offsets
-        self.z = np.ascontiguousarray(z[order])
-        self.created = np.ascontiguousarray(self.b_c[:n][order])
-        self.deleted = np.ascontiguousarray(self.b_d[:n][order])
+        ray = self.b_ray[:n]
+        self.offsets = np.empty(self.n_rays + 1, dtype=np.int64)
+        _hk.ray_offsets(ray, self.n_rays, self.offsets)
+        self.z = np.empty(n, dtype=np.float32)
+        self.created = np.empty(n, dtype=np.int32)
+        self.deleted = np.empty(n, dtype=np.int32)
+        _hk.scatter3(ray, self.offsets, self.b_z[:n], self.b_c[:n], self.b_d[:n],
+                     self.z, self.created, self.deleted)
         del self.b_z, self.b_c, self.b_d, self.b_ray, self.zid_near, self.zid_far
 
     # ---- queries ------------------------------------------------------------------------
@@ -123,7 +124,8 @@ class ZTrace:
         np.cumsum(cnt, out=out_off[1:])
         near = np.empty(out_off[-1], dtype=np.float32)
         far = np.empty(out_off[-1], dtype=np.float32)
-        _hk.ztrace_fill(self.offsets, self.z, self.created, self.deleted, k, out_off, near, far)
+        buf = np.empty(2 * int(cnt.max(initial=0)) + 2, dtype=np.float32)
+        _hk.ztrace_fill(self.offsets, self.z, self.created, self.deleted, k, out_off, near, far, buf)
         return out_off, near, far
 
     def display(self, stage: int) -> np.ndarray:
