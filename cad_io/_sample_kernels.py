@@ -1,0 +1,264 @@
+"""Numba kernels of the z-map sampler (:mod:`cad_io.sample`); no validation here.
+
+The sampler works on *pairs* (grid point, mesh triangle that covers it in xy): every pair
+is one candidate height. :func:`count_pairs` and :func:`fill_pairs` rasterise the
+triangles onto the grid (barycentric weights of the grid point in the triangle),
+:func:`solve_pairs` turns each pair into a height (2D Jacobian inversion on the face's
+NURBS from the barycentric (u, v), or the triangle's exact barycentric height), and
+:func:`reduce_pairs` keeps the top-most candidate per grid point.
+
+Status codes (the ``method`` layer): 0 no height, 1 Jacobian inversion, 2 facet.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ._nurbs_kernels import eval_point
+
+__all__ = ["count_pairs", "fill_pairs", "solve_pairs", "reduce_pairs", "point_in_loops"]
+
+#: triangles whose xy area is below this share of their squared longest edge are treated
+#: as vertical (they cover no grid point)
+_FLAT_EPS = 1e-12
+
+
+@njit(cache=True, inline="always")
+def _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny):
+    xmin = min(ax, min(bx, cx))
+    xmax = max(ax, max(bx, cx))
+    ymin = min(ay, min(by, cy))
+    ymax = max(ay, max(by, cy))
+    i0 = max(0, int(math.ceil((xmin - x0) / dx - 1e-9)))
+    i1 = min(nx - 1, int(math.floor((xmax - x0) / dx + 1e-9)))
+    j0 = max(0, int(math.ceil((ymin - y0) / dy - 1e-9)))
+    j1 = min(ny - 1, int(math.floor((ymax - y0) / dy + 1e-9)))
+    return i0, i1, j0, j1
+
+
+@njit(cache=True, parallel=True)
+def count_pairs(nodes, tris, x0, y0, dx, dy, nx, ny, counts):
+    """Number of grid points inside each triangle's xy projection, into ``counts`` (M,)."""
+    for t in prange(tris.shape[0]):
+        a = tris[t, 0]
+        b = tris[t, 1]
+        c = tris[t, 2]
+        ax = nodes[a, 0]
+        ay = nodes[a, 1]
+        bx = nodes[b, 0]
+        by = nodes[b, 1]
+        cx = nodes[c, 0]
+        cy = nodes[c, 1]
+        area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
+        l2 = max((bx - ax) ** 2 + (by - ay) ** 2, max((cx - ax) ** 2 + (cy - ay) ** 2, (cx - bx) ** 2 + (cy - by) ** 2))
+        n = 0
+        if abs(area) > _FLAT_EPS * l2 and area == area:
+            inv = 1.0 / area
+            tol = 1e-12
+            i0, i1, j0, j1 = _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny)
+            for i in range(i0, i1 + 1):
+                px = x0 + i * dx
+                for j in range(j0, j1 + 1):
+                    py = y0 + j * dy
+                    w1 = ((px - ax) * (cy - ay) - (cx - ax) * (py - ay)) * inv
+                    w2 = ((bx - ax) * (py - ay) - (px - ax) * (by - ay)) * inv
+                    if w1 >= -tol and w2 >= -tol and w1 + w2 <= 1.0 + tol:
+                        n += 1
+        counts[t] = n
+
+
+@njit(cache=True, parallel=True)
+def fill_pairs(nodes, tris, t0, offsets, x0, y0, dx, dy, nx, ny, gidx, tri, w):
+    """Grid index, triangle and barycentric weights of every pair of triangles t0.. .
+
+    ``offsets[t - t0]`` is where triangle ``t``'s pairs start (its count from
+    :func:`count_pairs`, cumulated); ``gidx`` (P,) int64 = ``i * ny + j``, ``tri`` (P,) int64,
+    ``w`` (P, 2) float64 = weights of the triangle's 2nd and 3rd node.
+    """
+    for tt in prange(offsets.shape[0] - 1):
+        t = t0 + tt
+        p = offsets[tt]
+        if offsets[tt + 1] == p:
+            continue
+        a = tris[t, 0]
+        b = tris[t, 1]
+        c = tris[t, 2]
+        ax = nodes[a, 0]
+        ay = nodes[a, 1]
+        bx = nodes[b, 0]
+        by = nodes[b, 1]
+        cx = nodes[c, 0]
+        cy = nodes[c, 1]
+        area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
+        inv = 1.0 / area
+        tol = 1e-12
+        i0, i1, j0, j1 = _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny)
+        for i in range(i0, i1 + 1):
+            px = x0 + i * dx
+            for j in range(j0, j1 + 1):
+                py = y0 + j * dy
+                w1 = ((px - ax) * (cy - ay) - (cx - ax) * (py - ay)) * inv
+                w2 = ((bx - ax) * (py - ay) - (px - ax) * (by - ay)) * inv
+                if w1 >= -tol and w2 >= -tol and w1 + w2 <= 1.0 + tol:
+                    gidx[p] = i * ny + j
+                    tri[p] = t
+                    w[p, 0] = w1
+                    w[p, 1] = w2
+                    p += 1
+
+
+@njit(cache=True)
+def point_in_loops(u, v, loop_uv, loop_off, first, last):
+    """Even-odd test of (u, v) against loops ``first..last-1`` (``loop_off`` bounds in ``loop_uv``)."""
+    inside = False
+    for L in range(first, last):
+        s = loop_off[L]
+        e = loop_off[L + 1]
+        n = e - s
+        for m in range(n):
+            ua = loop_uv[s + m, 0]
+            va = loop_uv[s + m, 1]
+            mb = m + 1
+            if mb == n:
+                mb = 0
+            ub = loop_uv[s + mb, 0]
+            vb = loop_uv[s + mb, 1]
+            if (va > v) != (vb > v):
+                ux = ua + (v - va) * (ub - ua) / (vb - va)
+                if u < ux:
+                    inside = not inside
+    return inside
+
+
+@njit(cache=True, parallel=True)
+def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
+                deg, ncp, koff, poff, knots, cpw, domain, loop_uv, loop_off, face_loops,
+                x0, y0, dx, dy, ny, mode, tol, max_iter, z, status):
+    """Height candidate of every pair, into ``z`` (P,) and ``status`` (P,) int8.
+
+    Parameters
+    ----------
+    face_mode : (F,) int8
+        1: invert the face's NURBS, 2: facets only (no surface or no uv).
+    face_zgap : (F,) float64
+        Largest accepted |z_newton - z_facet| (guards against a jump to another layer).
+    tri_check : (M,) bool
+        Triangle touches the mesh boundary: test the solution against the trim loops.
+    face_loops : (F, 2) int64
+        First and one-past-last loop of each face in ``loop_off``.
+    mode : int
+        0 auto (Newton, facet where it fails), 1 Newton only, 2 facets only.
+    """
+    P = gidx.shape[0]
+    nblk = 64
+    for blk in prange(nblk):
+        out = np.empty((3, 3))
+        p0 = blk * P // nblk
+        p1 = (blk + 1) * P // nblk
+        for p in range(p0, p1):
+            t = tri[p]
+            k = tri_face[t]
+            a = tris[t, 0]
+            b = tris[t, 1]
+            c = tris[t, 2]
+            w1 = w[p, 0]
+            w2 = w[p, 1]
+            w0 = 1.0 - w1 - w2
+            zf = w0 * nodes[a, 2] + w1 * nodes[b, 2] + w2 * nodes[c, 2]
+            if mode == 2 or face_mode[k] == 2:
+                z[p] = zf
+                status[p] = 2
+                continue
+            g = gidx[p]
+            xg = x0 + (g // ny) * dx
+            yg = y0 + (g % ny) * dy
+            u = w0 * uv[a, 0] + w1 * uv[b, 0] + w2 * uv[c, 0]
+            v = w0 * uv[a, 1] + w1 * uv[b, 1] + w2 * uv[c, 1]
+            u0 = domain[k, 0]
+            u1 = domain[k, 1]
+            v0 = domain[k, 2]
+            v1 = domain[k, 3]
+            u = min(max(u, u0), u1)
+            v = min(max(v, v0), v1)
+            eval_point(deg, ncp, koff, poff, knots, cpw, k, u, v, 1, out)
+            fx = out[0, 0] - xg
+            fy = out[0, 1] - yg
+            r = math.sqrt(fx * fx + fy * fy)
+            ok = False
+            edge = False
+            for it in range(max_iter):
+                if r <= tol:
+                    ok = True
+                    break
+                sux = out[1, 0]
+                suy = out[1, 1]
+                svx = out[2, 0]
+                svy = out[2, 1]
+                det = sux * svy - svx * suy
+                nsu = out[1, 0] ** 2 + out[1, 1] ** 2 + out[1, 2] ** 2
+                nsv = out[2, 0] ** 2 + out[2, 1] ** 2 + out[2, 2] ** 2
+                if not (abs(det) > 1e-10 * math.sqrt(nsu * nsv)):
+                    break  # singular: vertical wall or fold
+                du = -(svy * fx - svx * fy) / det
+                dv = -(-suy * fx + sux * fy) / det
+                lam = 1.0
+                improved = False
+                for h in range(12):
+                    un = min(max(u + lam * du, u0), u1)
+                    vn = min(max(v + lam * dv, v0), v1)
+                    eval_point(deg, ncp, koff, poff, knots, cpw, k, un, vn, 1, out)
+                    fxn = out[0, 0] - xg
+                    fyn = out[0, 1] - yg
+                    rn = math.sqrt(fxn * fxn + fyn * fyn)
+                    if rn < r:
+                        improved = True
+                        break
+                    lam *= 0.5
+                u = un
+                v = vn
+                fx = fxn
+                fy = fyn
+                r = rn
+                if not improved:
+                    break
+            if not ok and r <= tol:
+                ok = True
+            if not ok:
+                edge = u == u0 or u == u1 or v == v0 or v == v1
+            if ok:
+                zn = out[0, 2]
+                if abs(zn - zf) > face_zgap[k]:
+                    ok = False
+                elif tri_check[t] and face_loops[k, 1] > face_loops[k, 0]:
+                    if not point_in_loops(u, v, loop_uv, loop_off, face_loops[k, 0], face_loops[k, 1]):
+                        status[p] = 0  # outside the trimmed face
+                        z[p] = np.nan
+                        continue
+            if ok:
+                z[p] = out[0, 2]
+                status[p] = 1
+            elif mode == 0 and not edge:
+                z[p] = zf
+                status[p] = 2
+            else:
+                z[p] = np.nan
+                status[p] = 0
+
+
+@njit(cache=True)
+def reduce_pairs(gidx, tri, tri_face, zc, status, zgrid, face, method):
+    """Top-most candidate per grid point into the flat ``zgrid``, ``face``, ``method``."""
+    for p in range(gidx.shape[0]):
+        s = status[p]
+        if s == 0:
+            continue
+        g = gidx[p]
+        zp = zc[p]
+        m = method[g]
+        if m == 0 or zp > zgrid[g] or (zp == zgrid[g] and s < m):
+            zgrid[g] = zp
+            face[g] = tri_face[tri[p]]
+            method[g] = s

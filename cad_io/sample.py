@@ -1,0 +1,366 @@
+"""STEP/NURBS part to master z-map: 2D Jacobian inversion with facet fallback (paper 004 §2.1).
+
+For every face and every grid point that one of the face's mesh triangles covers in xy,
+the sampler solves ``x(u, v) = x_g, y(u, v) = y_g`` by damped Newton iteration (2D
+Jacobian inversion) on the face's exact NURBS, starting from the barycentric (u, v) of the
+grid point in that triangle. The start lies within the mesh deflection of the answer, so
+Newton converges in two or three steps, and a face folded over itself gives one start per
+layer. A solution counts when it converged, lies within ``face_zgap`` of the facet height
+(no jump to another layer) and, for triangles on the mesh boundary, inside the face's trim
+loops. Where Newton fails (singular Jacobian on vertical walls and folds, no convergence)
+the triangle's exact barycentric height is used instead (the facet path). The top-most
+candidate over all faces wins.
+
+The ``face`` layer of the result tells which face gave each height (-1 empty), the
+``method`` layer how (0 empty, 1 Jacobian inversion, 2 facet).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+import warnings
+from typing import Any, Sequence
+
+import numpy as np
+
+from zmap.errors import GridTooLargeError, NurbsError
+from zmap.grid import ZMap
+
+from .part import Part
+from .view import check_axis, transform_part, view_matrix
+
+__all__ = ["sample", "grid_shape", "estimate_bytes", "summary", "METHODS", "EMPTY", "JACOBIAN", "FACET"]
+
+METHODS = ("auto", "jacobian", "facet")
+EMPTY, JACOBIAN, FACET = 0, 1, 2
+_MODE = {"auto": 0, "jacobian": 1, "facet": 2}
+
+#: pairs (grid point, triangle) solved per kernel call; bounds the working memory
+CHUNK_PAIRS = 2_000_000
+#: bytes per pair in the working arrays (gidx 8, tri 8, w 16, z 8, status 1)
+_PAIR_BYTES = 41
+#: bytes per grid point kept to the end (z 8, face 4, method 1) and the map's own copy
+_POINT_BYTES = 13 + 13
+#: Newton: xy residual (mm) at which a solution counts as converged, and iteration cap
+NEWTON_TOL = 1e-10
+NEWTON_MAX_ITER = 30
+
+
+def _spacing(grid: Any) -> tuple[float, float]:
+    if np.ndim(grid) == 0:
+        dx = dy = grid
+    else:
+        if np.shape(grid) != (2,):
+            raise ValueError(f"grid must be an interval or a pair (dx, dy), got {grid!r}")
+        dx, dy = grid
+    try:
+        dx, dy = float(dx), float(dy)
+    except (TypeError, ValueError):
+        raise ValueError(f"grid must be a positive number of mm, got {grid!r}") from None
+    if not (math.isfinite(dx) and math.isfinite(dy) and dx > 0 and dy > 0):
+        raise ValueError(f"grid intervals must be positive and finite, got dx={dx!r}, dy={dy!r}")
+    return dx, dy
+
+
+def _view_bounds(part: Part, axis: str) -> tuple[float, float, float, float]:
+    b = np.array([f.bbox for f in part.faces], dtype=np.float64).reshape(-1, 6)
+    R = view_matrix(axis)
+    lo = b[:, :3] @ R.T
+    hi = b[:, 3:] @ R.T
+    both = np.concatenate([lo, hi])
+    if not np.isfinite(both[:, :2]).any():
+        raise ValueError(f"part {part.source!r} has no face with a bounding box; pass bounds=")
+    return (float(np.nanmin(both[:, 0])), float(np.nanmin(both[:, 1])),
+            float(np.nanmax(both[:, 0])), float(np.nanmax(both[:, 1])))
+
+
+def grid_shape(bounds: Sequence[float], dx: float, dy: float) -> tuple[int, int]:
+    """Grid points ``(nx, ny)`` over ``bounds = (x0, y0, x1, y1)``, at least 2 along each axis."""
+    x0, y0, x1, y1 = (float(v) for v in bounds)
+    if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x1 < x0 or y1 < y0:
+        raise ValueError(f"bounds must be finite (x0, y0, x1, y1) with x1 >= x0 and y1 >= y0, got {tuple(bounds)}")
+    nx = max(2, int(math.floor((x1 - x0) / dx + 1e-9)) + 1)
+    ny = max(2, int(math.floor((y1 - y0) / dy + 1e-9)) + 1)
+    return nx, ny
+
+
+def estimate_bytes(nx: int, ny: int) -> int:
+    """Working memory of :func:`sample` on an ``nx`` x ``ny`` grid, bytes (meshes excluded)."""
+    n = int(nx) * int(ny)
+    return n * _POINT_BYTES + min(2 * n, CHUNK_PAIRS) * _PAIR_BYTES
+
+
+def _available_bytes() -> int:
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return 8 * 1024**3
+
+
+def _check_memory(nx: int, ny: int) -> int:
+    need = estimate_bytes(nx, ny)
+    avail = _available_bytes()
+    if need > 0.8 * avail:
+        raise GridTooLargeError(
+            f"grid of {nx} x {ny} = {nx * ny:,} points needs about {need / 1e9:.2f} GB "
+            f"({need:,} bytes), more than 80% of the {avail / 1e9:.2f} GB of memory available; "
+            f"use a coarser grid or smaller bounds")
+    return need
+
+
+def _boundary_triangles(tris: np.ndarray) -> np.ndarray:
+    """True for triangles with a node on the mesh boundary (an edge used once)."""
+    if len(tris) == 0:
+        return np.zeros(0, dtype=np.bool_)
+    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    e.sort(axis=1)
+    key = e[:, 0].astype(np.int64) * (int(tris.max()) + 1) + e[:, 1]
+    uniq, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
+    bnodes = np.zeros(int(tris.max()) + 1, dtype=np.bool_)
+    once = cnt[inv] == 1
+    bnodes[e[once, 0]] = True
+    bnodes[e[once, 1]] = True
+    return bnodes[tris].any(axis=1)
+
+
+def _needs_mesh(part: Part, deflection: float) -> bool:
+    for f in part.faces:
+        m = f.mesh
+        if m is None:
+            return True
+        if f.surface is not None and m.uv is not None and m.deflection > deflection * (1 + 1e-9):
+            return True
+    return False
+
+
+def summary(zm: ZMap) -> dict:
+    """Counts and shares of the ``method`` layer of a sampled map.
+
+    Returns
+    -------
+    dict
+        ``points``, ``jacobian``, ``facet``, ``empty`` (counts) and ``share_jacobian``,
+        ``share_facet``, ``share_empty`` (fractions of all grid points).
+    """
+    m = zm.layers.get("method")
+    n = zm.z.size
+    if m is None:
+        filled = int(np.isfinite(zm.z).sum())
+        counts = {"jacobian": 0, "facet": 0, "empty": n - filled}
+    else:
+        bc = np.bincount(np.asarray(m, dtype=np.int64).ravel(), minlength=3)
+        counts = {"jacobian": int(bc[JACOBIAN]), "facet": int(bc[FACET]), "empty": int(bc[EMPTY])}
+    out = {"points": n, **counts}
+    for k in ("jacobian", "facet", "empty"):
+        out[f"share_{k}"] = counts[k] / n if n else 0.0
+    return out
+
+
+def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[float] | None = None,
+           method: str = "auto", axis: str = "+z", deflection: float | None = None,
+           progress: bool = False) -> ZMap:
+    """Master z-map of a part: top-most height at every grid point, seen from ``axis``.
+
+    Parameters
+    ----------
+    part : cad_io.Part
+        From :func:`cad_io.read_step` or :func:`cad_io.from_geomdl`. Faces without a mesh
+        fine enough are (re)triangulated with :func:`cad_io.triangulate` (this sets
+        ``face.mesh`` on ``part``).
+    grid : float or (float, float)
+        Grid interval in mm, or ``(dx, dy)``.
+    bounds : (x0, y0, x1, y1), optional
+        Domain in the view frame, mm; default the part's bounding box seen from ``axis``.
+        Grid points are ``x0 + i*dx``, ``y0 + j*dy`` up to ``x1``, ``y1``.
+    method : {'auto', 'jacobian', 'facet'}
+        'auto': Jacobian inversion, facets where it fails; 'jacobian': inversion only
+        (points where it fails stay empty unless another face covers them); 'facet':
+        barycentric heights of the mesh triangles only.
+    axis : {'+z', '-z', '+x', '-x', '+y', '-y'}
+        World direction that becomes the map's +z (see :mod:`cad_io.view`).
+    deflection : float, optional
+        Mesh deflection in mm for starts and facets; default ``min(dx, dy) / 20``.
+    progress : bool
+        Show a tqdm progress bar over the (grid point, triangle) pairs.
+
+    Returns
+    -------
+    ZMap
+        ``z`` of shape (nx, ny), float64, mm in the view frame, NaN = no surface; layers
+        ``face`` (int32, index into ``part.faces``, -1 empty) and ``method`` (int8: 0
+        empty, 1 Jacobian inversion, 2 facet); ``meta`` with the source, axis, method,
+        deflection, counts and seconds.
+
+    Raises
+    ------
+    zmap.errors.GridTooLargeError
+        The grid's arrays would not fit in the available memory (the message gives bytes).
+    ValueError
+        Bad ``grid``, ``bounds``, ``method`` or ``axis``, or a part without faces.
+
+    Examples
+    --------
+    >>> import cad_io
+    >>> from geomdl import BSpline, utilities
+    >>> s = BSpline.Surface(); s.degree_u = s.degree_v = 1
+    >>> s.ctrlpts2d = [[[0, 0, 0], [0, 10, 0]], [[10, 0, 0], [10, 10, 5]]]
+    >>> s.knotvector_u = s.knotvector_v = [0, 0, 1, 1]
+    >>> zm = sample(cad_io.from_geomdl(s), 1.0)
+    >>> zm.shape, round(float(zm.z[10, 10]), 9)
+    ((11, 11), 5.0)
+    """
+    from tqdm import tqdm
+
+    from . import _sample_kernels as K
+    from .nurbs import pack
+
+    t_start = time.perf_counter()
+    if method not in _MODE:
+        raise ValueError(f"method={method!r} is not one of {', '.join(repr(m) for m in METHODS)}")
+    check_axis(axis)
+    dx, dy = _spacing(grid)
+    if not part.faces:
+        raise ValueError(f"part {part.source!r} has no faces")
+    if bounds is None:
+        bounds = _view_bounds(part, axis)
+    elif np.shape(bounds) != (4,):
+        raise ValueError(f"bounds must be (x0, y0, x1, y1), got {bounds!r}")
+    x0, y0 = float(bounds[0]), float(bounds[1])
+    nx, ny = grid_shape(bounds, dx, dy)
+    need = _check_memory(nx, ny)
+    if deflection is None:
+        deflection = min(dx, dy) / 20.0
+    deflection = float(deflection)
+    if not (math.isfinite(deflection) and deflection > 0):
+        raise ValueError(f"deflection must be positive, got {deflection!r}")
+
+    t_mesh = time.perf_counter()
+    if _needs_mesh(part, deflection):
+        from .mesh import triangulate
+
+        triangulate(part, deflection)
+    t_mesh = time.perf_counter() - t_mesh
+    vpart = transform_part(part, axis)
+    msgs: list[str] = []
+
+    # ---- faces: NURBS pack, which path, meshes concatenated -----------------------------
+    surfaces = [f.surface for f in vpart.faces]
+    try:
+        packed = pack(surfaces)
+    except NurbsError:
+        bad = []
+        for k, s in enumerate(surfaces):
+            if s is not None:
+                try:
+                    pack([s])
+                except NurbsError:
+                    surfaces[k] = None
+                    bad.append(k)
+        msgs.append(f"faces {bad} have NURBS the evaluator rejects: sampled from facets")
+        packed = pack(surfaces)
+    no_surface = [f.index for f, s in zip(vpart.faces, surfaces) if s is None]
+    if no_surface:
+        msgs.append(f"{len(no_surface)} faces without NURBS surface sampled from facets: ids {_ids(no_surface)}")
+    no_mesh = [f.index for f in vpart.faces if f.mesh is None or len(f.mesh.triangles) == 0]
+    if no_mesh:
+        msgs.append(f"{len(no_mesh)} faces without triangles skipped: ids {_ids(no_mesh)}")
+
+    F = len(vpart.faces)
+    face_mode = np.full(F, 2, dtype=np.int8)
+    face_zgap = np.full(F, 1e-6)
+    loops: list[np.ndarray] = []
+    loop_off = [0]
+    face_loops = np.zeros((F, 2), dtype=np.int64)
+    nodes_l, uv_l, tris_l, tface_l, check_l = [], [], [], [], []
+    n_nodes = 0
+    bx0, by0, bx1, by1 = x0, y0, x0 + (nx - 1) * dx, y0 + (ny - 1) * dy
+    for k, f in enumerate(vpart.faces):
+        face_loops[k] = len(loop_off) - 1, len(loop_off) - 1
+        m = f.mesh
+        if m is None or len(m.triangles) == 0:
+            continue
+        b = f.bbox
+        if np.all(np.isfinite(b)) and (b[3] < bx0 - dx or b[0] > bx1 + dx or b[4] < by0 - dy or b[1] > by1 + dy):
+            continue
+        if surfaces[k] is not None and m.uv is not None:
+            face_mode[k] = 1
+            face_zgap[k] = max(20.0 * max(m.deflection, deflection), 1e-6)
+            for lp in f.loops:
+                lp = np.asarray(lp, dtype=np.float64).reshape(-1, 2)
+                if len(lp) >= 3:
+                    loops.append(lp)
+                    loop_off.append(loop_off[-1] + len(lp))
+            face_loops[k, 1] = len(loop_off) - 1
+        tri = np.asarray(m.triangles, dtype=np.int64)
+        nodes_l.append(np.asarray(m.nodes, dtype=np.float64))
+        uv_l.append(np.asarray(m.uv, dtype=np.float64) if m.uv is not None else np.zeros((len(m.nodes), 2)))
+        tris_l.append(tri + n_nodes)
+        tface_l.append(np.full(len(tri), k, dtype=np.int64))
+        check_l.append(_boundary_triangles(tri))
+        n_nodes += len(m.nodes)
+    for msg in msgs:
+        warnings.warn(msg, stacklevel=2)
+
+    zflat = np.full(nx * ny, np.nan)
+    fflat = np.full(nx * ny, -1, dtype=np.int32)
+    mflat = np.zeros(nx * ny, dtype=np.int8)
+    n_pairs = 0
+    if tris_l:
+        nodes = np.ascontiguousarray(np.concatenate(nodes_l))
+        uv = np.ascontiguousarray(np.concatenate(uv_l))
+        tris = np.ascontiguousarray(np.concatenate(tris_l))
+        tri_face = np.ascontiguousarray(np.concatenate(tface_l))
+        tri_check = np.ascontiguousarray(np.concatenate(check_l))
+        loop_uv = np.ascontiguousarray(np.concatenate(loops)) if loops else np.zeros((0, 2))
+        loop_off_a = np.asarray(loop_off, dtype=np.int64)
+        counts = np.zeros(len(tris), dtype=np.int64)
+        K.count_pairs(nodes, tris, x0, y0, dx, dy, nx, ny, counts)
+        cum = np.concatenate([[0], np.cumsum(counts)])
+        n_pairs = int(cum[-1])
+        mode = _MODE[method]
+        with tqdm(total=n_pairs, unit="pt", unit_scale=True, disable=not progress, desc="sampling",
+                  leave=False) as bar:
+            t = 0
+            M = len(tris)
+            while t < M:
+                # triangles t..t1-1 hold at most CHUNK_PAIRS pairs (or one triangle)
+                t1 = int(np.searchsorted(cum, cum[t] + CHUNK_PAIRS, side="right")) - 1
+                t1 = min(max(t1, t + 1), M)
+                offsets = cum[t:t1 + 1] - cum[t]
+                P = int(offsets[-1])
+                if P:
+                    gidx = np.empty(P, dtype=np.int64)
+                    tri_p = np.empty(P, dtype=np.int64)
+                    w = np.empty((P, 2))
+                    K.fill_pairs(nodes, tris, t, np.ascontiguousarray(offsets), x0, y0, dx, dy, nx, ny, gidx, tri_p, w)
+                    zc = np.empty(P)
+                    st = np.empty(P, dtype=np.int8)
+                    K.solve_pairs(gidx, tri_p, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
+                                  packed.deg, packed.ncp, packed.koff, packed.poff, packed.knots, packed.cpw,
+                                  np.ascontiguousarray(np.nan_to_num(packed.domain)), loop_uv, loop_off_a,
+                                  face_loops, x0, y0, dx, dy, ny, mode, NEWTON_TOL, NEWTON_MAX_ITER, zc, st)
+                    K.reduce_pairs(gidx, tri_p, tri_face, zc, st, zflat, fflat, mflat)
+                    bar.update(P)
+                t = t1
+    seconds = time.perf_counter() - t_start
+    zm = ZMap(x0, y0, dx, dy, zflat.reshape(nx, ny),
+              layers={"face": fflat.reshape(nx, ny), "method": mflat.reshape(nx, ny)},
+              meta={"source": str(part.source), "axis": axis, "method": method, "deflection": deflection,
+                    "faces": F, "pairs": n_pairs, "seconds": round(seconds, 4), "mesh_seconds": round(t_mesh, 4),
+                    "memory_estimate_bytes": need, "warnings": msgs})
+    zm.meta.update({k: v for k, v in summary(zm).items() if not k.startswith("share")})
+    return zm
+
+
+def _ids(ids: list[int], limit: int = 20) -> str:
+    s = ", ".join(str(i) for i in ids[:limit])
+    return s + (f", ... ({len(ids) - limit} more)" if len(ids) > limit else "")
