@@ -64,7 +64,7 @@ def run(out_dir: str | Path) -> list[Path]:
     plt.close(fig)
 
     # Features that live in their own subpackages add their demo step here.
-    for module, title in (("zmap.sim.demo", "NC simulation with history (papers 000, 001)"),):
+    for module, title in (("cad_io.demo", "STEP to master z-map (paper 004 §2.1)"), ("zmap.sim.demo", "NC simulation with history (papers 000, 001)"),):
         if importlib.util.find_spec(module) is None:
             continue
         mod = importlib.import_module(module)
