@@ -59,7 +59,7 @@ def _zt_new(zt_z, zt_c, zt_d, zt_ray, stats, z, stage, ray):
 
 
 @njit(cache=True)
-def _tr_children(tr_z, tr_s, tr_k, stats, parent, mask, zl, zr, stage):
+def _tr_children(tr_z, tr_s, tr_k, tr_ray, stats, parent, mask, zl, zr, stage, ray):
     """Append the children of leaf ``parent`` (mask 1 left, 2 right, 3 both); return first."""
     k = stats[ST_TR_N]
     n = 0
@@ -67,11 +67,13 @@ def _tr_children(tr_z, tr_s, tr_k, stats, parent, mask, zl, zr, stage):
         tr_z[k] = zl
         tr_s[k] = stage
         tr_k[k] = 0
+        tr_ray[k] = ray
         n += 1
     if mask & 2:
         tr_z[k + n] = zr
         tr_s[k + n] = stage
         tr_k[k + n] = 0
+        tr_ray[k + n] = ray
         n += 1
     tr_k[parent] = (k << 2) | mask
     stats[ST_TR_N] = k + n
@@ -82,7 +84,7 @@ def _tr_children(tr_z, tr_s, tr_k, stats, parent, mask, zl, zr, stage):
 def cut_ray(r, a, b, stage, near, far, cnt,
             rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
             rec_t, tt_z, tt_s, tt_ray,
-            rec_tr, leaf, tr_z, tr_s, tr_k, stats):
+            rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats):
     """Subtract the tool interval ``[a, b]`` (float32 values) from ray ``r`` at ``stage``.
 
     The dexels are scanned bottom-up; a dexel is touched only if condition (1) of paper 000
@@ -132,7 +134,7 @@ def cut_ray(r, a, b, stage, near, far, cnt,
                 zid_near[r, j + 1] = _zt_new(zt_z, zt_c, zt_d, zt_ray, stats, b, stage, r)
                 zid_far[r, j + 1] = zf
             if rec_tr:
-                k = _tr_children(tr_z, tr_s, tr_k, stats, leaf[r, j], 3, a, b, stage)
+                k = _tr_children(tr_z, tr_s, tr_k, tr_ray, stats, leaf[r, j], 3, a, b, stage, r)
                 leaf[r, j] = k
                 leaf[r, j + 1] = k + 1
             stats[ST_CREATED] += 1
@@ -146,8 +148,8 @@ def cut_ray(r, a, b, stage, near, far, cnt,
                 zt_d[zid_near[r, j]] = stage
                 zt_d[zid_far[r, j]] = stage
             if rec_tr:
-                _tr_children(tr_z, tr_s, tr_k, stats, leaf[r, j], 1, np.float32(np.nan),
-                             np.float32(0.0), stage)
+                _tr_children(tr_z, tr_s, tr_k, tr_ray, stats, leaf[r, j], 1, np.float32(np.nan),
+                             np.float32(0.0), stage, r)
             stats[ST_DELETED] += 1
             j += 1
             continue
@@ -160,7 +162,7 @@ def cut_ray(r, a, b, stage, near, far, cnt,
                 zid_near[r, w] = zid_near[r, j]
                 zid_far[r, w] = _zt_new(zt_z, zt_c, zt_d, zt_ray, stats, a, stage, r)
             if rec_tr:
-                k = _tr_children(tr_z, tr_s, tr_k, stats, leaf[r, j], 1, a, np.float32(0.0), stage)
+                k = _tr_children(tr_z, tr_s, tr_k, tr_ray, stats, leaf[r, j], 1, a, np.float32(0.0), stage, r)
                 leaf[r, w] = k
             stats[ST_BACK] += 1
         else:
@@ -172,7 +174,7 @@ def cut_ray(r, a, b, stage, near, far, cnt,
                 zid_near[r, w] = _zt_new(zt_z, zt_c, zt_d, zt_ray, stats, b, stage, r)
                 zid_far[r, w] = zid_far[r, j]
             if rec_tr:
-                k = _tr_children(tr_z, tr_s, tr_k, stats, leaf[r, j], 2, np.float32(0.0), b, stage)
+                k = _tr_children(tr_z, tr_s, tr_k, tr_ray, stats, leaf[r, j], 2, np.float32(0.0), b, stage, r)
                 leaf[r, w] = k
             stats[ST_FRONT] += 1
             done = True
@@ -196,7 +198,7 @@ def cut_positions(xyz, tslot, tcode, trad, tcr, tlen, start, stop, stage0,
                   x0, y0, pitch, nx, ny, near, far, cnt,
                   rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
                   rec_t, tt_z, tt_s, tt_ray,
-                  rec_tr, leaf, tr_z, tr_s, tr_k, stats):
+                  rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats):
     """Cut positions ``start..stop-1``; position p makes stage ``stage0 + p + 1``.
 
     Returns the index of the first position not (fully) cut: ``stop`` when done, else the
@@ -257,7 +259,7 @@ def cut_positions(xyz, tslot, tcode, trad, tcr, tlen, start, stop, stage0,
                 cut_ray(r, a, b, stage, near, far, cnt,
                         rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
                         rec_t, tt_z, tt_s, tt_ray,
-                        rec_tr, leaf, tr_z, tr_s, tr_k, stats)
+                        rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats)
     return stop
 
 

@@ -54,7 +54,7 @@ def _empty_history_args() -> tuple:
     i4 = np.zeros((1, 1), dtype=np.int32)
     f = np.zeros(1, dtype=np.float32)
     i = np.zeros(1, dtype=np.int32)
-    return (False, i4, i4, f, i, i, i, False, f, i, i, False, i4, f, i, i)
+    return (False, i4, i4, f, i, i, i, False, f, i, i, False, i4, f, i, i, i)
 
 
 @dataclass(eq=False)

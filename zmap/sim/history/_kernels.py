@@ -121,57 +121,34 @@ def ttrace_display(offsets, tz, ts, k, out):
 # ---- Interval Treap --------------------------------------------------------------------
 
 @njit(cache=True)
-def treap_reorder(n_rays, root_off, tz, ts, tk, node_off, nz, ns, nk):
-    """Copy the node pool so that each ray's forest is contiguous (children adjacent).
+def treap_group(ray, node_off, tz, ts, tk, nz, ns, nk):
+    """Copy the node pool grouped by ray, creation order kept (a stable counting sort).
 
-    Ray r's roots become nodes ``node_off[r] .. node_off[r] + root_count - 1``; every
-    node's children follow as a contiguous pair/single further in the ray's block. Returns
-    the largest number of nodes of one ray.
+    The stock's roots come first in each ray's block (they were created first), the two
+    children of a node stay side by side, and a chain of modifications is stored in the
+    order it is walked. Child indices are remapped. Returns the largest block.
     """
-    stack = np.empty(16, dtype=np.int64)
-    q = 0
+    n = ray.shape[0]
+    n_rays = node_off.shape[0] - 1
+    newidx = np.empty(n, dtype=np.int32)
+    fill = node_off[:-1].copy()
+    for e in range(n):
+        r = ray[e]
+        newidx[e] = fill[r]
+        fill[r] += 1
+    for e in range(n):
+        q = newidx[e]
+        nz[q] = tz[e]
+        ns[q] = ts[e]
+        kids = tk[e]
+        if kids & 3:
+            nk[q] = (newidx[kids >> 2] << 2) | (kids & 3)
+        else:
+            nk[q] = 0
     biggest = 0
     for r in range(n_rays):
-        node_off[r] = q
-        start = q
-        for t in range(root_off[r], root_off[r + 1]):
-            nz[q] = tz[t]
-            ns[q] = ts[t]
-            nk[q] = 0
-            q += 1
-        # depth-first over old/new index pairs
-        sp = 0
-        for t in range(root_off[r + 1] - 1, root_off[r] - 1, -1):
-            if sp + 2 > stack.shape[0]:
-                stack = _grow(stack)
-            stack[sp] = t
-            stack[sp + 1] = start + (t - root_off[r])
-            sp += 2
-        while sp > 0:
-            sp -= 2
-            old = stack[sp]
-            new = stack[sp + 1]
-            kids = tk[old]
-            mask = kids & 3
-            if mask == 0:
-                continue
-            first = kids >> 2
-            nch = 2 if mask == 3 else 1
-            nk[new] = (q << 2) | mask
-            for c in range(nch):
-                nz[q + c] = tz[first + c]
-                ns[q + c] = ts[first + c]
-                nk[q + c] = 0
-            for c in range(nch):
-                if sp + 2 > stack.shape[0]:
-                    stack = _grow(stack)
-                stack[sp] = first + c
-                stack[sp + 1] = q + c
-                sp += 2
-            q += nch
-        if q - start > biggest:
-            biggest = q - start
-    node_off[n_rays] = q
+        if node_off[r + 1] - node_off[r] > biggest:
+            biggest = node_off[r + 1] - node_off[r]
     return biggest
 
 

@@ -36,8 +36,8 @@ class Recorder:
         zargs = ((True, z.zid_near, z.zid_far, z.b_z, z.b_c, z.b_d, z.b_ray) if z is not None
                  else (False, _NO_I2, _NO_I2, _NO_F, _NO_I, _NO_I, _NO_I))
         targs = ((True, t.b_z, t.b_s, t.b_ray) if t is not None else (False, _NO_F, _NO_I, _NO_I))
-        rargs = ((True, tr.leaf, tr.b_z, tr.b_s, tr.b_k) if tr is not None
-                 else (False, _NO_I2, _NO_F, _NO_I, _NO_I))
+        rargs = ((True, tr.leaf, tr.b_z, tr.b_s, tr.b_k, tr.b_ray) if tr is not None
+                 else (False, _NO_I2, _NO_F, _NO_I, _NO_I, _NO_I))
         return zargs + targs + rargs
 
     def _parts(self):

@@ -20,7 +20,8 @@ children of a node are created together and stored side by side). A child stores
 boundary it introduced (a left child its Zmax, a right child its Zmin, an empty leaf NaN);
 the other boundary is its parent's, so a traversal carries ``[Zmin, Zmax]`` down from the
 root, whose Zmin is in ``z`` and whose Zmax is in ``root_hi``. Finalising re-lays the pool
-so that each ray's forest is contiguous, which makes the traversals cache-friendly.
+so that each ray's forest is contiguous (creation order within the ray), which makes the
+traversals cache-friendly.
 
 Reading stage n (section 4.3): a node whose children were created after n is a leaf of the
 tree cut at n; ``display`` takes the right-most non-empty leaf (reverse in-order) and
@@ -84,6 +85,8 @@ class IntervalTreap:
         self.b_z = np.empty(cap, dtype=np.float32)
         self.b_s = np.empty(cap, dtype=np.int32)
         self.b_k = np.empty(cap, dtype=np.int32)
+        self.b_ray = np.empty(cap, dtype=np.int32)
+        self.b_ray[:m] = rows
         self.b_z[:m] = wp.near[rows, cols]
         self.b_s[:m] = 0
         self.b_k[:m] = 0
@@ -104,20 +107,23 @@ class IntervalTreap:
         if cap >= 2 ** 29:
             raise MemoryError("Interval Treap node pool would exceed 2**29 nodes")
         self.b_z, self.b_s, self.b_k = grow1(self.b_z, cap), grow1(self.b_s, cap), grow1(self.b_k, cap)
+        self.b_ray = grow1(self.b_ray, cap)
 
     def grow_slots(self, slots: int) -> None:
         self.leaf = widen(self.leaf, slots)
 
     def finalize(self) -> None:
-        """Re-lay the node pool ray by ray (children adjacent, after their parent)."""
+        """Re-lay the node pool ray by ray (creation order kept, children side by side)."""
         n = self.n
+        ray = self.b_ray[:n]
         self.node_off = np.empty(self.n_rays + 1, dtype=np.int64)
+        _hk.ray_offsets(ray, self.n_rays, self.node_off)
         self.z = np.empty(n, dtype=np.float32)
         self.stage = np.empty(n, dtype=np.int32)
         self.kids = np.empty(n, dtype=np.int32)
-        self.max_block = int(_hk.treap_reorder(self.n_rays, self.root_off, self.b_z[:n], self.b_s[:n],
-                                               self.b_k[:n], self.node_off, self.z, self.stage, self.kids))
-        del self.b_z, self.b_s, self.b_k, self.leaf
+        self.max_block = int(_hk.treap_group(ray, self.node_off, self.b_z[:n], self.b_s[:n], self.b_k[:n],
+                                             self.z, self.stage, self.kids))
+        del self.b_z, self.b_s, self.b_k, self.b_ray, self.leaf
 
     @property
     def n_nodes(self) -> int:
