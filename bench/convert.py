@@ -1,0 +1,117 @@
+"""Benchmark of the STEP to z-map converter; prints one JSON object.
+
+``python bench/convert.py [--points 1000] [--rays 3000] [--real NAME]``
+
+For the bundled free-form die face (``data/freeform_die.step``) on a ``points`` x
+``points`` grid over its bounding box, and for one real part from ../shared/data/step on a
+grid of the same interval count along its longer side:
+
+- ``jacobian_pps``: grid points per second of ``sample(method="jacobian")``,
+- ``facet_pps``: the same for ``sample(method="facet")``,
+- ``occ_raycast_pps``: points per second of the OCC ray-cast reference
+  (``IntCurvesFace_ShapeIntersector``) on ``rays`` random grid points, in the same run,
+- ``mesh_seconds``: the BRepMesh triangulation at grid/20 (done once, before timing; both
+  paths use it), ``max_abs_dz_vs_raycast`` on the ray-cast points where both give a
+  Jacobian height.
+
+JIT compilation is warmed up on a small grid before timing. Targets: jacobian_pps >=
+300,000 and facet_pps >= 3,000,000 on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def _bench_part(path: Path, points: int, rays: int, seed: int = 0) -> dict:
+    from cad_io.mesh import triangulate
+    from cad_io.raycast import RayCaster
+    from cad_io.sample import sample, summary
+    from cad_io.step import read_step
+
+    part = read_step(path)
+    x0, y0, _, x1, y1, _ = part.bbox
+    d = max(x1 - x0, y1 - y0) / (points - 1)
+    bounds = (x0, y0, x1, y1)
+    t = time.perf_counter()
+    triangulate(part, d / 20.0)
+    mesh_s = time.perf_counter() - t
+    out: dict = {"part": path.name, "faces": len(part.faces), "grid": d, "mesh_seconds": round(mesh_s, 3)}
+    maps = {}
+    for method in ("jacobian", "facet"):
+        best = np.inf
+        for _ in range(2):
+            t = time.perf_counter()
+            zm = sample(part, d, bounds=bounds, method=method)
+            best = min(best, time.perf_counter() - t)
+        maps[method] = zm
+        out[f"{method}_pps"] = round(zm.z.size / best, 1)
+        out[f"{method}_seconds"] = round(best, 4)
+    zm = maps["jacobian"]
+    out["points"] = int(zm.z.size)
+    out["shape"] = list(zm.shape)
+    out["jacobian_summary"] = {k: v for k, v in summary(zm).items() if k.startswith("share")}
+    rng = np.random.default_rng(seed)
+    i = rng.integers(0, zm.nx, rays)
+    j = rng.integers(0, zm.ny, rays)
+    caster = RayCaster(part.shape)
+    t = time.perf_counter()
+    zr, _ = caster(zm.x[i], zm.y[j])
+    dt = time.perf_counter() - t
+    out["occ_raycast_pps"] = round(rays / dt, 1)
+    zj = zm.z[i, j]
+    both = np.isfinite(zj) & np.isfinite(zr)
+    out["raycast_points"] = rays
+    out["max_abs_dz_vs_raycast"] = float(np.max(np.abs(zj[both] - zr[both]))) if both.any() else None
+    out["empty_disagreements"] = int(np.sum(np.isfinite(zj) != np.isfinite(zr)))
+    zf = maps["facet"].z[i, j]
+    bf = np.isfinite(zf) & np.isfinite(zr)
+    out["facet_max_abs_dz_vs_raycast"] = float(np.max(np.abs(zf[bf] - zr[bf]))) if bf.any() else None
+    return out
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--points", type=int, default=1000, help="grid points along the longer side")
+    ap.add_argument("--rays", type=int, default=3000, help="ray-cast reference points")
+    ap.add_argument("--real", default="bug27693_cornetta-step.stp", help="file in ../shared/data/step")
+    args = ap.parse_args(argv)
+
+    import numba
+
+    from cad_io.demo import DATA, shared_step_dir
+    from cad_io.sample import sample
+    from cad_io.step import read_step
+
+    # JIT warm-up on a small grid (both paths)
+    warm = read_step(DATA / "freeform_die.step")
+    for method in ("auto", "jacobian", "facet"):
+        sample(warm, 5.0, method=method)
+
+    result = {"bench": "convert", "threads": numba.get_num_threads(), "cpus": os.cpu_count(),
+              "machine": platform.processor() or platform.machine()}
+    die = _bench_part(DATA / "freeform_die.step", args.points, args.rays)
+    result.update({k: die[k] for k in ("jacobian_pps", "facet_pps", "occ_raycast_pps")})
+    result["die"] = die
+    real = shared_step_dir() / args.real
+    if real.exists():
+        result["real"] = _bench_part(real, args.points, args.rays)
+    result["targets"] = {"jacobian_pps>=300000": result["jacobian_pps"] >= 300_000,
+                         "facet_pps>=3000000": result["facet_pps"] >= 3_000_000}
+    print(json.dumps(result, indent=1))
+    return result
+
+
+if __name__ == "__main__":
+    main()
