@@ -23,7 +23,7 @@ from numba import carray, njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-__all__ = ["MAX_DEGREE", "eval_point", "eval_many", "find_span", "basis_ders"]
+__all__ = ["MAX_DEGREE", "eval_point", "eval_many", "eval_many_serial", "find_span", "basis_ders"]
 
 #: Highest degree the fixed-size stack work arrays hold.
 MAX_DEGREE = 15
@@ -242,6 +242,21 @@ def eval_many(deg, ncp, koff, poff, knots, cpw, face, u, v, nderiv, out):
     n = u.shape[0]
     nrow = out.shape[1]
     for i in prange(n):
+        k = face[i]
+        if deg[k, 0] < 0 or u[i] != u[i] or v[i] != v[i]:
+            for a in range(nrow):
+                for c in range(3):
+                    out[i, a, c] = np.nan
+        else:
+            eval_point(deg, ncp, koff, poff, knots, cpw, k, u[i], v[i], nderiv, out[i])
+
+
+@njit(cache=True)
+def eval_many_serial(deg, ncp, koff, poff, knots, cpw, face, u, v, nderiv, out):
+    """:func:`eval_many` on one thread (no thread-pool start-up for small batches)."""
+    n = u.shape[0]
+    nrow = out.shape[1]
+    for i in range(n):
         k = face[i]
         if deg[k, 0] < 0 or u[i] != u[i] or v[i] != v[i]:
             for a in range(nrow):

@@ -30,6 +30,8 @@ __all__ = ["PackedNurbs", "pack", "evaluate", "evaluate_packed", "MAX_DEGREE"]
 MAX_DEGREE = 15
 
 _NROW = {0: 1, 1: 3, 2: 6}
+#: Batches at least this large run on all threads.
+_PARALLEL_MIN = 4096
 
 
 @dataclass
@@ -193,7 +195,7 @@ def evaluate_packed(packed: PackedNurbs, face, u, v, *, derivs: int = 0) -> np.n
     >>> evaluate_packed(pack([s]), [0, 0], [0.0, 1.0], 1.0)[:, 0].tolist()
     [[0.0, 1.0, 0.0], [1.0, 1.0, 1.0]]
     """
-    from cad_io._nurbs_kernels import eval_many
+    from cad_io._nurbs_kernels import eval_many, eval_many_serial
 
     derivs = _check_derivs(derivs)
     f, uu, vv = np.broadcast_arrays(np.asarray(face), np.asarray(u, dtype=np.float64),
@@ -205,7 +207,8 @@ def evaluate_packed(packed: PackedNurbs, face, u, v, *, derivs: int = 0) -> np.n
         raise IndexError(f"face {bad} out of range for {packed.n_faces} packed surfaces")
     out = np.empty((f.size, _NROW[derivs], 3))
     if f.size:
-        eval_many(*packed.arrays(), f, np.ascontiguousarray(uu.ravel()),
+        kernel = eval_many if f.size >= _PARALLEL_MIN else eval_many_serial
+        kernel(*packed.arrays(), f, np.ascontiguousarray(uu.ravel()),
                   np.ascontiguousarray(vv.ravel()), derivs, out)
     return out.reshape(shape + out.shape[1:])
 

@@ -89,6 +89,9 @@ class Face:
     loops: list[np.ndarray] = field(default_factory=list)
     bbox: tuple[float, float, float, float, float, float] = (np.nan,) * 6
     mesh: FaceMesh | None = None
+    #: The OCP ``TopoDS_Face`` (oriented as in the part) whose surface ``surface`` is and
+    #: whose pcurves ``loops`` sample; None for geomdl input.
+    topo: Any = field(default=None, repr=False, compare=False)
 
 
 @dataclass
