@@ -15,7 +15,7 @@ import numpy as np
 
 from .view import view_matrix
 
-__all__ = ["raycast", "RayCaster"]
+__all__ = ["raycast", "RayCaster", "read_shape"]
 
 
 class RayCaster:
@@ -162,6 +162,21 @@ def _ray_triangles(tris: np.ndarray, tri_face: np.ndarray, x: np.ndarray, y: np.
             z[n] = -t[k]
             face[n] = tri_face[sel[k]]
     return z, face
+
+
+def read_shape(path) -> Any:
+    """The OCP shape of a STEP file as OCC's own reader gives it (no conversion).
+
+    Independent of :func:`cad_io.read_step`, so the reference does not share its code.
+    """
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.STEPControl import STEPControl_Reader
+
+    reader = STEPControl_Reader()
+    if reader.ReadFile(str(path)) != IFSelect_RetDone:
+        raise OSError(f"{path}: OCC cannot read it as STEP")
+    reader.TransferRoots()
+    return reader.OneShape()
 
 
 def raycast(shape: Any, x: np.ndarray, y: np.ndarray, *, axis: str = "+z", tol: float = 1e-7

@@ -1,0 +1,243 @@
+"""The z-map sampler: exact heights on analytic samples, agreement with OCC ray casting."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cad_io.raycast import RayCaster, read_shape
+from cad_io.sample import estimate_bytes, sample, summary
+from cad_io.step import read_step
+from zmap.errors import GridTooLargeError
+
+DATA = Path(__file__).resolve().parents[2] / "data"
+SAMPLES = ("sphere_cap", "cylinder", "torus", "freeform_die", "pocket", "boss")
+#: grid offsets (in intervals) that keep grid lines off the round-numbered walls of the parts
+OFFSET = (0.3173, 0.2719)
+
+
+@pytest.fixture(scope="module")
+def parts():
+    return {name: read_step(DATA / f"{name}.step") for name in SAMPLES}
+
+
+# ---- exact answers ---------------------------------------------------------------------------
+
+def _sphere_cap(x, y):
+    r2 = x * x + y * y
+    return np.where(r2 <= 1600.0, -30.0 + np.sqrt(np.maximum(2500.0 - r2, 0.0)), np.nan)
+
+
+def _cylinder(x, y):
+    ok = (x >= 0) & (x <= 60) & (np.abs(y) <= 20)
+    return np.where(ok, np.sqrt(np.maximum(400.0 - y * y, 0.0)), np.nan)
+
+
+def _torus(x, y):
+    r = np.hypot(x, y)
+    ok = np.abs(r - 30.0) <= 10.0
+    return np.where(ok, np.sqrt(np.maximum(100.0 - (r - 30.0) ** 2, 0.0)), np.nan)
+
+
+def _cos_slope(f, x, y, h=1e-5):
+    gx = (f(x + h, y) - f(x - h, y)) / (2 * h)
+    gy = (f(x, y + h) - f(x, y - h)) / (2 * h)
+    return 1.0 / np.sqrt(1.0 + gx * gx + gy * gy)
+
+
+EXACT = {"sphere_cap": _sphere_cap, "cylinder": _cylinder, "torus": _torus}
+
+
+def _offset_bounds(part, d):
+    x0, y0, _, x1, y1, _ = part.bbox
+    return (x0 + OFFSET[0] * d, y0 + OFFSET[1] * d, x1, y1)
+
+
+@pytest.mark.parametrize("name,grid", [("sphere_cap", 1.0), ("cylinder", 0.7), ("torus", 0.8)])
+def test_jacobian_heights_exact(parts, name, grid):
+    part = parts[name]
+    zm = sample(part, grid, bounds=_offset_bounds(part, grid))
+    X, Y = zm.grid_points()
+    exact = EXACT[name](X, Y)
+    m = zm.layers["method"]
+    jac = (m == 1) & np.isfinite(exact)
+    s = summary(zm)
+    assert s["share_jacobian"] > 0.4
+    # where the analytic face is on top, the Jacobian path gives it to 1e-7 mm
+    err = np.abs(zm.z[jac] - exact[jac])
+    assert err.max() < 1e-7, f"{name}: max error {err.max():.3g}"
+    # the analytic face covers the whole sample from above: no grid point over it is empty
+    inner = np.isfinite(exact) & np.isfinite(EXACT[name](X + grid, Y)) & np.isfinite(EXACT[name](X - grid, Y)) \
+        & np.isfinite(EXACT[name](X, Y + grid)) & np.isfinite(EXACT[name](X, Y - grid))
+    assert (m[inner] > 0).all()
+    # facet fallbacks only where the surface is steep (vertical walls, the cylinder's sides)
+    fac = (m == 2) & np.isfinite(exact)
+    if fac.any():
+        assert _cos_slope(EXACT[name], X[fac], Y[fac]).max() < 0.2
+
+
+@pytest.mark.parametrize("name", ["sphere_cap", "cylinder", "torus"])
+def test_facet_heights_within_deflection(parts, name):
+    part = parts[name]
+    grid, defl = 1.0, 0.05
+    zm = sample(part, grid, bounds=_offset_bounds(part, grid), method="facet", deflection=defl)
+    assert (zm.layers["method"][np.isfinite(zm.z)] == 2).all()
+    X, Y = zm.grid_points()
+    exact = EXACT[name](X, Y)
+    both = np.isfinite(exact) & np.isfinite(zm.z)
+    c = _cos_slope(EXACT[name], X[both], Y[both])
+    # the mesh lies within the deflection of the surface, measured along its normal
+    normal_gap = np.abs(zm.z[both] - exact[both]) * c
+    assert normal_gap[c > 0.3].max() <= defl * 1.05
+
+
+def test_jacobian_only_leaves_walls_empty(parts):
+    part = parts["cylinder"]
+    zj = sample(part, 0.5, bounds=_offset_bounds(part, 0.5), method="jacobian")
+    assert set(np.unique(zj.layers["method"])) <= {0, 1}
+    za = sample(part, 0.5, bounds=_offset_bounds(part, 0.5), method="auto")
+    both = np.isfinite(zj.z)
+    assert np.array_equal(zj.z[both], za.z[both])
+
+
+def test_layers_and_meta(parts):
+    zm = sample(parts["boss"], 1.0)
+    assert zm.layers["face"].dtype == np.int32 and zm.layers["method"].dtype == np.int8
+    empty = np.isnan(zm.z)
+    assert (zm.layers["face"][empty] == -1).all() and (zm.layers["method"][empty] == 0).all()
+    assert (zm.layers["face"][~empty] >= 0).all()
+    assert zm.meta["axis"] == "+z" and zm.meta["faces"] == len(parts["boss"].faces)
+    # top of the boss: 22 mm on the rectangular boss, 16 mm on the round one, 10 on the plate
+    assert zm.z[np.isfinite(zm.z)].max() == pytest.approx(22.0, abs=1e-9)
+    i, j = np.unravel_index(np.nanargmin(np.abs(zm.x[:, None] - 22.0) + np.abs(zm.y[None, :] + 12.0)), zm.shape)
+    assert zm.z[i, j] == pytest.approx(16.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("axis", ["-z", "+x", "-y"])
+def test_view_axes_on_the_boss(parts, axis):
+    part = parts["boss"]
+    zm = sample(part, 1.0, axis=axis)
+    top = {"-z": 0.0, "+x": 40.0, "-y": 30.0}[axis]
+    assert np.nanmax(zm.z) == pytest.approx(top, abs=1e-9)
+
+
+def test_grid_too_large(parts):
+    with pytest.raises(GridTooLargeError, match="GB"):
+        sample(parts["freeform_die"], 1e-5)
+    assert estimate_bytes(1000, 1000) > 13e6
+
+
+def test_bad_arguments(parts):
+    p = parts["sphere_cap"]
+    with pytest.raises(ValueError, match="method='newton' is not one of"):
+        sample(p, 1.0, method="newton")
+    with pytest.raises(ValueError, match="axis='up' is not one of"):
+        sample(p, 1.0, axis="up")
+    with pytest.raises(ValueError, match="positive"):
+        sample(p, -1.0)
+    with pytest.raises(ValueError, match="bounds"):
+        sample(p, 1.0, bounds=(0, 0, -5, 5))
+
+
+# ---- agreement with the independent OCC ray cast ---------------------------------------------
+
+def near_wall(zm) -> np.ndarray:
+    """Grid points within one interval of a vertical wall or the outline of the map.
+
+    A wall or outline lies between two neighbouring grid points (8-neighbourhood) where one
+    is empty and the other not, or where the height jumps by more than 4 grid intervals.
+    """
+    z = zm.z
+    e = np.isnan(z)
+    jump = 4.0 * max(zm.dx, zm.dy)
+    out = np.zeros(z.shape, dtype=bool)
+    zp = np.pad(z, 1, constant_values=np.nan)
+    ep = np.pad(e, 1, constant_values=True)
+    nx, ny = z.shape
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            if di == dj == 0:
+                continue
+            zn = zp[1 + di:1 + di + nx, 1 + dj:1 + dj + ny]
+            en = ep[1 + di:1 + di + nx, 1 + dj:1 + dj + ny]
+            with np.errstate(invalid="ignore"):
+                out |= (en != e) | (np.abs(zn - z) > jump)
+    return out
+
+
+def compare_with_raycast(part, grid, *, axis="+z", n=600, seed=0) -> dict:
+    """Sample ``part`` and check ``n`` random grid points against the OCC ray cast."""
+    from zmap.grid import ZMap
+
+    from cad_io.view import view_matrix
+
+    R = view_matrix(axis)
+    lo = R @ np.array(part.bbox[:3])
+    hi = R @ np.array(part.bbox[3:])
+    x0, y0 = np.minimum(lo, hi)[:2]
+    x1, y1 = np.maximum(lo, hi)[:2]
+    bounds = (x0 + OFFSET[0] * grid, y0 + OFFSET[1] * grid, x1, y1)
+    zm = sample(part, grid, bounds=bounds, axis=axis)
+    assert isinstance(zm, ZMap)
+    rng = np.random.default_rng(seed)
+    i = rng.integers(0, zm.nx, n)
+    j = rng.integers(0, zm.ny, n)
+    zr, _ = RayCaster(read_shape(part.source), axis=axis)(zm.x[i], zm.y[j])
+    zs = zm.z[i, j]
+    meth = zm.layers["method"][i, j]
+    wall = near_wall(zm)[i, j]
+    both = np.isfinite(zs) & np.isfinite(zr)
+    dz = np.abs(zs - zr)
+    defl = zm.meta["deflection"]
+    jac = both & (meth == 1)
+    fac = both & (meth == 2)
+    empty_dis = np.isfinite(zs) != np.isfinite(zr)
+    return {
+        "points": n, "both": int(both.sum()),
+        "jacobian": int(jac.sum()), "facet": int(fac.sum()),
+        "max_dz_jacobian": float(dz[jac & ~wall].max()) if (jac & ~wall).any() else 0.0,
+        "max_dz_facet": float(dz[fac & ~wall].max()) if (fac & ~wall).any() else 0.0,
+        "height_off_near_wall": int(np.sum(both & wall & (dz > 1e-6) & (meth == 1))),
+        "height_off_elsewhere": int(np.sum(jac & ~wall & (dz > 1e-6))),
+        "empty_disagree": int(empty_dis.sum()),
+        "empty_disagree_near_wall": int(np.sum(empty_dis & wall)),
+        "deflection": defl, "summary": summary(zm),
+    }
+
+
+def _check(stats, name):
+    print(name, {k: v for k, v in stats.items() if k != "summary"})
+    assert stats["both"] > 0
+    assert stats["max_dz_jacobian"] <= 1e-6, (name, stats)
+    assert stats["height_off_elsewhere"] == 0, (name, stats)
+    assert stats["empty_disagree"] == stats["empty_disagree_near_wall"], (name, stats)
+
+
+@pytest.mark.parametrize("name", SAMPLES)
+def test_samples_agree_with_raycast(parts, name):
+    part = parts[name]
+    x0, y0, _, x1, y1, _ = part.bbox
+    grid = max(x1 - x0, y1 - y0) / 80
+    _check(compare_with_raycast(part, grid), name)
+
+
+REAL_AXES = {"nist_ctc_02_asme1_ap242-1.stp": "+y"}
+
+
+@pytest.mark.slow
+def test_real_parts_convert_and_agree(shared_data):
+    files = sorted((shared_data / "step").glob("*.st*p")) + sorted((shared_data / "step").glob("*.STEP"))
+    assert files
+    for path in files:
+        part = read_step(path)
+        axis = REAL_AXES.get(path.name, "+z")
+        from cad_io.view import view_matrix
+
+        R = view_matrix(axis)
+        b = np.abs(R @ (np.array(part.bbox[3:]) - np.array(part.bbox[:3])))
+        grid = float(max(b[0], b[1]) / 60)
+        stats = compare_with_raycast(part, grid, axis=axis, n=300)
+        _check(stats, path.name)
