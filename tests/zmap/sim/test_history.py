@@ -132,3 +132,26 @@ def test_empty_program_and_empty_rays():
     assert run.reconstruct(0).same_as(run.stock)
     with pytest.raises(Exception, match="out of range 0..0"):
         run.display(1)
+
+
+@SETTINGS
+@given(st.lists(cutters(), min_size=1, max_size=2), st.integers(0, 2**31), st.integers(1, 50))
+def test_treap_traversal_builds_the_same_treap(cs, seed, n):
+    """The paper's traversal update (pruned by conditions (1), (2)) equals the leaf-scan update."""
+    from zmap.sim.history.treap import simulate_treap
+
+    rng = np.random.default_rng(seed)
+    xyz = np.column_stack([rng.uniform(0, 3, n), rng.uniform(0, 2, n), rng.uniform(-3.5, 0.2, n)])
+    slot = rng.integers(0, len(cs), n).astype(np.int32)
+    stock = DexelWorkpiece.from_box((0, 0, -3, 3, 2, 0), pitch=0.25)
+    run = simulate(xyz, stock, tool=cs[0], pitch=0.25, history="treap") if len(cs) == 1 else None
+    wp = stock.copy()
+    rec = Recorder(treap=IntervalTreap.start(wp, 8))
+    run_cut(wp, xyz, slot, cutter_table(cs), 0, n, 0, rec, chunk=5)
+    rec.finalize()
+    it = simulate_treap(stock, xyz, cs, slot, capacity=8)
+    for name in ("node_off", "root_off", "root_hi", "z", "stage", "kids"):
+        assert np.array_equal(getattr(it, name), getattr(rec.treap, name), equal_nan=True), name
+    assert it.deleted == wp.deleted and it.created == wp.created
+    if run is not None:
+        assert np.array_equal(run.structure.kids, it.kids)

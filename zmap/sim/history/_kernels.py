@@ -5,8 +5,12 @@ Private to :mod:`zmap.sim.history`. Stages are int32, z values float32 (NaN = no
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
+
+from .._tool_kernels import _envelope
 
 __all__: list[str] = []
 
@@ -296,3 +300,136 @@ def treap_heights(node_off, root_off, tk, out_mean_depth, out_nodes):
                     depth[first + 1] = depth[node] + 1
         out_nodes[r] = end - base
         out_mean_depth[r] = total / (end - base) if end > base else 0.0
+
+
+# ---- Interval Treap as the workpiece itself (paper 000, section 4.2) ---------------------
+
+@njit(cache=True)
+def _treap_add(tz, ts, tk, tr_ray, counts, parent, mask, zl, zr, stage, ray):
+    k = counts[0]
+    n = 0
+    if mask & 1:
+        tz[k] = zl
+        ts[k] = stage
+        tk[k] = 0
+        tr_ray[k] = ray
+        n += 1
+    if mask & 2:
+        tz[k + n] = zr
+        ts[k + n] = stage
+        tk[k + n] = 0
+        tr_ray[k + n] = ray
+        n += 1
+    tk[parent] = (k << 2) | mask
+    counts[0] = k + n
+
+
+@njit(cache=True)
+def treap_cut_ray(r, a, b, stage, root_off, root_hi, tz, ts, tk, tr_ray, counts,
+                  stack_n, stack_lo, stack_hi):
+    """Subtract ``[a, b]`` from ray r by traversing its Interval Treap in order.
+
+    Condition (1): a node can change only if tool FarZ > its Zmin and its Zmax > tool
+    NearZ; otherwise its subtree is skipped (momentarily), and the traversal stops for
+    good when the node lies above the tool (its Zmax >= tool FarZ, condition (2)), or when a
+    leaf just created reaches the tool's FarZ. Returns 0, 1 if the node pool is full, 2 if
+    the stack is (the caller grows it and cuts the ray again: cutting is idempotent).
+    """
+    cap = tz.shape[0]
+    for t in range(root_off[r], root_off[r + 1]):
+        node = t
+        lo = tz[t]
+        hi = root_hi[t]
+        sp = 0
+        while True:
+            descend = False
+            if b > lo and hi > a:  # condition (1)
+                kids = tk[node]
+                mask = kids & 3
+                first = kids >> 2
+                if mask == 0:
+                    if lo < hi:  # an active dexel: the four cases
+                        if counts[0] + 2 > cap:
+                            return 1
+                        if a > lo and b < hi:
+                            _treap_add(tz, ts, tk, tr_ray, counts, node, 3, a, b, stage, r)
+                            counts[1] += 1
+                            return 0  # new FarZ >= tool FarZ: stop for good
+                        elif a <= lo and b >= hi:
+                            _treap_add(tz, ts, tk, tr_ray, counts, node, 1, np.float32(np.nan),
+                                       np.float32(0.0), stage, r)
+                            counts[2] += 1
+                        elif a > lo:
+                            _treap_add(tz, ts, tk, tr_ray, counts, node, 1, a, np.float32(0.0), stage, r)
+                        else:
+                            _treap_add(tz, ts, tk, tr_ray, counts, node, 2, np.float32(0.0), b, stage, r)
+                            return 0  # new Zmin = tool FarZ: stop for good
+                else:
+                    descend = True
+            elif lo >= b:  # (1) false and (2) true: everything further lies above the tool
+                return 0
+            if descend:
+                if mask == 3:
+                    if sp >= stack_n.shape[0]:
+                        return 2
+                    stack_n[sp] = first + 1
+                    stack_lo[sp] = tz[first + 1]
+                    stack_hi[sp] = hi
+                    sp += 1
+                    node = first
+                    hi = tz[first]
+                    continue
+                if mask == 1:
+                    zl = tz[first]
+                    if zl == zl:
+                        node = first
+                        hi = zl
+                        continue
+                else:
+                    node = first
+                    lo = tz[first]
+                    continue
+            if sp == 0:
+                break
+            sp -= 1
+            node = stack_n[sp]
+            lo = stack_lo[sp]
+            hi = stack_hi[sp]
+    return 0
+
+
+@njit(cache=True)
+def treap_cut_positions(xyz, tslot, tcode, trad, tcr, tlen, start, stop, stage0, x0, y0, pitch, nx, ny,
+                        root_off, root_hi, tz, ts, tk, tr_ray, counts, stack_n, stack_lo, stack_hi):
+    """Cut positions start..stop-1 into the treap forest; returns the first position not done.
+
+    ``counts`` = [nodes used, created, deleted, status]; status 1: pool full, 2: stack full.
+    """
+    counts[3] = 0
+    for p in range(start, stop):
+        s = tslot[p]
+        R = trad[s]
+        tx = xyz[p, 0]
+        ty = xyz[p, 1]
+        tz_ = xyz[p, 2]
+        stage = np.int32(stage0 + p + 1)
+        i0 = max(int(math.ceil((tx - R - x0) / pitch)) - 1, 0)
+        i1 = min(int(math.floor((tx + R - x0) / pitch)) + 1, nx - 1)
+        j0 = max(int(math.ceil((ty - R - y0) / pitch)) - 1, 0)
+        j1 = min(int(math.floor((ty + R - y0) / pitch)) + 1, ny - 1)
+        b = np.float32(tz_ + tlen[s])
+        R2 = R * R
+        for i in range(i0, i1 + 1):
+            dxr = x0 + i * pitch - tx
+            for j in range(j0, j1 + 1):
+                dyr = y0 + j * pitch - ty
+                d2 = dxr * dxr + dyr * dyr
+                if d2 > R2:
+                    continue
+                a = np.float32(tz_ + _envelope(tcode[s], R, tcr[s], math.sqrt(d2)))
+                st = treap_cut_ray(i * ny + j, a, b, stage, root_off, root_hi, tz, ts, tk, tr_ray, counts,
+                                   stack_n, stack_lo, stack_hi)
+                if st != 0:
+                    counts[3] = st
+                    return p
+    return stop
