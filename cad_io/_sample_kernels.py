@@ -111,9 +111,14 @@ def fill_pairs(nodes, tris, t0, offsets, x0, y0, dx, dy, nx, ny, gidx, tri, w):
 
 
 @njit(cache=True)
-def point_in_loops(u, v, loop_uv, loop_off, first, last):
-    """Even-odd test of (u, v) against loops ``first..last-1`` (``loop_off`` bounds in ``loop_uv``)."""
+def point_in_loops(u, v, loop_uv, loop_off, first, last, eps):
+    """Even-odd test of (u, v) against loops ``first..last-1`` (``loop_off`` bounds in ``loop_uv``).
+
+    Points within ``eps`` of a loop edge count as inside (a grid point on a face's
+    boundary belongs to the face).
+    """
     inside = False
+    eps2 = eps * eps
     for L in range(first, last):
         s = loop_off[L]
         e = loop_off[L + 1]
@@ -126,6 +131,16 @@ def point_in_loops(u, v, loop_uv, loop_off, first, last):
                 mb = 0
             ub = loop_uv[s + mb, 0]
             vb = loop_uv[s + mb, 1]
+            eu = ub - ua
+            ev = vb - va
+            ll = eu * eu + ev * ev
+            s_ = 0.0
+            if ll > 0.0:
+                s_ = min(max(((u - ua) * eu + (v - va) * ev) / ll, 0.0), 1.0)
+            du_ = u - (ua + s_ * eu)
+            dv_ = v - (va + s_ * ev)
+            if du_ * du_ + dv_ * dv_ <= eps2:
+                return True
             if (va > v) != (vb > v):
                 ux = ua + (v - va) * (ub - ua) / (vb - va)
                 if u < ux:
@@ -233,7 +248,8 @@ def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, f
                 if abs(zn - zf) > face_zgap[k]:
                     ok = False
                 elif tri_check[t] and face_loops[k, 1] > face_loops[k, 0]:
-                    if not point_in_loops(u, v, loop_uv, loop_off, face_loops[k, 0], face_loops[k, 1]):
+                    eps = 1e-9 * max(u1 - u0, v1 - v0)
+                    if not point_in_loops(u, v, loop_uv, loop_off, face_loops[k, 0], face_loops[k, 1], eps):
                         status[p] = 0  # outside the trimmed face
                         z[p] = np.nan
                         continue
