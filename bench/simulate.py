@@ -6,7 +6,9 @@ cameo.nc from ../shared/data/gcode with the stock and tools of their .camotics p
 
 For each history kind the program is simulated (JIT warmed up first) several times,
 interleaved, and the best time is kept (``seconds`` of the run: cutting with in-kernel
-recording plus finalising the history; parsing and DDA are reported apart). Reconstruction
+recording plus finalising the history; parsing and DDA are reported apart).
+``time_treap_traversal`` is the paper's own treap update (the treap as the only workpiece,
+traversed from the roots, :func:`zmap.sim.history.treap.simulate_treap`). Reconstruction
 (``Run.reconstruct``: treap; ``reconstruct_ms_ztrace``: z-trace) and display
 (``Run.display``: treap; ``display_ms_ttrace``, ``display_ms_ztrace``) are timed at stages
 1/10, 1/4, 1/2, 3/4 and the end, best of 5. Prints one JSON object.
@@ -31,6 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from make_mould_program import STOCK, TOOL, write_mould_program  # noqa: E402
 
 from zmap.sim.gcode import parse  # noqa: E402
+from zmap.sim.history.treap import simulate_treap  # noqa: E402
 from zmap.sim.path import positions  # noqa: E402
 from zmap.sim.session import simulate  # noqa: E402
 from zmap.sim.tools import load_camotics_project, parse_tool_spec  # noqa: E402
@@ -72,6 +75,13 @@ def figures(program_path: str | Path, stock, tool, tools, repeat: int) -> dict:
             run = simulate(pos, stock, tool=tool, tools=tools, pitch=PITCH, history=h)
             times[h].append(run.summary["seconds"])
             runs[h] = run
+    # the paper's own treap update: traversal from the roots pruned by conditions (1), (2)
+    r0 = runs["treap"]
+    t_trav = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        it = simulate_treap(r0.stock, r0.xyz, r0.cutters, r0.slot)
+        t_trav.append(time.perf_counter() - t)
     n = runs["none"].n_stages
     stages = [int(round(f * n)) for f in FRACTIONS]
     tr, zt, tt = runs["treap"], runs["ztrace"], runs["ttrace"]
@@ -85,6 +95,8 @@ def figures(program_path: str | Path, stock, tool, tools, repeat: int) -> dict:
     }
     for h in KINDS:
         out[f"time_{h}"] = round(min(times[h]), 4)
+    out["time_treap_traversal"] = round(min(t_trav), 4)
+    out["treap_traversal_same_nodes"] = bool(np.array_equal(it.kids, r0.structure.kids))
     for h in ("ztrace", "ttrace", "treap"):
         out[f"bytes_{h}"] = int(runs[h].summary["history_bytes"])
     out["elements_ztrace"] = int(zt.summary["history_elements"])
@@ -109,6 +121,7 @@ def figures(program_path: str | Path, stock, tool, tools, repeat: int) -> dict:
         "ztrace_over_none": round(out["time_ztrace"] / none, 3),
         "ttrace_over_none": round(out["time_ttrace"] / none, 3),
         "treap_over_none": round(out["time_treap"] / none, 3),
+        "treap_traversal_over_none": round(out["time_treap_traversal"] / none, 3),
         "treap_bytes_over_traces": round(out["bytes_treap"] / (out["bytes_ztrace"] + out["bytes_ttrace"]), 3),
     }
     return out
