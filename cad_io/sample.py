@@ -179,7 +179,8 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
     grid : float or (float, float)
         Grid interval in mm, or ``(dx, dy)``.
     bounds : (x0, y0, x1, y1), optional
-        Domain in the view frame, mm; default the part's bounding box seen from ``axis``.
+        Domain in the view frame, mm; default the extents of the part's triangulation seen
+        from ``axis`` (its bounding box without OCC's tolerance padding).
         Grid points are ``x0 + i*dx``, ``y0 + j*dy`` up to ``x1``, ``y1``.
     method : {'auto', 'jacobian', 'facet'}
         'auto': Jacobian inversion, facets where it fails; 'jacobian': inversion only
@@ -230,7 +231,8 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
     dx, dy = _spacing(grid)
     if not part.faces:
         raise ValueError(f"part {part.source!r} has no faces")
-    if bounds is None:
+    default_bounds = bounds is None
+    if default_bounds:
         bounds = _view_bounds(part, axis)
     elif np.shape(bounds) != (4,):
         raise ValueError(f"bounds must be (x0, y0, x1, y1), got {bounds!r}")
@@ -250,6 +252,16 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
         triangulate(part, deflection)
     t_mesh = time.perf_counter() - t_mesh
     vpart = transform_part(part, axis)
+    if default_bounds:
+        # the triangulation's extents: on the surface, unlike the tolerance-padded bboxes
+        ext = [(m.nodes[:, 0].min(), m.nodes[:, 1].min(), m.nodes[:, 0].max(), m.nodes[:, 1].max())
+               for m in (f.mesh for f in vpart.faces) if m is not None and len(m.nodes)]
+        if ext:
+            e = np.array(ext)
+            bounds = (float(e[:, 0].min()), float(e[:, 1].min()), float(e[:, 2].max()), float(e[:, 3].max()))
+            x0, y0 = bounds[0], bounds[1]
+            nx, ny = grid_shape(bounds, dx, dy)
+            need = _check_memory(nx, ny)
     msgs: list[str] = []
 
     # ---- faces: NURBS pack, which path, meshes concatenated -----------------------------
