@@ -236,8 +236,8 @@ class Run:
     cutters : list of Cutter
     structure : ZTrace, TimeTrace, IntervalTreap or None
     summary : dict
-        moves, positions, rays, dexels_created, dexels_deleted, history, history_bytes,
-        history_elements, seconds.
+        moves, positions, rays, dexels_created, dexels_deleted, dexels_final, history,
+        history_bytes, history_elements, history_bytes_per_element, seconds.
     """
 
     history: str
@@ -279,15 +279,14 @@ class Run:
         (True, True)
         """
         k = self.stage(stage)
-        if k == self.n_stages:
-            wp = self.final.copy()
-            return wp
         if self.history in ("ztrace", "treap"):
             off, near, far = self.structure.reconstruct(k)
             s = self.stock
             return DexelWorkpiece.from_csr(s.x0, s.y0, s.pitch, s.nx, s.ny, off, near, far)
         if k == 0:
             return self.stock.copy()
+        if k == self.n_stages:
+            return self.final.copy()
         return self._replay(k)
 
     def display(self, stage: Any) -> np.ndarray:
@@ -502,6 +501,8 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
         rec.finalize()
         structure = getattr(rec, history)
     seconds = time.perf_counter() - t0
+    n_elem = (int(getattr(structure, "n_nodes", getattr(structure, "n_elements", 0)))
+              if structure is not None else 0)
     summary = {
         "moves": path.n_moves,
         "positions": n,
@@ -511,8 +512,8 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
         "dexels_final": wp.n_dexels,
         "history": history,
         "history_bytes": int(structure.nbytes) if structure is not None else 0,
-        "history_elements": int(getattr(structure, "n_nodes", getattr(structure, "n_elements", 0)))
-        if structure is not None else 0,
+        "history_elements": n_elem,
+        "history_bytes_per_element": round(structure.nbytes / n_elem, 3) if n_elem else 0.0,
         "seconds": round(seconds, 4),
     }
     return Run(history, stock0, wp, path.xyz, slot, path.line, numbers, cutters, structure, summary)
