@@ -157,13 +157,6 @@ def treap_group(ray, node_off, tz, ts, tk, nz, ns, nk):
 
 
 @njit(cache=True)
-def _grow(a):
-    b = np.empty(2 * a.shape[0], dtype=a.dtype)
-    b[: a.shape[0]] = a
-    return b
-
-
-@njit(cache=True)
 def treap_display(node_off, root_off, root_hi, tz, ts, tk, k, out, stack_n, stack_lo, stack_hi):
     """Right-most non-empty leaf of each ray's treap as cut at stage k (its Zmax), or NaN.
 

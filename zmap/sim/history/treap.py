@@ -33,7 +33,6 @@ tree cut at n; ``display`` takes the right-most non-empty leaf (reverse in-order
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
