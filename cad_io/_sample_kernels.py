@@ -19,7 +19,7 @@ from numba import njit, prange
 
 from ._nurbs_kernels import eval_point
 
-__all__ = ["count_pairs", "fill_pairs", "solve_pairs", "reduce_pairs", "point_in_loops"]
+__all__ = ["count_pairs", "fill_pairs", "solve_pairs", "reduce_pairs", "point_in_loops", "point_in_bands"]
 
 #: triangles whose xy area is below this share of their squared longest edge are treated
 #: as vertical (they cover no grid point)
@@ -148,9 +148,47 @@ def point_in_loops(u, v, loop_uv, loop_off, first, last, eps):
     return inside
 
 
+@njit(cache=True)
+def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps):
+    """:func:`point_in_loops` on a face's loop edges bucketed in ``nband`` bands of v.
+
+    Band ``b`` (``vlo + b*h`` .. ``vlo + (b+1)*h``, widened by ``eps``) lists, in
+    ``band_edges[band_ptr[first + b]:band_ptr[first + b + 1]]``, every edge (row of
+    ``edges`` = ua, va, ub, vb) whose v-range meets it, so a point tests only its band.
+    """
+    fb = (v - vlo) / h
+    if fb < -1.0 or fb > nband + 1.0:
+        return False
+    b = int(math.floor(fb))
+    b = min(max(b, 0), nband - 1)
+    inside = False
+    eps2 = eps * eps
+    for q in range(band_ptr[first + b], band_ptr[first + b + 1]):
+        e = band_edges[q]
+        ua = edges[e, 0]
+        va = edges[e, 1]
+        ub = edges[e, 2]
+        vb = edges[e, 3]
+        eu = ub - ua
+        ev = vb - va
+        ll = eu * eu + ev * ev
+        s_ = 0.0
+        if ll > 0.0:
+            s_ = min(max(((u - ua) * eu + (v - va) * ev) / ll, 0.0), 1.0)
+        du_ = u - (ua + s_ * eu)
+        dv_ = v - (va + s_ * ev)
+        if du_ * du_ + dv_ * dv_ <= eps2:
+            return True
+        if (va > v) != (vb > v):
+            ux = ua + (v - va) * (ub - ua) / (vb - va)
+            if u < ux:
+                inside = not inside
+    return inside
+
+
 @njit(cache=True, parallel=True)
 def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
-                deg, ncp, koff, poff, knots, cpw, domain, loop_uv, loop_off, face_loops,
+                deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
                 x0, y0, dx, dy, ny, mode, tol, max_iter, z, status):
     """Height candidate of every pair, into ``z`` (P,) and ``status`` (P,) int8.
 
@@ -162,8 +200,11 @@ def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, f
         Largest accepted |z_newton - z_facet| (guards against a jump to another layer).
     tri_check : (M,) bool
         Triangle touches the mesh boundary: test the solution against the trim loops.
-    face_loops : (F, 2) int64
-        First and one-past-last loop of each face in ``loop_off``.
+    edges, band_ptr, band_edges : trim loop edges in bands (:func:`point_in_bands`)
+    face_bi : (F, 2) int64
+        First band and number of bands of each face (0 bands: untrimmed).
+    face_bf : (F, 3) float64
+        ``vlo``, band height ``h`` and on-boundary tolerance ``eps`` of each face.
     mode : int
         0 auto (Newton, facet where it fails), 1 Newton only, 2 facets only.
     """
@@ -247,9 +288,9 @@ def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, f
                 zn = out[0, 2]
                 if abs(zn - zf) > face_zgap[k]:
                     ok = False
-                elif tri_check[t] and face_loops[k, 1] > face_loops[k, 0]:
-                    eps = 1e-9 * max(u1 - u0, v1 - v0)
-                    if not point_in_loops(u, v, loop_uv, loop_off, face_loops[k, 0], face_loops[k, 1], eps):
+                elif tri_check[t] and face_bi[k, 1] > 0:
+                    if not point_in_bands(u, v, edges, band_ptr, band_edges, face_bi[k, 0], face_bi[k, 1],
+                                          face_bf[k, 0], face_bf[k, 1], face_bf[k, 2]):
                         status[p] = 0  # outside the trimmed face
                         z[p] = np.nan
                         continue

@@ -132,6 +132,49 @@ def _boundary_triangles(tris: np.ndarray) -> np.ndarray:
     return bnodes[tris].any(axis=1)
 
 
+def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: int) -> tuple[np.ndarray, ...]:
+    """Trim loop edges of every face bucketed in bands of v (see ``_sample_kernels.point_in_bands``).
+
+    Returns ``edges (E, 4), band_ptr (B+1,), band_edges (X,), face_bi (F, 2), face_bf (F, 3)``.
+    """
+    face_bi = np.zeros((F, 2), dtype=np.int64)
+    face_bf = np.zeros((F, 3))
+    face_bf[:, 1] = 1.0
+    edges_l, counts_l, members_l = [], [], []
+    n_edges = 0
+    n_bands = 0
+    for k, lps in face_loops.items():
+        if not lps:
+            continue
+        a = np.concatenate(lps)
+        b = np.concatenate([np.roll(lp, -1, axis=0) for lp in lps])
+        e = np.hstack([a, b])
+        eps = 1e-9 * max(domain[k, 1] - domain[k, 0], domain[k, 3] - domain[k, 2], 1e-300)
+        vlo = float(min(a[:, 1].min(), b[:, 1].min())) - eps
+        vhi = float(max(a[:, 1].max(), b[:, 1].max())) + eps
+        nb = int(min(max(len(e) // 2, 1), 4096))
+        h = (vhi - vlo) / nb if vhi > vlo else 1.0
+        lo = np.clip(np.floor((np.minimum(e[:, 1], e[:, 3]) - eps - vlo) / h), 0, nb - 1).astype(np.int64)
+        hi = np.clip(np.floor((np.maximum(e[:, 1], e[:, 3]) + eps - vlo) / h), 0, nb - 1).astype(np.int64)
+        span = hi - lo + 1
+        eid = np.repeat(np.arange(len(e)), span)
+        start = np.repeat(np.cumsum(span) - span, span)
+        band = np.repeat(lo, span) + (np.arange(len(eid)) - start)
+        order = np.argsort(band, kind="stable")
+        counts_l.append(np.bincount(band, minlength=nb))
+        members_l.append(eid[order] + n_edges)
+        edges_l.append(e)
+        face_bi[k] = n_bands, nb
+        face_bf[k] = vlo, h, eps
+        n_edges += len(e)
+        n_bands += nb
+    if not edges_l:
+        return np.zeros((0, 4)), np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), face_bi, face_bf
+    band_ptr = np.concatenate([[0], np.cumsum(np.concatenate(counts_l))]).astype(np.int64)
+    return (np.ascontiguousarray(np.concatenate(edges_l)), band_ptr,
+            np.ascontiguousarray(np.concatenate(members_l)).astype(np.int64), face_bi, face_bf)
+
+
 def _needs_mesh(part: Part, deflection: float) -> bool:
     for f in part.faces:
         m = f.mesh
@@ -289,14 +332,11 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
     F = len(vpart.faces)
     face_mode = np.full(F, 2, dtype=np.int8)
     face_zgap = np.full(F, 1e-6)
-    loops: list[np.ndarray] = []
-    loop_off = [0]
-    face_loops = np.zeros((F, 2), dtype=np.int64)
+    face_loops: dict[int, list[np.ndarray]] = {}
     nodes_l, uv_l, tris_l, tface_l, check_l = [], [], [], [], []
     n_nodes = 0
     bx0, by0, bx1, by1 = x0, y0, x0 + (nx - 1) * dx, y0 + (ny - 1) * dy
     for k, f in enumerate(vpart.faces):
-        face_loops[k] = len(loop_off) - 1, len(loop_off) - 1
         m = f.mesh
         if m is None or len(m.triangles) == 0:
             continue
@@ -306,12 +346,8 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
         if surfaces[k] is not None and m.uv is not None:
             face_mode[k] = 1
             face_zgap[k] = max(20.0 * max(m.deflection, deflection), 1e-6)
-            for lp in f.loops:
-                lp = np.asarray(lp, dtype=np.float64).reshape(-1, 2)
-                if len(lp) >= 3:
-                    loops.append(lp)
-                    loop_off.append(loop_off[-1] + len(lp))
-            face_loops[k, 1] = len(loop_off) - 1
+            lps = [np.asarray(lp, dtype=np.float64).reshape(-1, 2) for lp in f.loops]
+            face_loops[k] = [lp for lp in lps if len(lp) >= 3]
         tri = np.asarray(m.triangles, dtype=np.int64)
         nodes_l.append(np.asarray(m.nodes, dtype=np.float64))
         uv_l.append(np.asarray(m.uv, dtype=np.float64) if m.uv is not None else np.zeros((len(m.nodes), 2)))
@@ -332,8 +368,7 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
         tris = np.ascontiguousarray(np.concatenate(tris_l))
         tri_face = np.ascontiguousarray(np.concatenate(tface_l))
         tri_check = np.ascontiguousarray(np.concatenate(check_l))
-        loop_uv = np.ascontiguousarray(np.concatenate(loops)) if loops else np.zeros((0, 2))
-        loop_off_a = np.asarray(loop_off, dtype=np.int64)
+        trim = _trim_bands(face_loops, np.nan_to_num(packed.domain), F)
         counts = np.zeros(len(tris), dtype=np.int64)
         K.count_pairs(nodes, tris, x0, y0, dx, dy, nx, ny, counts)
         cum = np.concatenate([[0], np.cumsum(counts)])
@@ -358,8 +393,7 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
                     st = np.empty(P, dtype=np.int8)
                     K.solve_pairs(gidx, tri_p, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                                   packed.deg, packed.ncp, packed.koff, packed.poff, packed.knots, packed.cpw,
-                                  np.ascontiguousarray(np.nan_to_num(packed.domain)), loop_uv, loop_off_a,
-                                  face_loops, x0, y0, dx, dy, ny, mode, NEWTON_TOL, NEWTON_MAX_ITER, zc, st)
+                                  np.ascontiguousarray(np.nan_to_num(packed.domain)), *trim, x0, y0, dx, dy, ny, mode, NEWTON_TOL, NEWTON_MAX_ITER, zc, st)
                     K.reduce_pairs(gidx, tri_p, tri_face, zc, st, zflat, fflat, mflat)
                     bar.update(P)
                 t = t1

@@ -241,3 +241,23 @@ def test_real_parts_convert_and_agree(shared_data):
         grid = float(max(b[0], b[1]) / 60)
         stats = compare_with_raycast(part, grid, axis=axis, n=300)
         _check(stats, path.name)
+
+
+def test_banded_point_in_polygon_matches_plain_reference():
+    from cad_io import _sample_kernels as K
+    from cad_io.sample import _trim_bands
+
+    rng = np.random.default_rng(3)
+    t = np.linspace(0, 2 * np.pi, 301)[:-1]
+    outer = np.stack([0.5 + (0.4 + 0.08 * np.sin(7 * t)) * np.cos(t), 0.5 + (0.4 + 0.08 * np.sin(7 * t)) * np.sin(t)], 1)
+    hole = np.stack([0.5 + 0.1 * np.cos(-t[::5]), 0.45 + 0.15 * np.sin(-t[::5])], 1)
+    loops = [outer, hole]
+    edges, band_ptr, band_edges, bi, bf = _trim_bands({0: loops}, np.array([[0.0, 1.0, 0.0, 1.0]]), 1)
+    flat = np.concatenate(loops)
+    off = np.array([0, len(outer), len(outer) + len(hole)], dtype=np.int64)
+    pts = np.concatenate([rng.uniform(-0.1, 1.1, (4000, 2)), outer[:50], hole[:10]])  # vertices: on the boundary
+    for u, v in pts:
+        a = K.point_in_bands(u, v, edges, band_ptr, band_edges, bi[0, 0], bi[0, 1], bf[0, 0], bf[0, 1], bf[0, 2])
+        b = K.point_in_loops(u, v, flat, off, 0, 2, bf[0, 2])
+        assert a == b, (u, v)
+    assert K.point_in_loops(0.5, 0.1, flat, off, 0, 2, 1e-9) and not K.point_in_loops(0.5, 0.45, flat, off, 0, 2, 1e-9)
