@@ -80,43 +80,31 @@ def _kind(face) -> str:
     return _KIND_NAMES.get(BRepAdaptor_Surface(face, False).GetType().name, "other")
 
 
-def _convert(shape, faces: list):
-    """Converted faces (oriented like ``faces``, None where conversion failed), reasons,
-    and the shape they belong to."""
-    from OCP.BRep import BRep_Builder, BRep_Tool
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_NurbsConvert
-    from OCP.TopoDS import TopoDS, TopoDS_Compound
+def _convert(faces: list, kinds: list[str]):
+    """Faces whose surface is a B-spline (as they are) or converted to one, one by one.
 
-    n = len(faces)
-    out: list = [None] * n
-    why: list[str] = [""] * n
-    try:
-        nc = BRepBuilderAPI_NurbsConvert(shape, True)
-        converted = nc.Shape()
-        for i, f in enumerate(faces):
-            if BRep_Tool.Surface_s(f) is None:
-                why[i] = "no surface (tessellated face)"
-                continue
-            out[i] = TopoDS.Face_s(nc.ModifiedShape(f).Oriented(f.Orientation()))
-        return out, why, converted
-    except Exception:  # OCCT raises its own Standard_Failure subclasses
-        pass
-    builder = BRep_Builder()
-    comp = TopoDS_Compound()
-    builder.MakeCompound(comp)
+    Returns the faces (oriented like ``faces``; None where conversion failed) and the
+    reasons of the failures. B-spline faces are kept: their parameters are already those
+    of their NURBS, and converting them again (which re-fits their pcurves) is slow.
+    """
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_NurbsConvert
+    from OCP.TopoDS import TopoDS
+
+    out: list = [None] * len(faces)
+    why: list[str] = [""] * len(faces)
     for i, f in enumerate(faces):
         if BRep_Tool.Surface_s(f) is None:
             why[i] = "no surface (tessellated face)"
-            builder.Add(comp, f)
-            continue
-        try:
-            nc = BRepBuilderAPI_NurbsConvert(f, True)
-            out[i] = TopoDS.Face_s(nc.ModifiedShape(f).Oriented(f.Orientation()))
-            builder.Add(comp, out[i])
-        except Exception as err:  # OCCT Standard_Failure
-            why[i] = f"{type(err).__name__}: {err}".strip()
-            builder.Add(comp, f)
-    return out, why, comp
+        elif kinds[i] == "bspline":
+            out[i] = f
+        else:
+            try:
+                nc = BRepBuilderAPI_NurbsConvert(f, True)
+                out[i] = TopoDS.Face_s(nc.ModifiedShape(f).Oriented(f.Orientation()))
+            except Exception as err:  # OCCT Standard_Failure
+                why[i] = f"{type(err).__name__}: {err}".strip()
+    return out, why
 
 
 def _nurbs_of(face) -> NurbsSurface:
@@ -128,8 +116,9 @@ def _nurbs_of(face) -> NurbsSurface:
     if ad.GetType().name != "GeomAbs_BSplineSurface":
         raise ValueError(f"converted surface is {ad.GetType().name}, not a B-spline")
     b = ad.BSpline()  # a transformed copy when the face has a location
+    shift = (0.0, 0.0)
     if b.IsUPeriodic() or b.IsVPeriodic():
-        b = _unperiodic(b, *BRepTools.UVBounds_s(face))
+        b, shift = _unperiodic(b, *BRepTools.UVBounds_s(face))
     p, q = b.UDegree(), b.VDegree()
     nu, nv = b.NbUPoles(), b.NbVPoles()
     ku = b.UKnotSequence()
@@ -148,6 +137,8 @@ def _nurbs_of(face) -> NurbsSurface:
     if not rational and b.Weights() is not None:
         W = b.Weights()
         weights = np.array([[W.Value(a + 1, c + 1) for c in range(nv)] for a in range(nu)])
+    knots_u -= shift[0]
+    knots_v -= shift[1]
     if len(knots_u) != nu + p + 1 or len(knots_v) != nv + q + 1:
         raise ValueError(f"knot sequences of lengths ({len(knots_u)}, {len(knots_v)}) do not "
                          f"fit {nu}x{nv} poles of degrees ({p}, {q})")
@@ -156,7 +147,8 @@ def _nurbs_of(face) -> NurbsSurface:
 
 def _unperiodic(b, u0: float, u1: float, v0: float, v1: float):
     """A non-periodic copy of ``b`` cut to [u0, u1] x [v0, v1] in its periodic directions
-    (exact: knot insertion only); parameters keep their values."""
+    (exact: knot insertion only), and the (u, v) shifts to subtract from its knots so that
+    parameters keep their values."""
     b = b.Copy()
     ranges = []
     for periodic, t0, t1, first, last, period in (
@@ -171,12 +163,18 @@ def _unperiodic(b, u0: float, u1: float, v0: float, v1: float):
         else:
             ranges.append((first, last))
     (a0, a1), (c0, c1) = ranges
+    periods = (b.UPeriod() if b.IsUPeriodic() else 0.0, b.VPeriod() if b.IsVPeriodic() else 0.0)
     b.Segment(a0, a1, c0, c1)
     if b.IsUPeriodic():
         b.SetUNotPeriodic()
     if b.IsVPeriodic():
         b.SetVNotPeriodic()
-    return b
+    # Segment may move the range by whole periods: shift the knots back
+    shift = []
+    for start, got, period in ((a0, b.UKnot(b.FirstUKnotIndex()), periods[0]),
+                               (c0, b.VKnot(b.FirstVKnotIndex()), periods[1])):
+        shift.append(round((got - start) / period) * period if period > 0 else 0.0)
+    return b, (shift[0], shift[1])
 
 
 # --------------------------------------------------------------------------------------
@@ -404,7 +402,7 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None) 
         raise StepImportError(f"{path}: STEP file has no faces")
     faces = [TopoDS.Face_s(fmap.FindKey(i)) for i in range(1, fmap.Extent() + 1)]
     kinds = [_kind(f) for f in faces]
-    conv, why, converted = _convert(shape, faces)
+    conv, why = _convert(faces, kinds)
 
     out_faces: list[Face] = []
     for i, (f, cf) in enumerate(zip(faces, conv)):
@@ -446,7 +444,7 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None) 
         return fmap.FindIndex(f) - 1
 
     edges = _edges(shape, face_index, faces, [fc.surface is not None for fc in out_faces])
-    part = Part(faces=out_faces, edges=edges, source=str(path), shape=converted,
+    part = Part(faces=out_faces, edges=edges, source=str(path), shape=shape,
                 warnings=warnings)
     if mesh_deflection is not None:
         from cad_io.mesh import triangulate
