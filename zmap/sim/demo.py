@@ -20,7 +20,7 @@ DEMO_TOOLS = _DATA / "tools.toml"
 DEMO_STOCK = "box:0,0,-10,40,30,0"
 
 
-def run_demo(out_dir: str | os.PathLike = "out", *, echo=print) -> dict:
+def run_demo(out_dir: str | os.PathLike = "out", *, echo=print) -> list[Path]:
     """Simulate the demo program and write its replay images under ``out_dir``.
 
     Parameters
@@ -33,8 +33,8 @@ def run_demo(out_dir: str | os.PathLike = "out", *, echo=print) -> dict:
 
     Returns
     -------
-    dict
-        Paths written and the run's summary.
+    list of Path
+        The run file, the two pictures and the GIF, in that order.
     """
     import numpy as np
 
@@ -63,8 +63,7 @@ def run_demo(out_dir: str | os.PathLike = "out", *, echo=print) -> dict:
     step = max(1, (s2 - s1) // 40)
     frames = [shade(img, run.stock.pitch, zrange) for _, img in run.animate(s1, s2, step)]
     p_gif = save_gif(out / "demo_pocket.gif", frames, fps=12, scale=2)
-    result = {"zsim": str(zsim), "png_half": str(p_half), "png_end": str(p_end), "gif": str(p_gif),
-              "summary": run.summary}
+    result = [Path(zsim), Path(p_half), Path(p_end), Path(p_gif)]
     if echo is not None:
         s = run.summary
         echo(f"simulated {program.name}: {s['moves']} moves, {s['positions']} positions, {s['rays']} rays, "
