@@ -298,6 +298,15 @@ def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, f
                 z[p] = out[0, 2]
                 status[p] = 1
             elif mode == 0 and not edge:
+                # facet fallback; on a boundary triangle only where its start is in the face
+                if tri_check[t] and face_bi[k, 1] > 0:
+                    u = w0 * uv[a, 0] + w1 * uv[b, 0] + w2 * uv[c, 0]
+                    v = w0 * uv[a, 1] + w1 * uv[b, 1] + w2 * uv[c, 1]
+                    if not point_in_bands(u, v, edges, band_ptr, band_edges, face_bi[k, 0], face_bi[k, 1],
+                                          face_bf[k, 0], face_bf[k, 1], face_bf[k, 2]):
+                        z[p] = np.nan
+                        status[p] = 0
+                        continue
                 z[p] = zf
                 status[p] = 2
             else:

@@ -46,6 +46,8 @@ _POINT_BYTES = 13 + 13
 #: Newton: xy residual (mm) at which a solution counts as converged, and iteration cap
 NEWTON_TOL = 1e-10
 NEWTON_MAX_ITER = 30
+#: uv lattice size for faces with a surface but no (u, v) triangulation
+LATTICE = 48
 
 
 def _spacing(grid: Any) -> tuple[float, float]:
@@ -173,6 +175,24 @@ def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: 
     band_ptr = np.concatenate([[0], np.cumsum(np.concatenate(counts_l))]).astype(np.int64)
     return (np.ascontiguousarray(np.concatenate(edges_l)), band_ptr,
             np.ascontiguousarray(np.concatenate(members_l)).astype(np.int64), face_bi, face_bf)
+
+
+def _lattice_mesh(surface, n: int):
+    """Triangles of an ``n`` x ``n`` lattice over the untrimmed (u, v) domain of ``surface``.
+
+    The start of the issue's plain method (nearest point of a coarse uv lattice), for faces
+    that came without a triangulation in (u, v).
+    """
+    from .part import FaceMesh
+    from .nurbs import evaluate
+
+    u0, u1, v0, v1 = surface.domain
+    U, V = np.meshgrid(np.linspace(u0, u1, n), np.linspace(v0, v1, n), indexing="ij")
+    nodes = evaluate(surface, U, V)[..., 0, :].reshape(-1, 3)
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    tris = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]).astype(np.int32)
+    return FaceMesh(np.ascontiguousarray(nodes), tris, np.stack([U.ravel(), V.ravel()], 1), 0.0)
 
 
 def _needs_mesh(part: Part, deflection: float) -> bool:
@@ -325,9 +345,15 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
     no_surface = [f.index for f, s in zip(vpart.faces, surfaces) if s is None]
     if no_surface:
         msgs.append(f"{len(no_surface)} faces without NURBS surface sampled from facets: ids {_ids(no_surface)}")
-    no_mesh = [f.index for f in vpart.faces if f.mesh is None or len(f.mesh.triangles) == 0]
+    no_mesh = [f.index for f, s in zip(vpart.faces, surfaces)
+               if (f.mesh is None or len(f.mesh.triangles) == 0) and s is None]
     if no_mesh:
-        msgs.append(f"{len(no_mesh)} faces without triangles skipped: ids {_ids(no_mesh)}")
+        msgs.append(f"{len(no_mesh)} faces without surface or triangles skipped: ids {_ids(no_mesh)}")
+    lattice = [f.index for f, s in zip(vpart.faces, surfaces)
+               if (f.mesh is None or len(f.mesh.triangles) == 0 or f.mesh.uv is None) and s is not None]
+    if lattice:
+        msgs.append(f"{len(lattice)} faces without a (u, v) triangulation started from a "
+                    f"{LATTICE} x {LATTICE} uv lattice: ids {_ids(lattice)}")
 
     F = len(vpart.faces)
     face_mode = np.full(F, 2, dtype=np.int8)
@@ -336,8 +362,12 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
     nodes_l, uv_l, tris_l, tface_l, check_l = [], [], [], [], []
     n_nodes = 0
     bx0, by0, bx1, by1 = x0, y0, x0 + (nx - 1) * dx, y0 + (ny - 1) * dy
+    lattice_set = set(lattice)
     for k, f in enumerate(vpart.faces):
         m = f.mesh
+        on_lattice = k in lattice_set
+        if on_lattice:
+            m = _lattice_mesh(surfaces[k], LATTICE)
         if m is None or len(m.triangles) == 0:
             continue
         b = f.bbox
@@ -345,7 +375,7 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
             continue
         if surfaces[k] is not None and m.uv is not None:
             face_mode[k] = 1
-            face_zgap[k] = max(20.0 * max(m.deflection, deflection), 1e-6)
+            face_zgap[k] = np.inf if on_lattice else max(20.0 * max(m.deflection, deflection), 1e-6)
             lps = [np.asarray(lp, dtype=np.float64).reshape(-1, 2) for lp in f.loops]
             face_loops[k] = [lp for lp in lps if len(lp) >= 3]
         tri = np.asarray(m.triangles, dtype=np.int64)
@@ -353,7 +383,8 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
         uv_l.append(np.asarray(m.uv, dtype=np.float64) if m.uv is not None else np.zeros((len(m.nodes), 2)))
         tris_l.append(tri + n_nodes)
         tface_l.append(np.full(len(tri), k, dtype=np.int64))
-        check_l.append(_boundary_triangles(tri))
+        # a lattice covers the untrimmed domain: every solution is tested against the loops
+        check_l.append(np.ones(len(tri), dtype=np.bool_) if on_lattice else _boundary_triangles(tri))
         n_nodes += len(m.nodes)
     for msg in msgs:
         warnings.warn(msg, stacklevel=2)
