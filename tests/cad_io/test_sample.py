@@ -261,3 +261,18 @@ def test_banded_point_in_polygon_matches_plain_reference():
         b = K.point_in_loops(u, v, flat, off, 0, 2, bf[0, 2])
         assert a == b, (u, v)
     assert K.point_in_loops(0.5, 0.1, flat, off, 0, 2, 1e-9) and not K.point_in_loops(0.5, 0.45, flat, off, 0, 2, 1e-9)
+
+
+@pytest.mark.parametrize("name", ["freeform_die", "pocket"])
+def test_uv_lattice_start_for_faces_without_uv_mesh(name):
+    from cad_io.part import FaceMesh
+
+    part = read_step(DATA / f"{name}.step")
+    za = sample(part, 1.0)
+    for f in part.faces:  # drop the (u, v) of the triangulation: the sampler starts from a uv lattice
+        f.mesh = FaceMesh(f.mesh.nodes, f.mesh.triangles, None, f.mesh.deflection)
+    with pytest.warns(UserWarning, match="uv lattice"):
+        zb = sample(part, 1.0, bounds=za.bounds, method="jacobian")
+    both = np.isfinite(za.z) & np.isfinite(zb.z)
+    assert np.abs(za.z[both] - zb.z[both]).max() < 1e-9
+    assert both.sum() >= 0.99 * np.isfinite(za.z).sum()
