@@ -8,11 +8,10 @@ are then measured in the local frame, and ``world = origin + R(angle) @ local``.
 
 from __future__ import annotations
 
-import json
+import copy
 import math
 import os
 import tempfile
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -272,7 +271,7 @@ class ZMap:
 
     def copy(self) -> "ZMap":
         return ZMap(self.x0, self.y0, self.dx, self.dy, self.z.copy(), self.angle, self.origin,
-                    json.loads(json.dumps(self.meta)), {k: v.copy() for k, v in self.layers.items()})
+                    copy.deepcopy(self.meta), {k: v.copy() for k, v in self.layers.items()})
 
     def __repr__(self) -> str:
         frame = f", angle={self.angle:.6g}, origin={self.origin}" if self.has_frame else ""
@@ -304,44 +303,24 @@ class ZMap:
         >>> ZMap.load(p).z.sum()
         9.0
         """
-        arrays = {"z": self.z, "header": np.array(json.dumps(self.header()))}
-        for name, arr in self.layers.items():
-            arrays[_LAYER_PREFIX + name] = arr
+        from ._npzfile import write_npz
 
-        def write(tmp: str) -> None:
-            with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, **arrays)
-
-        return atomic_write(path, write)
+        arrays = {"z": self.z} | {_LAYER_PREFIX + name: arr for name, arr in self.layers.items()}
+        return write_npz(path, self.header(), arrays, compress=True)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "ZMap":
         """Read a map written by :meth:`save`; a foreign or corrupt file raises ZMapFileError."""
-        path = Path(path)
-        if not path.exists():
-            raise ZMapFileError(str(path), "no such file")
-        try:
-            with np.load(path, allow_pickle=False) as npz:
-                names = set(npz.files)
-                if "header" not in names or "z" not in names:
-                    raise ZMapFileError(str(path), f"not a zmap file (arrays {sorted(names)}, expected 'header' and 'z')")
-                header = json.loads(str(npz["header"][()]))
-                z = npz["z"]
-                layers = {n[len(_LAYER_PREFIX):]: npz[n] for n in names if n.startswith(_LAYER_PREFIX)}
-        except ZMapFileError:
-            raise
-        except (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError) as exc:
-            raise ZMapFileError(str(path), f"corrupt or not an .npz file ({type(exc).__name__}: {exc})") from None
-        return cls._from_header(str(path), header, z, layers)
+        from ._npzfile import read_npz
+
+        header, arrays = read_npz(path, FORMAT_NAME, FORMAT_VERSION, what="zmap")
+        if "z" not in arrays:
+            raise ZMapFileError(str(path), f"not a zmap file (arrays {sorted(arrays)}, no 'z')")
+        layers = {n[len(_LAYER_PREFIX):]: a for n, a in arrays.items() if n.startswith(_LAYER_PREFIX)}
+        return cls._from_header(str(path), header, arrays["z"], layers)
 
     @classmethod
     def _from_header(cls, where: str, header: Any, z: np.ndarray, layers: dict) -> "ZMap":
-        if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
-            got = header.get("format") if isinstance(header, dict) else type(header).__name__
-            raise ZMapFileError(where, f"format is {got!r}, expected {FORMAT_NAME!r}")
-        version = header.get("version")
-        if not isinstance(version, int) or version > FORMAT_VERSION or version < 1:
-            raise ZMapFileError(where, f"format version {version!r} is not supported (this zmap reads 1..{FORMAT_VERSION})")
         try:
             if tuple(z.shape) != (header["nx"], header["ny"]):
                 raise ZMapFileError(where, f"z has shape {z.shape}, header says ({header['nx']}, {header['ny']})")

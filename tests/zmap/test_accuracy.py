@@ -1,6 +1,5 @@
 """Table 1 of paper 004, reproduced (fewer points than the CLI's 10^6 to stay fast)."""
 
-import numpy as np
 import pytest
 
 from zmap.accuracy import accuracy_rows, format_csv, format_markdown

@@ -16,12 +16,10 @@ treap     Interval Treap (paper 000)     right-most non-empty leaf of the Interv
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import re
 import time
-import zipfile
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -30,7 +28,8 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 
 from ..errors import SimFileError, StageError, ToolError
-from ..grid import ZMap, atomic_write
+from .._npzfile import read_npz, write_npz
+from ..grid import ZMap
 from .dexel import DexelWorkpiece, cutter_table, run_cut
 from .history import HISTORY_KINDS, IntervalTreap, Recorder, TimeTrace, ZTrace
 
@@ -353,8 +352,7 @@ class Run:
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the run to a ``.zsim`` file (npz + JSON header), atomically."""
-        arrays: dict[str, np.ndarray] = {"header": np.array(json.dumps(self._header())),
-                                         "xyz": self.xyz, "slot": self.slot, "line": self.line}
+        arrays: dict[str, np.ndarray] = {"xyz": self.xyz, "slot": self.slot, "line": self.line}
         for name, wp in (("stock", self.stock), ("final", self.final)):
             off, near, far = wp.to_csr()
             arrays[f"{name}_off"], arrays[f"{name}_near"], arrays[f"{name}_far"] = off, near, far
@@ -362,33 +360,12 @@ class Run:
             for k, v in self.structure.to_arrays().items():
                 arrays["h_" + k] = np.asarray(v)
 
-        def write(tmp: str) -> None:
-            with open(tmp, "wb") as fh:
-                np.savez(fh, **arrays)
-
-        return atomic_write(path, write)
+        return write_npz(path, self._header(), arrays)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Run":
         """Read a run written by :meth:`save`; a missing, corrupt or foreign file raises SimFileError."""
-        path = Path(path)
-        if not path.exists():
-            raise SimFileError(str(path), "no such file")
-        try:
-            with np.load(path, allow_pickle=False) as npz:
-                arrays = {k: npz[k] for k in npz.files}
-        except (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError) as exc:
-            raise SimFileError(str(path), f"corrupt or not a .zsim file ({type(exc).__name__}: {exc})") from None
-        try:
-            header = json.loads(str(arrays["header"][()]))
-        except (KeyError, ValueError) as exc:
-            raise SimFileError(str(path), f"not a .zsim file (no readable header: {exc})") from None
-        if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
-            got = header.get("format") if isinstance(header, dict) else type(header).__name__
-            raise SimFileError(str(path), f"format is {got!r}, expected {FORMAT_NAME!r}")
-        version = header.get("version")
-        if not isinstance(version, int) or not 1 <= version <= FORMAT_VERSION:
-            raise SimFileError(str(path), f"format version {version!r} is not supported (reads 1..{FORMAT_VERSION})")
+        header, arrays = read_npz(path, FORMAT_NAME, FORMAT_VERSION, SimFileError, what=".zsim")
         try:
             return cls._from_arrays(header, arrays)
         except SimFileError:
