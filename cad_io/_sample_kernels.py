@@ -186,6 +186,59 @@ def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps)
     return inside
 
 
+@njit(cache=True)
+def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, tol, max_iter, out):
+    """Damped Newton for x(u, v) = xg, y(u, v) = yg on face ``k`` from (u, v).
+
+    Returns ``(converged, u, v, at_edge)``; ``out[0]`` holds the point at the last (u, v)
+    (``at_edge``: stopped on the domain boundary, i.e. the answer lies outside the face).
+    """
+    u = min(max(u, u0), u1)
+    v = min(max(v, v0), v1)
+    eval_point(deg, ncp, koff, poff, knots, cpw, k, u, v, 1, out)
+    fx = out[0, 0] - xg
+    fy = out[0, 1] - yg
+    r = math.sqrt(fx * fx + fy * fy)
+    for it in range(max_iter):
+        if r <= tol:
+            return True, u, v, False
+        sux = out[1, 0]
+        suy = out[1, 1]
+        svx = out[2, 0]
+        svy = out[2, 1]
+        det = sux * svy - svx * suy
+        nsu = out[1, 0] ** 2 + out[1, 1] ** 2 + out[1, 2] ** 2
+        nsv = out[2, 0] ** 2 + out[2, 1] ** 2 + out[2, 2] ** 2
+        if not (abs(det) > 1e-10 * math.sqrt(nsu * nsv)):
+            break  # singular: vertical wall or fold
+        du = -(svy * fx - svx * fy) / det
+        dv = -(-suy * fx + sux * fy) / det
+        lam = 1.0
+        improved = False
+        un = u
+        vn = v
+        rn = r
+        for h in range(12):
+            un = min(max(u + lam * du, u0), u1)
+            vn = min(max(v + lam * dv, v0), v1)
+            eval_point(deg, ncp, koff, poff, knots, cpw, k, un, vn, 1, out)
+            fx = out[0, 0] - xg
+            fy = out[0, 1] - yg
+            rn = math.sqrt(fx * fx + fy * fy)
+            if rn < r:
+                improved = True
+                break
+            lam *= 0.5
+        u = un
+        v = vn
+        r = rn
+        if not improved:
+            break
+    if r <= tol:
+        return True, u, v, False
+    return False, u, v, (u == u0 or u == u1 or v == v0 or v == v1)
+
+
 @njit(cache=True, parallel=True)
 def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                 deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
@@ -231,59 +284,35 @@ def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, f
             g = gidx[p]
             xg = x0 + (g // ny) * dx
             yg = y0 + (g % ny) * dy
-            u = w0 * uv[a, 0] + w1 * uv[b, 0] + w2 * uv[c, 0]
-            v = w0 * uv[a, 1] + w1 * uv[b, 1] + w2 * uv[c, 1]
             u0 = domain[k, 0]
             u1 = domain[k, 1]
             v0 = domain[k, 2]
             v1 = domain[k, 3]
-            u = min(max(u, u0), u1)
-            v = min(max(v, v0), v1)
-            eval_point(deg, ncp, koff, poff, knots, cpw, k, u, v, 1, out)
-            fx = out[0, 0] - xg
-            fy = out[0, 1] - yg
-            r = math.sqrt(fx * fx + fy * fy)
+            # start from the barycentric (u, v); where that fails (near poles and seams of
+            # the parametrisation the blend of the nodes' (u, v) is poor) from each node
             ok = False
-            edge = False
-            for it in range(max_iter):
-                if r <= tol:
-                    ok = True
+            n_edge = 0
+            n_try = 0
+            u = 0.0
+            v = 0.0
+            for attempt in range(4):
+                if attempt == 0:
+                    us = w0 * uv[a, 0] + w1 * uv[b, 0] + w2 * uv[c, 0]
+                    vs = w0 * uv[a, 1] + w1 * uv[b, 1] + w2 * uv[c, 1]
+                else:
+                    nd = tris[t, attempt - 1]
+                    us = uv[nd, 0]
+                    vs = uv[nd, 1]
+                ok, u, v, at_edge = _newton(deg, ncp, koff, poff, knots, cpw, k, us, vs, xg, yg,
+                                            u0, u1, v0, v1, tol, max_iter, out)
+                n_try += 1
+                if ok:
                     break
-                sux = out[1, 0]
-                suy = out[1, 1]
-                svx = out[2, 0]
-                svy = out[2, 1]
-                det = sux * svy - svx * suy
-                nsu = out[1, 0] ** 2 + out[1, 1] ** 2 + out[1, 2] ** 2
-                nsv = out[2, 0] ** 2 + out[2, 1] ** 2 + out[2, 2] ** 2
-                if not (abs(det) > 1e-10 * math.sqrt(nsu * nsv)):
-                    break  # singular: vertical wall or fold
-                du = -(svy * fx - svx * fy) / det
-                dv = -(-suy * fx + sux * fy) / det
-                lam = 1.0
-                improved = False
-                for h in range(12):
-                    un = min(max(u + lam * du, u0), u1)
-                    vn = min(max(v + lam * dv, v0), v1)
-                    eval_point(deg, ncp, koff, poff, knots, cpw, k, un, vn, 1, out)
-                    fxn = out[0, 0] - xg
-                    fyn = out[0, 1] - yg
-                    rn = math.sqrt(fxn * fxn + fyn * fyn)
-                    if rn < r:
-                        improved = True
-                        break
-                    lam *= 0.5
-                u = un
-                v = vn
-                fx = fxn
-                fy = fyn
-                r = rn
-                if not improved:
-                    break
-            if not ok and r <= tol:
-                ok = True
-            if not ok:
-                edge = u == u0 or u == u1 or v == v0 or v == v1
+                if at_edge:
+                    n_edge += 1
+                if attempt == 0 and not at_edge:
+                    break  # singular or slow, not a start problem: no restarts
+            edge = n_edge == n_try  # every start ran out of the domain: the point is off the face
             if ok:
                 zn = out[0, 2]
                 if abs(zn - zf) > face_zgap[k]:
