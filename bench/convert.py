@@ -36,7 +36,7 @@ sys.path.insert(0, str(ROOT))
 
 def _bench_part(path: Path, points: int, rays: int, seed: int = 0) -> dict:
     from cad_io.mesh import triangulate
-    from cad_io.raycast import RayCaster
+    from cad_io.raycast import RayCaster, read_shape
     from cad_io.sample import sample, summary
     from cad_io.step import read_step
 
@@ -67,7 +67,7 @@ def _bench_part(path: Path, points: int, rays: int, seed: int = 0) -> dict:
     rng = np.random.default_rng(seed)
     i = rng.integers(0, zm.nx, rays)
     j = rng.integers(0, zm.ny, rays)
-    caster = RayCaster(part.shape)
+    caster = RayCaster(read_shape(path))  # OCC reader's own shape, independent of read_step
     t = time.perf_counter()
     zr, _ = caster(zm.x[i], zm.y[j])
     dt = time.perf_counter() - t
