@@ -205,7 +205,7 @@ def raycast(shape: Any, x: np.ndarray, y: np.ndarray, *, axis: str = "+z", tol: 
     >>> import cadquery as cq
     >>> box = cq.Workplane().box(10, 10, 4).val()
     >>> z, f = raycast(box, [0.0, 20.0], [0.0, 0.0])
-    >>> z[0], bool(np.isnan(z[1]))
+    >>> float(z[0]), bool(np.isnan(z[1]))
     (2.0, True)
     """
     return RayCaster(shape, axis=axis, tol=tol)(x, y)

@@ -273,14 +273,12 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
 
     Examples
     --------
+    >>> from pathlib import Path
     >>> import cad_io
-    >>> from geomdl import BSpline, utilities
-    >>> s = BSpline.Surface(); s.degree_u = s.degree_v = 1
-    >>> s.ctrlpts2d = [[[0, 0, 0], [0, 10, 0]], [[10, 0, 0], [10, 10, 5]]]
-    >>> s.knotvector_u = s.knotvector_v = [0, 0, 1, 1]
-    >>> zm = sample(cad_io.from_geomdl(s), 1.0)
-    >>> zm.shape, round(float(zm.z[10, 10]), 9)
-    ((11, 11), 5.0)
+    >>> part = cad_io.read_step(Path(cad_io.__file__).parents[1] / "data" / "boss.step")
+    >>> zm = sample(part, 1.0)
+    >>> zm.shape, round(float(np.nanmax(zm.z)), 9), summary(zm)["share_jacobian"]
+    ((81, 61), 22.0, 1.0)
     """
     from tqdm import tqdm
 
