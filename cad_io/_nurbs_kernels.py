@@ -23,7 +23,8 @@ from numba import carray, njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-__all__ = ["MAX_DEGREE", "eval_point", "eval_many", "eval_many_serial", "find_span", "basis_ders"]
+__all__ = ["MAX_DEGREE", "eval_point", "eval_many", "eval_many_serial", "find_span", "basis_ders",
+           "project_points"]
 
 #: Highest degree the fixed-size stack work arrays hold.
 MAX_DEGREE = 15
@@ -264,3 +265,134 @@ def eval_many_serial(deg, ncp, koff, poff, knots, cpw, face, u, v, nderiv, out):
                     out[i, a, c] = np.nan
         else:
             eval_point(deg, ncp, koff, poff, knots, cpw, k, u[i], v[i], nderiv, out[i])
+
+
+@njit(cache=True)
+def _gauss_newton(deg, ncp, koff, poff, knots, cpw, k, px, py, pz, u, v, dom, buf):
+    """Levenberg-damped Gauss-Newton for the (u, v) of face ``k`` nearest (px, py, pz).
+
+    Returns (u, v, distance)."""
+    eval_point(deg, ncp, koff, poff, knots, cpw, k, u, v, 1, buf)
+    rx = buf[0, 0] - px
+    ry = buf[0, 1] - py
+    rz = buf[0, 2] - pz
+    d2 = rx * rx + ry * ry + rz * rz
+    lam = 1e-12
+    for _ in range(60):
+        a = buf[1, 0] * buf[1, 0] + buf[1, 1] * buf[1, 1] + buf[1, 2] * buf[1, 2]
+        b = buf[1, 0] * buf[2, 0] + buf[1, 1] * buf[2, 1] + buf[1, 2] * buf[2, 2]
+        c = buf[2, 0] * buf[2, 0] + buf[2, 1] * buf[2, 1] + buf[2, 2] * buf[2, 2]
+        gu = buf[1, 0] * rx + buf[1, 1] * ry + buf[1, 2] * rz
+        gv = buf[2, 0] * rx + buf[2, 1] * ry + buf[2, 2] * rz
+        if d2 == 0.0:
+            break
+        improved = False
+        for _t in range(30):
+            aa = a * (1.0 + lam) + 1e-300
+            cc = c * (1.0 + lam) + 1e-300
+            det = aa * cc - b * b
+            if det <= 0.0:
+                lam = lam * 10.0 + 1e-12
+                continue
+            du = -(cc * gu - b * gv) / det
+            dv = -(aa * gv - b * gu) / det
+            un = min(max(u + du, dom[0]), dom[1])
+            vn = min(max(v + dv, dom[2]), dom[3])
+            eval_point(deg, ncp, koff, poff, knots, cpw, k, un, vn, 1, buf)
+            rx = buf[0, 0] - px
+            ry = buf[0, 1] - py
+            rz = buf[0, 2] - pz
+            dn = rx * rx + ry * ry + rz * rz
+            if dn < d2:
+                step = abs(un - u) + abs(vn - v)
+                u = un
+                v = vn
+                d2 = dn
+                lam = max(lam * 0.1, 1e-15)
+                improved = True
+                if step <= 1e-15 * (1.0 + abs(u) + abs(v)):
+                    improved = False
+                break
+            lam = lam * 10.0 + 1e-12
+        if not improved:
+            break
+    eval_point(deg, ncp, koff, poff, knots, cpw, k, u, v, 1, buf)
+    return u, v, np.sqrt(d2)
+
+
+@njit(cache=True)
+def project_points(deg, ncp, koff, poff, knots, cpw, k, pts, uv0, tol, uv, dist):
+    """(u, v) on face ``k`` of the points ``pts`` (n, 3) that lie on (or near) it.
+
+    Starts from ``uv0`` (n, 2); where that ends farther than ``tol`` (mm), restarts from the
+    nearest point of a 17 x 17 parameter lattice. Fills ``uv`` (n, 2) and ``dist`` (n,).
+    """
+    buf = np.empty((6, 3))
+    dom = np.empty(4)
+    p = deg[k, 0]
+    q = deg[k, 1]
+    dom[0] = knots[koff[k, 0] + p]
+    dom[1] = knots[koff[k, 0] + ncp[k, 0]]
+    dom[2] = knots[koff[k, 1] + q]
+    dom[3] = knots[koff[k, 1] + ncp[k, 1]]
+    m = 17
+    lat = np.empty((m, m, 3))
+    mark = np.empty((4, 2), dtype=np.int64)
+    for i in range(m):
+        for j in range(m):
+            eval_point(deg, ncp, koff, poff, knots, cpw, k,
+                       dom[0] + (dom[1] - dom[0]) * i / (m - 1),
+                       dom[2] + (dom[3] - dom[2]) * j / (m - 1), 0, buf)
+            lat[i, j, 0] = buf[0, 0]
+            lat[i, j, 1] = buf[0, 1]
+            lat[i, j, 2] = buf[0, 2]
+    for n in range(pts.shape[0]):
+        px = pts[n, 0]
+        py = pts[n, 1]
+        pz = pts[n, 2]
+        u = min(max(uv0[n, 0], dom[0]), dom[1])
+        v = min(max(uv0[n, 1], dom[2]), dom[3])
+        u, v, d = _gauss_newton(deg, ncp, koff, poff, knots, cpw, k, px, py, pz, u, v,
+                                dom, buf)
+        # restarts from the lattice points nearest first (several: a closed surface has
+        # two lattice points at the same place, one of them stuck at the domain's end)
+        tried = 0
+        while d > tol and tried < 4:
+            best = np.inf
+            bi = -1
+            bj = -1
+            for i in range(m):
+                for j in range(m):
+                    if lat[i, j, 0] != lat[i, j, 0]:
+                        continue
+                    dx = lat[i, j, 0] - px
+                    dy = lat[i, j, 1] - py
+                    dz = lat[i, j, 2] - pz
+                    dd = dx * dx + dy * dy + dz * dz
+                    if dd < best:
+                        best = dd
+                        bi = i
+                        bj = j
+            if bi < 0:
+                break
+            mark[tried, 0] = bi
+            mark[tried, 1] = bj
+            lat[bi, bj, 0] = np.nan
+            tried += 1
+            u2, v2, d2 = _gauss_newton(deg, ncp, koff, poff, knots, cpw, k, px, py, pz,
+                                       dom[0] + (dom[1] - dom[0]) * bi / (m - 1),
+                                       dom[2] + (dom[3] - dom[2]) * bj / (m - 1), dom, buf)
+            if d2 < d:
+                u = u2
+                v = v2
+                d = d2
+        for t in range(tried):  # restore the lattice
+            i = mark[t, 0]
+            j = mark[t, 1]
+            eval_point(deg, ncp, koff, poff, knots, cpw, k,
+                       dom[0] + (dom[1] - dom[0]) * i / (m - 1),
+                       dom[2] + (dom[3] - dom[2]) * j / (m - 1), 0, buf)
+            lat[i, j, 0] = buf[0, 0]
+        uv[n, 0] = u
+        uv[n, 1] = v
+        dist[n] = d

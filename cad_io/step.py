@@ -117,8 +117,10 @@ def _nurbs_of(face) -> NurbsSurface:
         raise ValueError(f"converted surface is {ad.GetType().name}, not a B-spline")
     b = ad.BSpline()  # a transformed copy when the face has a location
     shift = (0.0, 0.0)
+    bounds = BRepTools.UVBounds_s(face)
+    b = _periodic_if_needed(b, bounds)
     if b.IsUPeriodic() or b.IsVPeriodic():
-        b, shift = _unperiodic(b, *BRepTools.UVBounds_s(face))
+        b, shift = _unperiodic(b, *bounds)
     p, q = b.UDegree(), b.VDegree()
     nu, nv = b.NbUPoles(), b.NbVPoles()
     ku = b.UKnotSequence()
@@ -143,6 +145,24 @@ def _nurbs_of(face) -> NurbsSurface:
         raise ValueError(f"knot sequences of lengths ({len(knots_u)}, {len(knots_v)}) do not "
                          f"fit {nu}x{nv} poles of degrees ({p}, {q})")
     return NurbsSurface(p, q, knots_u, knots_v, poles, weights)
+
+
+def _periodic_if_needed(b, bounds):
+    """``b``, or a periodic copy where the face's (u, v) bounds cross the end of a closed
+    direction (NurbsConvert can start a full revolution's B-spline off the face's seam)."""
+    u0, u1, v0, v1 = bounds
+    a0, a1 = b.UKnot(b.FirstUKnotIndex()), b.UKnot(b.LastUKnotIndex())
+    c0, c1 = b.VKnot(b.FirstVKnotIndex()), b.VKnot(b.LastVKnotIndex())
+    tu, tv = 1e-9 * max(1.0, a1 - a0), 1e-9 * max(1.0, c1 - c0)
+    out_u = not b.IsUPeriodic() and (u0 < a0 - tu or u1 > a1 + tu) and b.IsUClosed()
+    out_v = not b.IsVPeriodic() and (v0 < c0 - tv or v1 > c1 + tv) and b.IsVClosed()
+    if out_u or out_v:
+        b = b.Copy()
+        if out_u:
+            b.SetUPeriodic()
+        if out_v:
+            b.SetVPeriodic()
+    return b
 
 
 def _unperiodic(b, u0: float, u1: float, v0: float, v1: float):
