@@ -98,3 +98,13 @@ def test_convert_does_not_load_ocp_for_other_commands():
             "print(any(m.startswith(('OCP', 'cadquery')) for m in sys.modules))")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert p.stdout.strip().endswith("False"), p.stdout + p.stderr
+
+
+def test_demo_writes_maps_and_pictures(tmp_path):
+    from cad_io.demo import run_demo
+
+    files = run_demo(tmp_path)
+    names = {p.name for p in files}
+    assert {"freeform_die.zmap.npz", "freeform_die.png", "pocket.zmap.npz", "pocket.png"} <= names
+    assert all(p.exists() and p.stat().st_size > 0 for p in files)
+    assert ZMap.load(tmp_path / "pocket.zmap.npz").layers["method"].max() >= 1
