@@ -16,6 +16,9 @@ __all__ = ["triangulate", "ANGULAR_DEFLECTION"]
 
 #: Angular deflection (radians) passed to BRepMesh beside the linear one.
 ANGULAR_DEFLECTION = 0.35
+#: BRepMesh is asked for this share of the deflection: its own measure of the chordal
+#: error samples few points, and a torus meshed at d comes out up to ~1.1 d off.
+_OCC_SHARE = 0.75
 #: Largest distance (mm) accepted between a mesh node and the NURBS at its (u, v).
 _UV_TOL = 1e-7
 
@@ -79,7 +82,8 @@ def _occ_meshes(part: Part, deflection: float) -> None:
     has_surface = any(BRep_Tool.Surface_s(TopoDS.Face_s(fmap.FindKey(i))) is not None
                       for i in range(1, fmap.Extent() + 1))
     if has_surface:
-        BRepMesh_IncrementalMesh(part.shape, deflection, False, ANGULAR_DEFLECTION, True)
+        BRepMesh_IncrementalMesh(part.shape, _OCC_SHARE * deflection, False, ANGULAR_DEFLECTION,
+                                 True)
     for face in part.faces:
         f = TopoDS.Face_s(fmap.FindKey(face.index + 1))
         loc = TopLoc_Location()

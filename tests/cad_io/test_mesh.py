@@ -1,0 +1,137 @@
+"""cad_io.mesh.triangulate: BRepMesh meshes with NURBS uv, tessellated faces, geomdl grids."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cad_io.mesh import triangulate
+from cad_io.nurbs import evaluate
+from cad_io.step import read_step
+
+cq = pytest.importorskip("cadquery")
+
+
+def _node_error(face) -> np.ndarray:
+    m = face.mesh
+    return np.linalg.norm(evaluate(face.surface, m.uv[:, 0], m.uv[:, 1])[:, 0] - m.nodes,
+                          axis=1)
+
+
+def _chord_error(face, n_per_triangle: int = 1) -> float:
+    """Distance from triangle centroids to the surface at the centroid's mean uv."""
+    m = face.mesh
+    t = m.triangles
+    cen = m.nodes[t].mean(axis=1)
+    uvc = m.uv[t].mean(axis=1)
+    from cad_io._nurbs_kernels import project_points
+    from cad_io.nurbs import pack
+
+    uv = np.empty_like(uvc)
+    dist = np.empty(len(uvc))
+    project_points(*pack([face.surface]).arrays(), 0, cen, np.ascontiguousarray(uvc), 0.0,
+                   uv, dist)
+    return float(dist.max())
+
+
+@pytest.fixture(scope="module")
+def analytic_part(tmp_path_factory):
+    path = tmp_path_factory.mktemp("mesh") / "analytic.step"
+    solid = (cq.Workplane().box(30, 20, 10).edges("|Z").fillet(3)
+             .faces(">Z").workplane().hole(6)
+             .union(cq.Workplane().sphere(4).translate((8, 0, 5)))
+             .union(cq.Solid.makeTorus(6, 1.5).translate(cq.Vector(0, 0, -5))))
+    cq.exporters.export(solid, str(path))
+    part = read_step(path)
+    triangulate(part, 0.01)
+    return part
+
+
+def test_every_face_meshed_with_exact_uv(analytic_part):
+    for f in analytic_part.faces:
+        m = f.mesh
+        assert m is not None and m.deflection == 0.01
+        assert m.nodes.shape[1] == 3 and m.triangles.dtype == np.int32
+        assert m.triangles.min() >= 0 and m.triangles.max() < len(m.nodes)
+        assert m.uv.shape == (len(m.nodes), 2)
+        assert _node_error(f).max() < 1e-6, (f.index, f.kind)
+
+
+def test_chordal_error_within_deflection(analytic_part):
+    for f in analytic_part.faces:
+        assert _chord_error(f) <= 0.01 * 1.05, (f.index, f.kind)
+
+
+def test_triangles_face_outward(analytic_part):
+    for f in analytic_part.faces:
+        m = f.mesh
+        a, b, c = (m.nodes[m.triangles[:, k]] for k in range(3))
+        tn = np.cross(b - a, c - a)
+        ok = np.linalg.norm(tn, axis=1) > 1e-12
+        uvc = m.uv[m.triangles].mean(axis=1)[ok]
+        d = evaluate(f.surface, uvc[:, 0], uvc[:, 1], derivs=1)
+        sn = np.cross(d[:, 1], d[:, 2]) * (-1 if f.reversed else 1)
+        good = np.linalg.norm(sn, axis=1) > 1e-9
+        agree = np.einsum("ij,ij->i", tn[ok][good], sn[good]) > 0
+        assert agree.mean() > 0.99, (f.index, f.kind, agree.mean())
+
+
+def test_box_mesh_is_closed_and_outward(tmp_path):
+    path = tmp_path / "box.step"
+    cq.exporters.export(cq.Workplane().box(4, 6, 8), str(path))
+    part = read_step(path)
+    triangulate(part, 0.05)
+    vol = 0.0
+    for f in part.faces:
+        m = f.mesh
+        a, b, c = (m.nodes[m.triangles[:, k]] for k in range(3))
+        vol += np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0
+    assert abs(vol - 4 * 6 * 8) < 1e-9  # outward triangles enclose +volume
+
+
+def test_tessellated_only_faces(shared_data):
+    part = read_step(shared_data / "step" / "nist_ftc_08_asme1_ap242-2.stp")
+    triangulate(part, 0.1)
+    assert all(f.mesh is not None and f.mesh.uv is None for f in part.faces)
+    assert sum(len(f.mesh.triangles) for f in part.faces) == 3377
+    b = np.array(part.bbox)
+    for f in part.faces:
+        assert np.all(f.mesh.nodes >= b[:3] - 1e-6) and np.all(f.mesh.nodes <= b[3:] + 1e-6)
+
+
+def test_real_part_uv_within_file_tolerance(shared_data):
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_VERTEX
+
+    part = read_step(shared_data / "step" / "featuretype.STEP")
+    triangulate(part, 0.05)
+    for f in part.faces:
+        tol = max(BRep_Tool.MaxTolerance_s(f.topo, TopAbs_VERTEX),
+                  BRep_Tool.MaxTolerance_s(f.topo, TopAbs_EDGE), 1e-6)
+        assert _node_error(f).max() <= 1.5 * tol, (f.index, f.kind)
+
+
+def test_geomdl_grid_within_deflection():
+    from geomdl import NURBS
+
+    s = NURBS.Surface()
+    s.degree_u, s.degree_v = 2, 3
+    s.ctrlpts_size_u, s.ctrlpts_size_v = 4, 5
+    rng = np.random.default_rng(0)
+    pts = [[2.0 * i, 2.0 * j, float(rng.uniform(-1, 1))] for i in range(4) for j in range(5)]
+    s.ctrlpts = pts
+    s.weights = rng.uniform(0.5, 2.0, 20).tolist()
+    s.knotvector_u = [0, 0, 0, 0.5, 1, 1, 1]
+    s.knotvector_v = [0, 0, 0, 0, 0.4, 1, 1, 1, 1]
+    from cad_io.geomdl_io import from_geomdl
+
+    part = from_geomdl(s)
+    triangulate(part, 0.002)
+    f = part.faces[0]
+    assert _node_error(f).max() < 1e-12
+    assert _chord_error(f) <= 0.002
+
+
+def test_bad_deflection(analytic_part):
+    with pytest.raises(ValueError, match="deflection must be a positive"):
+        triangulate(analytic_part, 0.0)
