@@ -288,3 +288,18 @@ def test_uv_lattice_start_for_faces_without_uv_mesh(name):
     both = np.isfinite(za.z) & np.isfinite(zb.z)
     assert np.abs(za.z[both] - zb.z[both]).max() < 1e-9
     assert both.sum() >= 0.99 * np.isfinite(za.z).sum()
+
+
+def test_geomdl_part():
+    from geomdl import BSpline
+
+    import cad_io
+
+    s = BSpline.Surface()
+    s.degree_u = s.degree_v = 1
+    s.ctrlpts2d = [[[0, 0, 0], [0, 10, 0]], [[10, 0, 0], [10, 10, 5]]]
+    s.knotvector_u = s.knotvector_v = [0, 0, 1, 1]
+    zm = sample(cad_io.from_geomdl(s), 0.5)
+    X, Y = zm.grid_points()
+    assert zm.shape == (21, 21) and (zm.layers["method"] == 1).all()
+    assert np.abs(zm.z - X * Y / 20).max() < 1e-12  # the hyperbolic paraboloid z = xy/20
