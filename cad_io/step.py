@@ -202,26 +202,51 @@ def _unperiodic(b, u0: float, u1: float, v0: float, v1: float):
 
 
 def _pcurve_samples(c2, t0: float, t1: float, n0: int, packed, tol: float) -> np.ndarray:
-    """uv samples of a pcurve on [t0, t1], refined until midpoints lie within ``tol``."""
+    """uv samples of a pcurve on [t0, t1] whose polygon lies within ``tol`` mm of it.
+
+    The deviation of each uv chord is measured on the surface, between the images of the
+    chord's midpoint and of the pcurve's midpoint. A uniform first guess is resampled at
+    the count the chordal error (~ h^2) calls for, then bad chords are bisected.
+    """
     from cad_io.nurbs import evaluate_packed
 
-    ts = np.linspace(t0, t1, n0)
-    uv = np.array([c2.Value(t).Coord() for t in ts])
-    for _ in range(24):
-        tm = 0.5 * (ts[:-1] + ts[1:])
-        true = np.array([c2.Value(t).Coord() for t in tm])
-        lin = 0.5 * (uv[:-1] + uv[1:])
-        if packed is None:
-            break
+    def values(ts):
+        return np.array([c2.Value(t).Coord() for t in ts]).reshape(-1, 2)
+
+    def deviation(true, lin):
         both = evaluate_packed(packed, 0, np.r_[true[:, 0], lin[:, 0]],
                                np.r_[true[:, 1], lin[:, 1]])[:, 0]
-        d = np.linalg.norm(both[: len(tm)] - both[len(tm):], axis=1)
-        bad = d > tol
-        if not bad.any():
+        return np.linalg.norm(both[: len(true)] - both[len(true):], axis=1)
+
+    def segments(ts, uv):
+        tm = 0.5 * (ts[:-1] + ts[1:])
+        true = values(tm)
+        return tm, true, deviation(true, 0.5 * (uv[:-1] + uv[1:]))
+
+    ts = np.linspace(t0, t1, n0)
+    uv = values(ts)
+    tm, true, d = segments(ts, uv)
+    if d.max() > tol:
+        n = int(min(np.ceil((n0 - 1) * np.sqrt(d.max() / tol) * 1.2), 100_000)) + 1
+        ts = np.linspace(t0, t1, n)
+        uv = values(ts)
+        tm, true, d = segments(ts, uv)
+    for _ in range(30):
+        bad = np.nonzero(d > tol)[0]
+        if len(bad) == 0:
             break
-        idx = np.nonzero(bad)[0] + 1
-        ts = np.insert(ts, idx, tm[bad])
-        uv = np.insert(uv, idx, true[bad], axis=0)
+        left = 0.5 * (ts[bad] + tm[bad])
+        right = 0.5 * (tm[bad] + ts[bad + 1])
+        new_true = values(np.r_[left, right])
+        new_lin = np.r_[0.5 * (uv[bad] + true[bad]), 0.5 * (true[bad] + uv[bad + 1])]
+        new_d = deviation(new_true, new_lin)
+        k = len(bad)
+        ts = np.insert(ts, bad + 1, tm[bad])
+        uv = np.insert(uv, bad + 1, true[bad], axis=0)
+        tm[bad], true[bad], d[bad] = left, new_true[:k], new_d[:k]
+        tm = np.insert(tm, bad + 1, right)
+        true = np.insert(true, bad + 1, new_true[k:], axis=0)
+        d = np.insert(d, bad + 1, new_d[k:])
     return uv
 
 
