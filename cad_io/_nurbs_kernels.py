@@ -284,10 +284,10 @@ def _gauss_newton(deg, ncp, koff, poff, knots, cpw, k, px, py, pz, u, v, dom, bu
         c = buf[2, 0] * buf[2, 0] + buf[2, 1] * buf[2, 1] + buf[2, 2] * buf[2, 2]
         gu = buf[1, 0] * rx + buf[1, 1] * ry + buf[1, 2] * rz
         gv = buf[2, 0] * rx + buf[2, 1] * ry + buf[2, 2] * rz
-        if d2 <= 1e-26:  # 1e-13 mm: on the surface
+        if d2 <= 1e-22:  # 1e-11 mm: on the surface
             break
         improved = False
-        for _t in range(30):
+        for _t in range(12):
             aa = a * (1.0 + lam) + 1e-300
             cc = c * (1.0 + lam) + 1e-300
             det = aa * cc - b * b
