@@ -1,12 +1,14 @@
 """Read a STEP file into a :class:`~cad_io.part.Part`: exact NURBS faces, trim loops, edges.
 
-Every face's surface is converted exactly to a (rational) B-spline with OpenCASCADE's
-NURBS conversion (``BRepBuilderAPI_NurbsConvert`` on the whole shape, face by face where
-that fails); periodic B-splines are cut to the face's parameter range and made
-non-periodic, so the parameters of pcurves, trim loops and meshes stay valid. Trim loops
-sample the faces' pcurves until the uv polygon is within :data:`LOOP_TOL` mm (measured on
-the surface) of the true boundary. Edges carry their adjacent faces and the largest angle
-between the faces' outward normals along them.
+Every face's surface becomes an exact (rational) B-spline: B-spline faces are taken as they
+are; planes, cylinders, cones, spheres, tori, surfaces of revolution and extrusion, offsets
+and Bezier faces are converted face by face with OpenCASCADE's ``BRepBuilderAPI_NurbsConvert``
+(which also rewrites their pcurves in the new parameters). Periodic B-splines are cut to the
+face's parameter range and made non-periodic (knot insertion, exact) with their parameter
+values kept, so pcurves, trim loops and mesh (u, v) stay valid. Trim loops sample the
+faces' pcurves until the uv polygon is within :data:`LOOP_TOL` mm (measured on the surface)
+of the true boundary. Edges carry their adjacent faces and the largest angle between the
+faces' outward normals along them.
 
 OCP is imported inside the functions, so importing this module is cheap.
 """
@@ -419,7 +421,8 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None) 
         ``"face 17 (kind): conversion failed: ..."``), ``kind``, ``reversed``, trim
         ``loops`` (outer first) in the NURBS's (u, v), ``bbox`` and ``topo``; ``edges``
         with adjacent faces (a seam edge lists its face twice) and dihedral angles (NaN on
-        open boundaries); ``shape`` the converted OCP shape the faces belong to.
+        open boundaries); ``shape`` the OCP shape as read (``Face.topo`` is the face, the
+        converted one where the surface was converted, whose pcurves the loops sample).
 
     Raises
     ------

@@ -205,6 +205,11 @@ def _check_real_part(shared_data, name):
         assert lp[:, 1].min() >= v0 - 5e-3 * (v1 - v0) - 1e-6
         assert lp[:, 1].max() <= v1 + 5e-3 * (v1 - v0) + 1e-6
         assert np.all(np.isfinite(f.bbox))
+        # the loops' images lie on the face: inside its box (up to the file's tolerances)
+        img = evaluate(f.surface, lp[:, 0], lp[:, 1])[:, 0]
+        box = np.array(f.bbox)
+        slack = 0.05 + 1e-3 * np.ptp(box.reshape(2, 3), axis=0).max()
+        assert np.all(img >= box[:3] - slack) and np.all(img <= box[3:] + slack)
     for e in part.edges:
         assert 1 <= len(e.faces)
         assert e.is_boundary or np.isfinite(e.dihedral)
@@ -219,6 +224,33 @@ def test_missing_file(tmp_path):
     with pytest.raises(StepImportError, match="no such file") as err:
         read_step(tmp_path / "nope.step")
     assert "nope.step" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_directory_is_not_a_file(tmp_path):
+    with pytest.raises(StepImportError, match="not a file"):
+        read_step(tmp_path)
+
+
+def test_located_face_converts_with_its_location():
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_NurbsConvert
+    from OCP.TopoDS import TopoDS
+
+    from cad_io.step import _nurbs_of
+
+    moved = cq.Workplane().sphere(3).val().moved(
+        cq.Location(cq.Vector(10, 20, 30), cq.Vector(1, 1, 0), 40))
+    face = moved.Faces()[0].wrapped
+    assert not face.Location().IsIdentity()
+    conv = TopoDS.Face_s(BRepBuilderAPI_NurbsConvert(face, True).ModifiedShape(face))
+    surf = _nurbs_of(conv)
+    ad = BRepAdaptor_Surface(conv, False)
+    rng = np.random.default_rng(3)
+    u0, u1, v0, v1 = surf.domain
+    for u, v in zip(rng.uniform(u0, u1, 20), rng.uniform(v0, v1, 20)):
+        p = evaluate(surf, u, v)[0]
+        np.testing.assert_allclose(p, ad.Value(u, v).Coord(), atol=1e-9)
+        assert abs(np.linalg.norm(p - [10, 20, 30]) - 3.0) < 1e-9
 
 
 def test_not_a_step_file(tmp_path):
