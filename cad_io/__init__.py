@@ -17,8 +17,17 @@ from typing import Any
 
 from cad_io.part import Edge, Face, FaceMesh, NurbsSurface, Part
 
-__all__ = ["read_step", "from_geomdl", "sample", "triangulate",
-           "Part", "Face", "Edge", "NurbsSurface", "FaceMesh"]
+__all__ = [
+    "Edge",
+    "Face",
+    "FaceMesh",
+    "NurbsSurface",
+    "Part",
+    "from_geomdl",
+    "read_step",
+    "sample",
+    "triangulate",
+]
 
 _LAZY = {
     "read_step": "cad_io.step",

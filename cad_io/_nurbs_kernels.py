@@ -23,8 +23,15 @@ from numba import carray, njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-__all__ = ["MAX_DEGREE", "eval_point", "eval_many", "eval_many_serial", "find_span", "basis_ders",
-           "project_points"]
+__all__ = [
+    "MAX_DEGREE",
+    "basis_ders",
+    "eval_many",
+    "eval_many_serial",
+    "eval_point",
+    "find_span",
+    "project_points",
+]
 
 #: Highest degree the fixed-size stack work arrays hold.
 MAX_DEGREE = 15
@@ -97,7 +104,7 @@ def basis_ders(knots, off, span, u, p, nd, ders, ndu, a, left, right):
     for k in range(1, nd + 1):
         for j in range(p + 1):
             ders[k, j] = 0.0
-    n = nd if nd < p else p
+    n = min(p, nd)
     for r in range(p + 1):
         s1 = 0
         s2 = 1
@@ -153,9 +160,9 @@ def eval_point(deg, ncp, koff, poff, knots, cpw, k, u, v, nderiv, out):
     kv = koff[k, 1]
     po = poff[k]
     nd = nderiv
-    if nd > 2:
+    if nd > 2:  # noqa: PLR1730 (plain branches for numba)
         nd = 2
-    if nd < 0:
+    if nd < 0:  # noqa: PLR1730
         nd = 0
 
     # clamp to the domain

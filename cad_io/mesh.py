@@ -12,7 +12,7 @@ import numpy as np
 
 from cad_io.part import Face, FaceMesh, Part
 
-__all__ = ["triangulate", "ANGULAR_DEFLECTION"]
+__all__ = ["ANGULAR_DEFLECTION", "triangulate"]
 
 #: Angular deflection (radians) passed to BRepMesh beside the linear one.
 ANGULAR_DEFLECTION = 0.35

@@ -24,7 +24,7 @@ import numpy as np
 from cad_io.part import NurbsSurface
 from zmap.errors import NurbsError
 
-__all__ = ["PackedNurbs", "pack", "evaluate", "evaluate_packed", "MAX_DEGREE"]
+__all__ = ["MAX_DEGREE", "PackedNurbs", "evaluate", "evaluate_packed", "pack"]
 
 #: Highest degree the evaluation kernels accept (fixed-size stack work arrays).
 MAX_DEGREE = 15

@@ -23,7 +23,7 @@ import numpy as np
 from cad_io.part import Edge, Face, NurbsSurface, Part
 from zmap.errors import StepImportError
 
-__all__ = ["read_step", "LOOP_TOL", "EDGE_DEFLECTION"]
+__all__ = ["EDGE_DEFLECTION", "LOOP_TOL", "read_step"]
 
 #: Largest distance (mm, on the surface) between a trim loop's uv polygon and the face's
 #: true boundary.
@@ -104,7 +104,7 @@ def _convert(faces: list, kinds: list[str]):
             try:
                 nc = BRepBuilderAPI_NurbsConvert(f, True)
                 out[i] = TopoDS.Face_s(nc.ModifiedShape(f).Oriented(f.Orientation()))
-            except Exception as err:  # OCCT Standard_Failure
+            except Exception as err:  # noqa: BLE001 (OCCT errors share no base class in OCP)
                 why[i] = f"{type(err).__name__}: {err}".strip()
     return out, why
 
@@ -303,7 +303,7 @@ def _bbox(face) -> tuple[float, ...]:
     box = Bnd_Box()
     try:
         BRepBndLib.AddOptimal_s(face, box, True, False)
-    except Exception:  # OCCT Standard_Failure on odd geometry
+    except Exception:  # noqa: BLE001 (OCCT errors share no base class in OCP)
         box = Bnd_Box()
         BRepBndLib.Add_s(face, box, True)
     if box.IsVoid():
@@ -348,7 +348,7 @@ def _edges(shape, face_index, faces: list, surf_ok: list[bool]) -> list[Edge]:
         try:
             td = GCPnts_TangentialDeflection(c3, t0, t1, 0.1, EDGE_DEFLECTION, 2)
             params = np.array([td.Parameter(j) for j in range(1, td.NbPoints() + 1)])
-        except Exception:  # OCCT Standard_Failure on odd curves
+        except Exception:  # noqa: BLE001 (OCCT errors share no base class in OCP)
             params = np.linspace(t0, t1, 17)
         points = np.array([c3.Value(t).Coord() for t in params])
         dihedral = np.nan
@@ -463,14 +463,14 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None) 
                     why[i] = (f"degrees ({surface.degree_u}, {surface.degree_v}) above "
                               f"{MAX_DEGREE}")
                     surface = None
-            except Exception as err:  # OCCT Standard_Failure or inconsistent arrays
+            except Exception as err:  # noqa: BLE001 (OCCT errors or inconsistent arrays)
                 why[i] = f"{type(err).__name__}: {err}".strip()
                 surface = None
         topo = cf if cf is not None else f
         if surface is not None:
             try:
                 loops = _loops(cf, pack([surface]), LOOP_TOL)
-            except Exception as err:  # OCCT Standard_Failure on a broken wire
+            except Exception as err:  # noqa: BLE001 (OCCT errors on a broken wire)
                 why[i] = f"trim loops failed: {type(err).__name__}: {err}".strip()
                 surface = None
                 loops = []

@@ -9,7 +9,7 @@ from cad_io.geomdl_io import from_geomdl
 from cad_io.nurbs import evaluate
 
 geomdl = pytest.importorskip("geomdl")
-from geomdl import BSpline, NURBS  # noqa: E402
+from geomdl import NURBS, BSpline
 
 
 def _bilinear(corners):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pytest
@@ -148,7 +148,7 @@ def test_bad_input_messages():
 # against OpenCASCADE on the faces of real parts
 
 
-@lru_cache(maxsize=None)
+@cache
 def _part(path):
     from cad_io.step import read_step
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pytest
@@ -31,7 +31,7 @@ def _export(shape, path) -> str:
     return str(path)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _cached(path: str):
     return read_step(path)
 
@@ -151,14 +151,14 @@ def test_sphere_is_one_closed_face(sphere_part):
 def test_hole_gives_inner_loop_and_inward_wall(tmp_path):
     shape = cq.Workplane().box(20, 20, 5).faces(">Z").workplane().hole(6)
     part = read_step(_export(shape, tmp_path / "hole.step"))
-    top = [f for f in part.faces if f.kind == "plane" and abs(f.bbox[2] - 2.5) < 1e-9
-           and abs(f.bbox[5] - 2.5) < 1e-9][0]
+    top = next(f for f in part.faces if f.kind == "plane" and abs(f.bbox[2] - 2.5) < 1e-9
+           and abs(f.bbox[5] - 2.5) < 1e-9)
     assert len(top.loops) == 2
     outer, hole = top.loops
     centre_uv = hole.mean(axis=0)
     assert _inside(outer, centre_uv) and _inside(hole, centre_uv)
     np.testing.assert_allclose(evaluate(top.surface, *centre_uv)[0, :2], 0.0, atol=1e-3)
-    wall = [f for f in part.faces if f.kind == "cylinder"][0]
+    wall = next(f for f in part.faces if f.kind == "cylinder")
     u0, u1, v0, v1 = wall.surface.domain
     p = evaluate(wall.surface, 0.5 * (u0 + u1), 0.5 * (v0 + v1))[0]
     n = _outward_normal(wall, 0.5 * (u0 + u1), 0.5 * (v0 + v1))
