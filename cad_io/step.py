@@ -435,6 +435,7 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None) 
     >>> part.faces[0].surface.domain  # doctest: +SKIP
     (0.0, 1.0, 0.0, 1.0)
     """
+    from OCP.BRep import BRep_Tool
     from OCP.TopAbs import TopAbs_FACE
     from OCP.TopExp import TopExp
     from OCP.TopoDS import TopoDS
@@ -491,7 +492,9 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None) 
     def face_index(f) -> int:
         return fmap.FindIndex(f) - 1
 
-    edges = _edges(shape, face_index, faces, [fc.surface is not None for fc in out_faces])
+    # dihedrals come from OCC's own surfaces: they exist wherever a face is not tessellated
+    has_surface = [BRep_Tool.Surface_s(f) is not None for f in faces]
+    edges = _edges(shape, face_index, faces, has_surface)
     part = Part(faces=out_faces, edges=edges, source=str(path), shape=shape,
                 warnings=warnings)
     if mesh_deflection is not None:
