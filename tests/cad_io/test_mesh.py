@@ -135,3 +135,27 @@ def test_geomdl_grid_within_deflection():
 def test_bad_deflection(analytic_part):
     with pytest.raises(ValueError, match="deflection must be a positive"):
         triangulate(analytic_part, 0.0)
+
+
+def test_located_assembly_parts(tmp_path):
+    """Faces placed by assembly locations: world nodes, exact uv."""
+    asm = cq.Assembly()
+    asm.add(cq.Workplane().cylinder(4, 2), name="c",
+            loc=cq.Location(cq.Vector(10, 20, 30), cq.Vector(1, 0, 0), 30))
+    asm.add(cq.Workplane().box(1, 1, 1), name="b", loc=cq.Location(cq.Vector(-5, 0, 0)))
+    path = tmp_path / "asm.step"
+    asm.export(str(path))
+    part = read_step(path)
+    assert any(not f.topo.Location().IsIdentity() for f in part.faces)
+    triangulate(part, 0.01)
+    for f in part.faces:
+        assert _node_error(f).max() < 1e-6
+        lo, hi = np.array(f.bbox[:3]), np.array(f.bbox[3:])
+        assert np.all(f.mesh.nodes >= lo - 1e-6) and np.all(f.mesh.nodes <= hi + 1e-6)
+    cyl = next(f for f in part.faces if f.kind == "cylinder")
+    # axis along z rotated 30 degrees about x, through (10, 20, 30), radius 2
+    axis = np.array([0.0, -np.sin(np.pi / 6), np.cos(np.pi / 6)])
+    rel = cyl.mesh.nodes - [10, 20, 30]
+    radial = rel - np.outer(rel @ axis, axis)
+    np.testing.assert_allclose(np.linalg.norm(radial, axis=1), 2.0, atol=1e-6)
+    assert np.abs(rel @ axis).max() <= 2 + 1e-9
