@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 def _bench_part(path: Path, points: int, rays: int, seed: int = 0) -> dict:
     from cad_io.mesh import triangulate
     from cad_io.raycast import RayCaster, read_shape
-    from cad_io.sample import sample, summary
+    from cad_io.sampler import sample, summary
     from cad_io.step import read_step
 
     part = read_step(path)
@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> dict:
     import numba
 
     from cad_io.demo import DATA, shared_step_dir
-    from cad_io.sample import sample
+    from cad_io.sampler import sample
     from cad_io.step import read_step
 
     # JIT warm-up on a small grid (both paths)

@@ -32,7 +32,7 @@ __all__ = [
 _LAZY = {
     "read_step": "cad_io.step",
     "from_geomdl": "cad_io.geomdl_io",
-    "sample": "cad_io.sample",
+    "sample": "cad_io.sampler",
     "triangulate": "cad_io.mesh",
 }
 

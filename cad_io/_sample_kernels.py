@@ -1,4 +1,4 @@
-"""Numba kernels of the z-map sampler (:mod:`cad_io.sample`); no validation here.
+"""Numba kernels of the z-map sampler (:mod:`cad_io.sampler`); no validation here.
 
 The sampler works on *pairs* (grid point, mesh triangle that covers it in xy): every pair
 is one candidate height. :func:`count_pairs` and :func:`fill_pairs` rasterise the

@@ -32,7 +32,7 @@ def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progr
     import time
     import warnings
 
-    from cad_io.sample import estimate_bytes, grid_shape, sample, summary
+    from cad_io.sampler import estimate_bytes, grid_shape, sample, summary
     from cad_io.step import read_step
     from zmap.errors import StepImportError
 

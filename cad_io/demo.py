@@ -37,7 +37,7 @@ def run_demo(out_dir: str | Path) -> list[Path]:
     from zmap.grid import atomic_write
     from zmap.plot import plot_zmap
 
-    from .sample import sample, summary
+    from .sampler import sample, summary
     from .step import read_step
 
     out = Path(out_dir)

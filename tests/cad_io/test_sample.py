@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from cad_io.raycast import RayCaster, read_shape
-from cad_io.sample import estimate_bytes, sample, summary
+from cad_io.sampler import estimate_bytes, sample, summary
 from cad_io.step import read_step
 from zmap.errors import GridTooLargeError
 
@@ -257,7 +257,7 @@ def test_real_parts_convert_and_agree(shared_data):
 
 def test_banded_point_in_polygon_matches_plain_reference():
     from cad_io import _sample_kernels as K
-    from cad_io.sample import _trim_bands
+    from cad_io.sampler import _trim_bands
 
     rng = np.random.default_rng(3)
     t = np.linspace(0, 2 * np.pi, 301)[:-1]
