@@ -19,7 +19,8 @@ from numba import njit, prange
 
 from ._nurbs_kernels import eval_point
 
-__all__ = ["count_pairs", "fill_pairs", "solve_pairs", "reduce_pairs", "point_in_loops", "point_in_bands"]
+__all__ = ["count_pairs", "count_pairs_xy", "fill_pairs", "fill_pairs_xy", "point_in_bands", "point_in_loops",
+           "reduce_pairs", "solve_pairs", "solve_pairs_xy"]
 
 #: triangles whose xy area is below this share of their squared longest edge are treated
 #: as vertical (they cover no grid point)
@@ -239,6 +240,89 @@ def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, t
     return False, u, v, (u == u0 or u == u1 or v == v0 or v == v1)
 
 
+@njit(cache=True, inline="always")
+def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
+               deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
+               mode, tol, max_iter, z, status, out):
+    """Height candidate of pair ``p`` at the world point (xg, yg), into ``z[p]`` and ``status[p]``.
+
+    The one solver behind :func:`solve_pairs` (grid points) and :func:`solve_pairs_xy`
+    (scattered points): Newton from the barycentric (u, v) and, where that runs off the
+    domain, from the triangle's nodes; the facet-height check; the trim test on boundary
+    triangles; the facet fallback.
+    """
+    t = tri[p]
+    k = tri_face[t]
+    a = tris[t, 0]
+    b = tris[t, 1]
+    c = tris[t, 2]
+    w1 = w[p, 0]
+    w2 = w[p, 1]
+    w0 = 1.0 - w1 - w2
+    zf = w0 * nodes[a, 2] + w1 * nodes[b, 2] + w2 * nodes[c, 2]
+    if mode == 2 or face_mode[k] == 2:
+        z[p] = zf
+        status[p] = 2
+        return
+    u0 = domain[k, 0]
+    u1 = domain[k, 1]
+    v0 = domain[k, 2]
+    v1 = domain[k, 3]
+    # start from the barycentric (u, v); where that fails (near poles and seams of
+    # the parametrisation the blend of the nodes' (u, v) is poor) from each node
+    ok = False
+    n_edge = 0
+    n_try = 0
+    u = 0.0
+    v = 0.0
+    for attempt in range(4):
+        if attempt == 0:
+            us = w0 * uv[a, 0] + w1 * uv[b, 0] + w2 * uv[c, 0]
+            vs = w0 * uv[a, 1] + w1 * uv[b, 1] + w2 * uv[c, 1]
+        else:
+            nd = tris[t, attempt - 1]
+            us = uv[nd, 0]
+            vs = uv[nd, 1]
+        ok, u, v, at_edge = _newton(deg, ncp, koff, poff, knots, cpw, k, us, vs, xg, yg,
+                                    u0, u1, v0, v1, tol, max_iter, out)
+        n_try += 1
+        if ok:
+            break
+        if at_edge:
+            n_edge += 1
+        if attempt == 0 and not at_edge:
+            break  # singular or slow, not a start problem: no restarts
+    edge = n_edge == n_try  # every start ran out of the domain: the point is off the face
+    if ok:
+        zn = out[0, 2]
+        if abs(zn - zf) > face_zgap[k]:
+            ok = False
+        elif tri_check[t] and face_bi[k, 1] > 0:
+            if not point_in_bands(u, v, edges, band_ptr, band_edges, face_bi[k, 0], face_bi[k, 1],
+                                  face_bf[k, 0], face_bf[k, 1], face_bf[k, 2]):
+                status[p] = 0  # outside the trimmed face
+                z[p] = np.nan
+                return
+    if ok:
+        z[p] = out[0, 2]
+        status[p] = 1
+    elif mode == 0 and not edge:
+        # facet fallback; on a boundary triangle only where its start is in the face
+        if tri_check[t] and face_bi[k, 1] > 0:
+            u = w0 * uv[a, 0] + w1 * uv[b, 0] + w2 * uv[c, 0]
+            v = w0 * uv[a, 1] + w1 * uv[b, 1] + w2 * uv[c, 1]
+            if not point_in_bands(u, v, edges, band_ptr, band_edges, face_bi[k, 0], face_bi[k, 1],
+                                  face_bf[k, 0], face_bf[k, 1], face_bf[k, 2]):
+                z[p] = np.nan
+                status[p] = 0
+                return
+        z[p] = zf
+        status[p] = 2
+    else:
+        z[p] = np.nan
+        status[p] = 0
+
+
 @njit(cache=True, parallel=True)
 def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                 deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
@@ -268,79 +352,94 @@ def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, f
         p0 = blk * P // nblk
         p1 = (blk + 1) * P // nblk
         for p in range(p0, p1):
-            t = tri[p]
-            k = tri_face[t]
-            a = tris[t, 0]
-            b = tris[t, 1]
-            c = tris[t, 2]
-            w1 = w[p, 0]
-            w2 = w[p, 1]
-            w0 = 1.0 - w1 - w2
-            zf = w0 * nodes[a, 2] + w1 * nodes[b, 2] + w2 * nodes[c, 2]
-            if mode == 2 or face_mode[k] == 2:
-                z[p] = zf
-                status[p] = 2
-                continue
             g = gidx[p]
-            xg = x0 + (g // ny) * dx
-            yg = y0 + (g % ny) * dy
-            u0 = domain[k, 0]
-            u1 = domain[k, 1]
-            v0 = domain[k, 2]
-            v1 = domain[k, 3]
-            # start from the barycentric (u, v); where that fails (near poles and seams of
-            # the parametrisation the blend of the nodes' (u, v) is poor) from each node
-            ok = False
-            n_edge = 0
-            n_try = 0
-            u = 0.0
-            v = 0.0
-            for attempt in range(4):
-                if attempt == 0:
-                    us = w0 * uv[a, 0] + w1 * uv[b, 0] + w2 * uv[c, 0]
-                    vs = w0 * uv[a, 1] + w1 * uv[b, 1] + w2 * uv[c, 1]
-                else:
-                    nd = tris[t, attempt - 1]
-                    us = uv[nd, 0]
-                    vs = uv[nd, 1]
-                ok, u, v, at_edge = _newton(deg, ncp, koff, poff, knots, cpw, k, us, vs, xg, yg,
-                                            u0, u1, v0, v1, tol, max_iter, out)
-                n_try += 1
-                if ok:
-                    break
-                if at_edge:
-                    n_edge += 1
-                if attempt == 0 and not at_edge:
-                    break  # singular or slow, not a start problem: no restarts
-            edge = n_edge == n_try  # every start ran out of the domain: the point is off the face
-            if ok:
-                zn = out[0, 2]
-                if abs(zn - zf) > face_zgap[k]:
-                    ok = False
-                elif tri_check[t] and face_bi[k, 1] > 0:
-                    if not point_in_bands(u, v, edges, band_ptr, band_edges, face_bi[k, 0], face_bi[k, 1],
-                                          face_bf[k, 0], face_bf[k, 1], face_bf[k, 2]):
-                        status[p] = 0  # outside the trimmed face
-                        z[p] = np.nan
-                        continue
-            if ok:
-                z[p] = out[0, 2]
-                status[p] = 1
-            elif mode == 0 and not edge:
-                # facet fallback; on a boundary triangle only where its start is in the face
-                if tri_check[t] and face_bi[k, 1] > 0:
-                    u = w0 * uv[a, 0] + w1 * uv[b, 0] + w2 * uv[c, 0]
-                    v = w0 * uv[a, 1] + w1 * uv[b, 1] + w2 * uv[c, 1]
-                    if not point_in_bands(u, v, edges, band_ptr, band_edges, face_bi[k, 0], face_bi[k, 1],
-                                          face_bf[k, 0], face_bf[k, 1], face_bf[k, 2]):
-                        z[p] = np.nan
-                        status[p] = 0
-                        continue
-                z[p] = zf
-                status[p] = 2
-            else:
-                z[p] = np.nan
-                status[p] = 0
+            _solve_one(p, x0 + (g // ny) * dx, y0 + (g % ny) * dy, tri, w, nodes, uv, tris, tri_face,
+                       tri_check, face_mode, face_zgap, deg, ncp, koff, poff, knots, cpw, domain, edges,
+                       band_ptr, band_edges, face_bi, face_bf, mode, tol, max_iter, z, status, out)
+
+
+@njit(cache=True, parallel=True)
+def solve_pairs_xy(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
+                   deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
+                   px, py, mode, tol, max_iter, z, status):
+    """:func:`solve_pairs` for scattered points: pair ``p`` is at ``(px[gidx[p]], py[gidx[p]])``."""
+    P = gidx.shape[0]
+    nblk = 64
+    for blk in prange(nblk):
+        out = np.empty((3, 3))
+        p0 = blk * P // nblk
+        p1 = (blk + 1) * P // nblk
+        for p in range(p0, p1):
+            g = gidx[p]
+            _solve_one(p, px[g], py[g], tri, w, nodes, uv, tris, tri_face,
+                       tri_check, face_mode, face_zgap, deg, ncp, koff, poff, knots, cpw, domain, edges,
+                       band_ptr, band_edges, face_bi, face_bf, mode, tol, max_iter, z, status, out)
+
+
+@njit(cache=True, parallel=True)
+def count_pairs_xy(nodes, tris, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, counts):
+    """Scattered points inside each triangle's xy projection, into ``counts`` (M,).
+
+    The points are bucketed on a ``nbx`` x ``nby`` grid of square bins of side ``bh`` from
+    ``(bx0, by0)``: bin ``(i, j)`` holds ``bin_pts[bin_ptr[i*nby + j]:bin_ptr[i*nby + j + 1]]``.
+    """
+    no_i = np.empty(0, dtype=np.int64)
+    no_w = np.empty((0, 2))
+    for t in prange(tris.shape[0]):
+        counts[t] = _scan_tri(nodes, tris, t, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts,
+                              0, no_i, no_i, no_w, False)
+
+
+@njit(cache=True, parallel=True)
+def fill_pairs_xy(nodes, tris, t0, offsets, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, gidx, tri, w):
+    """:func:`fill_pairs` for scattered points (``gidx`` = point index), bins as :func:`count_pairs_xy`."""
+    for tt in prange(offsets.shape[0] - 1):
+        if offsets[tt + 1] == offsets[tt]:
+            continue
+        _scan_tri(nodes, tris, t0 + tt, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts,
+                  offsets[tt], gidx, tri, w, True)
+
+
+@njit(cache=True)
+def _scan_tri(nodes, tris, t, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, p, gidx, tri, w, fill):
+    """Count (``fill`` False) or write from ``p`` (``fill`` True) the points inside triangle ``t``."""
+    a = tris[t, 0]
+    b = tris[t, 1]
+    c = tris[t, 2]
+    ax = nodes[a, 0]
+    ay = nodes[a, 1]
+    bx = nodes[b, 0]
+    by = nodes[b, 1]
+    cx = nodes[c, 0]
+    cy = nodes[c, 1]
+    area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
+    l2 = max((bx - ax) ** 2 + (by - ay) ** 2, max((cx - ax) ** 2 + (cy - ay) ** 2, (cx - bx) ** 2 + (cy - by) ** 2))
+    n = 0
+    if not (abs(area) > _FLAT_EPS * l2 and area == area):
+        return 0
+    inv = 1.0 / area
+    tl = 1e-12
+    i0 = max(0, int(math.floor((min(ax, min(bx, cx)) - bx0) / bh)))
+    i1 = min(nbx - 1, int(math.floor((max(ax, max(bx, cx)) - bx0) / bh)))
+    j0 = max(0, int(math.floor((min(ay, min(by, cy)) - by0) / bh)))
+    j1 = min(nby - 1, int(math.floor((max(ay, max(by, cy)) - by0) / bh)))
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            q = i * nby + j
+            for m in range(bin_ptr[q], bin_ptr[q + 1]):
+                g = bin_pts[m]
+                x = px[g]
+                y = py[g]
+                w1 = ((x - ax) * (cy - ay) - (cx - ax) * (y - ay)) * inv
+                w2 = ((bx - ax) * (y - ay) - (x - ax) * (by - ay)) * inv
+                if w1 >= -tl and w2 >= -tl and w1 + w2 <= 1.0 + tl:
+                    if fill:
+                        gidx[p + n] = g
+                        tri[p + n] = t
+                        w[p + n, 0] = w1
+                        w[p + n, 1] = w2
+                    n += 1
+    return n
 
 
 @njit(cache=True)
