@@ -17,9 +17,10 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ._nurbs_kernels import eval_point
+from ._nurbs_kernels import _gauss_newton, eval_point
 
-__all__ = ["count_pairs", "count_pairs_xy", "fill_pairs", "fill_pairs_xy", "point_in_bands", "point_in_loops",
+__all__ = ["count_pairs", "count_pairs_xy", "fill_pairs", "fill_pairs_xy", "mesh_distance", "point_in_bands",
+           "point_in_loops", "project_candidates",
            "reduce_pairs", "solve_pairs", "solve_pairs_xy"]
 
 #: triangles whose xy area is below this share of their squared longest edge are treated
@@ -456,3 +457,121 @@ def reduce_pairs(gidx, tri, tri_face, zc, status, zgrid, face, method):
             zgrid[g] = zp
             face[g] = tri_face[tri[p]]
             method[g] = s
+
+
+# ---- distance to the B-rep (cad_io.distance) ---------------------------------------------------
+
+@njit(cache=True, parallel=True)
+def project_candidates(pts, cand_pt, cand_face, cand_uv, deg, ncp, koff, poff, knots, cpw, domain,
+                       edges, band_ptr, band_edges, face_bi, face_bf, dist, inside):
+    """Exact foot of point ``cand_pt[c]`` on face ``cand_face[c]`` from ``cand_uv[c]``.
+
+    Levenberg-damped Gauss-Newton on the face's NURBS (``_nurbs_kernels._gauss_newton``);
+    ``dist[c]`` is the distance to the foot, ``inside[c]`` whether the foot lies in the
+    face's trim loops (always for an untrimmed face).
+    """
+    for c in prange(cand_pt.shape[0]):
+        buf = np.empty((6, 3))
+        dom = np.empty(4)
+        k = cand_face[c]
+        dom[0] = domain[k, 0]
+        dom[1] = domain[k, 1]
+        dom[2] = domain[k, 2]
+        dom[3] = domain[k, 3]
+        q = cand_pt[c]
+        u, v, d = _gauss_newton(deg, ncp, koff, poff, knots, cpw, k, pts[q, 0], pts[q, 1], pts[q, 2],
+                                cand_uv[c, 0], cand_uv[c, 1], dom, buf)
+        dist[c] = d
+        if face_bi[k, 1] > 0:
+            inside[c] = point_in_bands(u, v, edges, band_ptr, band_edges, face_bi[k, 0], face_bi[k, 1],
+                                       face_bf[k, 0], face_bf[k, 1], face_bf[k, 2])
+        else:
+            inside[c] = True
+
+
+@njit(cache=True, inline="always")
+def _point_triangle_d2(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+    """Squared distance from p to triangle abc (closest-point regions, Ericson 5.1.5)."""
+    abx = bx - ax
+    aby = by - ay
+    abz = bz - az
+    acx = cx - ax
+    acy = cy - ay
+    acz = cz - az
+    apx = px - ax
+    apy = py - ay
+    apz = pz - az
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    qx = ax
+    qy = ay
+    qz = az
+    if d1 <= 0.0 and d2 <= 0.0:
+        pass
+    else:
+        bpx = px - bx
+        bpy = py - by
+        bpz = pz - bz
+        d3 = abx * bpx + aby * bpy + abz * bpz
+        d4 = acx * bpx + acy * bpy + acz * bpz
+        cpx = px - cx
+        cpy = py - cy
+        cpz = pz - cz
+        d5 = abx * cpx + aby * cpy + abz * cpz
+        d6 = acx * cpx + acy * cpy + acz * cpz
+        vc = d1 * d4 - d3 * d2
+        vb = d5 * d2 - d1 * d6
+        va = d3 * d6 - d5 * d4
+        if d3 >= 0.0 and d4 <= d3:
+            qx = bx
+            qy = by
+            qz = bz
+        elif d6 >= 0.0 and d5 <= d6:
+            qx = cx
+            qy = cy
+            qz = cz
+        elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+            t = d1 / (d1 - d3)
+            qx = ax + t * abx
+            qy = ay + t * aby
+            qz = az + t * abz
+        elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+            t = d2 / (d2 - d6)
+            qx = ax + t * acx
+            qy = ay + t * acy
+            qz = az + t * acz
+        elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+            t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+            qx = bx + t * (cx - bx)
+            qy = by + t * (cy - by)
+            qz = bz + t * (cz - bz)
+        else:
+            den = va + vb + vc
+            if den != 0.0:
+                sv = vb / den
+                sw = vc / den
+                qx = ax + abx * sv + acx * sw
+                qy = ay + aby * sv + acy * sw
+                qz = az + abz * sv + acz * sw
+    ex = px - qx
+    ey = py - qy
+    ez = pz - qz
+    return ex * ex + ey * ey + ez * ez
+
+
+@njit(cache=True, parallel=True)
+def mesh_distance(pts, cand_tri, nodes, tris, out):
+    """Distance from each point to the nearest of its candidate triangles ``cand_tri`` (n, k)."""
+    for q in prange(pts.shape[0]):
+        best = np.inf
+        for m in range(cand_tri.shape[1]):
+            t = cand_tri[q, m]
+            if t < 0:
+                continue
+            a = tris[t, 0]
+            b = tris[t, 1]
+            c = tris[t, 2]
+            d2 = _point_triangle_d2(pts[q, 0], pts[q, 1], pts[q, 2], nodes[a, 0], nodes[a, 1], nodes[a, 2],
+                                    nodes[b, 0], nodes[b, 1], nodes[b, 2], nodes[c, 0], nodes[c, 1], nodes[c, 2])
+            best = min(best, d2)
+        out[q] = math.sqrt(best)
