@@ -1,0 +1,100 @@
+"""Numba kernels behind :mod:`zmap.model`. No validation here: callers own the API.
+
+CZ-maps are packed flat: heights of map ``m`` are ``cz_z[cz_off[m]:cz_off[m+1]]`` in C order
+of shape ``cz_shape[m]``, its grid and frame ``cz_par[m] = (x0, y0, dx, dy, cos, sin, ox, oy)``.
+Per base cell ``c = i * (ny - 1) + j`` the CZ-maps whose domain meets the cell are
+``cell_cz[cell_ptr[c]:cell_ptr[c+1]]``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ._interp_kernels import _EDGE_SLACK, _bezier1d, _locate, _slope
+
+__all__ = ["model_heights", "bezier_at"]
+
+
+@njit(cache=True)
+def bezier_at(z, x0, y0, dx, dy, c, s, ox, oy, x, y, tangent, boundary):
+    """Paper 004 Eq. 4-7 at one world point on one map; NaN outside or on a missing corner."""
+    nx, ny = z.shape
+    i, j, u, v = _locate(x, y, x0, y0, dx, dy, c, s, ox, oy, nx, ny)
+    if i < 0:
+        return np.nan
+    z2 = z[i, j]
+    z3 = z[i + 1, j]
+    z6 = z[i, j + 1]
+    z7 = z[i + 1, j + 1]
+    if math.isnan(z2) or math.isnan(z3) or math.isnan(z6) or math.isnan(z7):
+        return np.nan
+    w1 = _bezier1d(z2, z3, _slope(z, i, j, 1, 0, dx, nx, ny, tangent, boundary),
+                   _slope(z, i + 1, j, 1, 0, dx, nx, ny, tangent, boundary), dx, u)
+    w2 = _bezier1d(z6, z7, _slope(z, i, j + 1, 1, 0, dx, nx, ny, tangent, boundary),
+                   _slope(z, i + 1, j + 1, 1, 0, dx, nx, ny, tangent, boundary), dx, u)
+    w3 = _bezier1d(w1, w2, _slope(z, i, j, 0, 1, dy, nx, ny, tangent, boundary),
+                   _slope(z, i, j + 1, 0, 1, dy, nx, ny, tangent, boundary), dy, v)
+    w4 = _bezier1d(w1, w2, _slope(z, i + 1, j, 0, 1, dy, nx, ny, tangent, boundary),
+                   _slope(z, i + 1, j + 1, 0, 1, dy, nx, ny, tangent, boundary), dy, v)
+    return (1.0 - u) * w3 + u * w4
+
+
+@njit(cache=True, parallel=True)
+def model_heights(bz, bx0, by0, bdx, bdy, bc, bs, box, boy, cz_z, cz_off, cz_shape, cz_par,
+                  cell_ptr, cell_cz, ez_cell, xs, ys, tangent, boundary, out, src):
+    """Height of every query point: its best CZ-map, else (flag) an EZ cell, else the base.
+
+    ``src[k]``: 0 no height, 1 base, 2 CZ-map, 3 EZ cell (the caller evaluates the EZ-map
+    there and writes ``out[k]``; the base height is left in ``out[k]`` as its fallback).
+    Among the CZ-maps whose domain holds the point, the one in which the point lies
+    deepest (largest distance to the domain's border, in its local frame) answers.
+    """
+    nx, ny = bz.shape
+    for k in prange(xs.shape[0]):
+        x = xs[k]
+        y = ys[k]
+        i, j, u, v = _locate(x, y, bx0, by0, bdx, bdy, bc, bs, box, boy, nx, ny)
+        if i < 0:
+            out[k] = np.nan
+            src[k] = 0
+            continue
+        cell = i * (ny - 1) + j
+        best = -1
+        depth = -1.0
+        for q in range(cell_ptr[cell], cell_ptr[cell + 1]):
+            m = cell_cz[q]
+            x0 = cz_par[m, 0]
+            y0 = cz_par[m, 1]
+            dx = cz_par[m, 2]
+            dy = cz_par[m, 3]
+            c = cz_par[m, 4]
+            s = cz_par[m, 5]
+            px = x - cz_par[m, 6]
+            py = y - cz_par[m, 7]
+            lx = c * px + s * py
+            ly = -s * px + c * py
+            ex = min(lx - x0, x0 + (cz_shape[m, 0] - 1) * dx - lx)
+            ey = min(ly - y0, y0 + (cz_shape[m, 1] - 1) * dy - ly)
+            d = min(ex, ey)
+            if d >= -_EDGE_SLACK * min(dx, dy) and d > depth:
+                depth = d
+                best = m
+        if best >= 0:
+            zz = cz_z[cz_off[best]:cz_off[best + 1]].reshape((cz_shape[best, 0], cz_shape[best, 1]))
+            h = bezier_at(zz, cz_par[best, 0], cz_par[best, 1], cz_par[best, 2], cz_par[best, 3],
+                          cz_par[best, 4], cz_par[best, 5], cz_par[best, 6], cz_par[best, 7], x, y,
+                          tangent, boundary)
+            if h == h:
+                out[k] = h
+                src[k] = 2
+                continue
+        out[k] = bezier_at(bz, bx0, by0, bdx, bdy, bc, bs, box, boy, x, y, tangent, boundary)
+        if ez_cell[cell]:
+            src[k] = 3
+        elif out[k] == out[k]:
+            src[k] = 1
+        else:
+            src[k] = 0
