@@ -18,6 +18,7 @@ __all__ = [
     "SimFileError",
     "GridTooLargeError",
     "NurbsError",
+    "RefineError",
 ]
 
 
@@ -72,3 +73,8 @@ class SimFileError(ZMapFileError):
 
 class NurbsError(ZMapError, ValueError):
     """A NURBS surface with inconsistent arrays or a degree the evaluator cannot take."""
+
+
+class RefineError(ZMapError, ValueError):
+    """A precision refinement (CZ-map, EZ-map) that cannot be built: no exact surface to
+    sample, or a surface callable that answers with the wrong shape."""

@@ -1,0 +1,581 @@
+"""Numba kernels behind :mod:`zmap.refine.ez`. No validation here: callers own the API.
+
+Conventions (see :class:`zmap.refine.ez.EZMap`):
+
+- edge ids: x-edge ``(i, j)-(i+1, j)`` is ``i*ny + j``; y-edge ``(i, j)-(i, j+1)`` is
+  ``(nx-1)*ny + i*(ny-1) + j``. Edge ``k`` of the e-map carries ``n = offsets[k+1] -
+  offsets[k]`` interior samples at ``t = q/(n+1)``, ``q = 1..n``; with the two grid corners
+  (``q = 0`` and ``q = n+1``) they form the edge's boundary sequence.
+- a cell ``(i, j)`` has id ``i*(ny-1) + j`` and local edges 0 bottom (+x), 1 right (+y),
+  2 top (+x), 3 left (+y); its perimeter coordinate ``s`` runs counter-clockwise from the
+  corner ``(i, j)``: bottom ``s = t``, right ``1 + t``, top ``2 + (1 - t)``, left
+  ``3 + (1 - t)``. Cell-local coordinates are metric: ``(u*dx, v*dy)``.
+- a break on an edge is a jump (kind 1, a vertical wall) or a kink (kind 2, a sharp edge)
+  of its boundary sequence, at parameter ``brk_t``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .._interp_kernels import BOUNDARY_DUMMY, TANGENT_CIRCLE, _bezier1d, _circle_tangent_slope, _locate, _slope
+
+BREAK_NONE = 0
+BREAK_JUMP = 1
+BREAK_KINK = 2
+
+# A cell whose two boundary breaks turn by more than this is taken as holding a corner of
+# the wall (trace through the corner), else as a smooth arc (trace through its midpoint).
+CORNER_TURN = math.radians(30.0)
+# A neighbouring crossing closer than this share of the grid interval does not steer the trace.
+MIN_LEVER = 0.5
+# Cells walked along the trace to find that crossing.
+MAX_WALK = 4
+
+
+@njit(cache=True)
+def _edge_corners(eid, nx, ny):
+    """(axis, ia, ja, ib, jb) of a global edge id; axis 0 = x-edge, 1 = y-edge."""
+    nxe = (nx - 1) * ny
+    if eid < nxe:
+        i = eid // ny
+        j = eid - i * ny
+        return 0, i, j, i + 1, j
+    r = eid - nxe
+    i = r // (ny - 1)
+    j = r - i * (ny - 1)
+    return 1, i, j, i, j + 1
+
+
+@njit(cache=True, inline="always")
+def _sample(z, heights, off, n, ia, ja, ib, jb, q):
+    if q <= 0:
+        return z[ia, ja]
+    if q >= n + 1:
+        return z[ib, jb]
+    return np.float64(heights[off + q - 1])
+
+
+@njit(cache=True, parallel=True)
+def edge_points(edge_ids, offsets, x0, y0, dx, dy, nx, ny, px, py):
+    """Local xy of every e-point (preallocated ``px``, ``py`` of length offsets[-1])."""
+    for k in prange(edge_ids.shape[0]):
+        axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
+        off = offsets[k]
+        n = offsets[k + 1] - off
+        for q in range(n):
+            t = (q + 1.0) / (n + 1.0)
+            if axis == 0:
+                px[off + q] = x0 + (ia + t) * dx
+                py[off + q] = y0 + ja * dy
+            else:
+                px[off + q] = x0 + ia * dx
+                py[off + q] = y0 + (ja + t) * dy
+
+
+@njit(cache=True, parallel=True)
+def detect_breaks(z, edge_ids, offsets, heights, jump_min, kink_min, ratio, out_kind, out_t):
+    """One break per edge: the dominant jump, else the dominant kink, of its sequence.
+
+    A jump is the interval whose rise exceeds its neighbours' by ``jump_min`` and is
+    ``ratio`` times theirs; it is placed mid-interval. A kink is the sample pair whose second
+    differences sum above ``kink_min`` and ``ratio`` times every other second difference;
+    it is placed where the lines through the two samples on either side meet.
+    """
+    nx, ny = z.shape
+    for k in prange(edge_ids.shape[0]):
+        out_kind[k] = BREAK_NONE
+        out_t[k] = -1.0
+        axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
+        off = offsets[k]
+        n = offsets[k + 1] - off
+        m = n + 1
+        ok = True
+        for q in range(m + 1):
+            if math.isnan(_sample(z, heights, off, n, ia, ja, ib, jb, q)):
+                ok = False
+                break
+        if not ok or m < 2:
+            continue
+        # jump: the largest rise
+        best = -1
+        bval = -1.0
+        for q in range(m):
+            d = abs(_sample(z, heights, off, n, ia, ja, ib, jb, q + 1) - _sample(z, heights, off, n, ia, ja, ib, jb, q))
+            if d > bval:
+                bval = d
+                best = q
+        nb = 0.0
+        if best > 0:
+            nb = max(nb, abs(_sample(z, heights, off, n, ia, ja, ib, jb, best)
+                             - _sample(z, heights, off, n, ia, ja, ib, jb, best - 1)))
+        if best < m - 1:
+            nb = max(nb, abs(_sample(z, heights, off, n, ia, ja, ib, jb, best + 2)
+                             - _sample(z, heights, off, n, ia, ja, ib, jb, best + 1)))
+        if bval - nb > jump_min and bval > ratio * nb:
+            out_kind[k] = BREAK_JUMP
+            out_t[k] = (best + 0.5) / m
+            continue
+        if m < 4:
+            continue
+        # kink: second differences D[q] at samples q = 1..m-1
+        kbest = -1
+        kval = -1.0
+        for q in range(1, m):
+            dd = abs(_sample(z, heights, off, n, ia, ja, ib, jb, q + 1) - 2.0 * _sample(z, heights, off, n, ia, ja, ib, jb, q)
+                     + _sample(z, heights, off, n, ia, ja, ib, jb, q - 1))
+            if dd > kval:
+                kval = dd
+                kbest = q
+        dl = 0.0
+        dr = 0.0
+        if kbest - 1 >= 1:
+            q = kbest - 1
+            dl = abs(_sample(z, heights, off, n, ia, ja, ib, jb, q + 1) - 2.0 * _sample(z, heights, off, n, ia, ja, ib, jb, q)
+                     + _sample(z, heights, off, n, ia, ja, ib, jb, q - 1))
+        if kbest + 1 <= m - 1:
+            q = kbest + 1
+            dr = abs(_sample(z, heights, off, n, ia, ja, ib, jb, q + 1) - 2.0 * _sample(z, heights, off, n, ia, ja, ib, jb, q)
+                     + _sample(z, heights, off, n, ia, ja, ib, jb, q - 1))
+        if dl >= dr:
+            a = kbest - 1
+            total = kval + dl
+        else:
+            a = kbest
+            total = kval + dr
+        rest = 0.0
+        for q in range(1, m):
+            if q >= kbest - 1 and q <= kbest + 1:
+                continue
+            dd = abs(_sample(z, heights, off, n, ia, ja, ib, jb, q + 1) - 2.0 * _sample(z, heights, off, n, ia, ja, ib, jb, q)
+                     + _sample(z, heights, off, n, ia, ja, ib, jb, q - 1))
+            rest = max(rest, dd)
+        if not (total > kink_min and total > ratio * rest):
+            continue
+        a = max(a, 1)
+        b = min(a + 1, m - 1)
+        za = _sample(z, heights, off, n, ia, ja, ib, jb, a)
+        zb = _sample(z, heights, off, n, ia, ja, ib, jb, b)
+        sl = za - _sample(z, heights, off, n, ia, ja, ib, jb, a - 1)
+        sr = _sample(z, heights, off, n, ia, ja, ib, jb, b + 1) - zb
+        x = 0.5 * (a + b)
+        if sl != sr:
+            x = (zb - za + sl * a - sr * b) / (sl - sr)
+        x = min(max(x, float(a)), float(b))
+        out_kind[k] = BREAK_KINK
+        out_t[k] = x / m
+
+
+@njit(cache=True)
+def _grid_edge(i, j, di, nx, ny):
+    """Global id of the edge from (i, j) one step along x (di=1) or y (di=0); -1 outside."""
+    if di == 1:
+        if i < 0 or i > nx - 2 or j < 0 or j > ny - 1:
+            return -1
+        return i * ny + j
+    if i < 0 or i > nx - 1 or j < 0 or j > ny - 2:
+        return -1
+    return (nx - 1) * ny + i * (ny - 1) + j
+
+
+@njit(cache=True)
+def _broken(edge_ids, brk_kind, eid):
+    if eid < 0:
+        return False
+    k = _find(edge_ids, eid)
+    return k >= 0 and brk_kind[k] != BREAK_NONE
+
+
+@njit(cache=True)
+def _edge_slope(z, i, j, di, dj, h, outer, edge_ids, brk_kind):
+    """The base's slope at (i, j) along the axis, unless its stencil reaches across a break.
+
+    ``outer`` (-1 or +1) is the side of (i, j) away from the plain edge being drawn. Where
+    the edge on that side carries a break (a wall or a sharp edge), the slope comes from
+    the plain side only: the one-sided circle tangent, else the secant.
+    """
+    nx, ny = z.shape
+    if outer < 0:
+        eo = _grid_edge(i - di, j - dj, di, nx, ny)
+    else:
+        eo = _grid_edge(i, j, di, nx, ny)
+    if not _broken(edge_ids, brk_kind, eo):
+        return _slope(z, i, j, di, dj, h, nx, ny, TANGENT_CIRCLE, BOUNDARY_DUMMY)
+    s = -outer  # the plain side
+    z0 = z[i, j]
+    z1 = z[i + s * di, j + s * dj]
+    i2 = i + 2 * s * di
+    j2 = j + 2 * s * dj
+    if 0 <= i2 < nx and 0 <= j2 < ny and not math.isnan(z[i2, j2]):
+        if s > 0:
+            e2 = _grid_edge(i + di, j + dj, di, nx, ny)
+        else:
+            e2 = _grid_edge(i2, j2, di, nx, ny)
+        if not _broken(edge_ids, brk_kind, e2):
+            return _circle_tangent_slope(s * h, z1 - z0, 2.0 * s * h, z[i2, j2] - z0)
+    return (z1 - z0) / (s * h)
+
+
+@njit(cache=True)
+def _edge_value(z, i, j, k, t, side, slot, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy):
+    """Boundary curve of local edge ``k`` of cell (i, j) at parameter t.
+
+    An e-edge interpolates its sequence linearly; across its break, each side is extended
+    from its own last two samples (``side`` -1 low t, +1 high t, 0 by t). An edge without
+    e-points is the base's cubic Bezier along it (as the base evaluates it).
+    """
+    nx, ny = z.shape
+    if k == 0:
+        ia, ja, ib, jb = i, j, i + 1, j
+    elif k == 1:
+        ia, ja, ib, jb = i + 1, j, i + 1, j + 1
+    elif k == 2:
+        ia, ja, ib, jb = i, j + 1, i + 1, j + 1
+    else:
+        ia, ja, ib, jb = i, j, i, j + 1
+    if slot < 0:
+        if k == 0 or k == 2:
+            sa = _edge_slope(z, ia, ja, 1, 0, dx, -1, edge_ids, brk_kind)
+            sb = _edge_slope(z, ib, jb, 1, 0, dx, 1, edge_ids, brk_kind)
+            return _bezier1d(z[ia, ja], z[ib, jb], sa, sb, dx, t)
+        sa = _edge_slope(z, ia, ja, 0, 1, dy, -1, edge_ids, brk_kind)
+        sb = _edge_slope(z, ib, jb, 0, 1, dy, 1, edge_ids, brk_kind)
+        return _bezier1d(z[ia, ja], z[ib, jb], sa, sb, dy, t)
+    off = offsets[slot]
+    n = offsets[slot + 1] - off
+    m = n + 1
+    f = t * m
+    q = int(math.floor(f))
+    q = min(max(q, 0), m - 1)
+    if brk_kind[slot] != BREAK_NONE:
+        tb = brk_t[slot] * m
+        lo = int(math.floor(tb + 1e-9))
+        hi = int(math.ceil(tb - 1e-9))
+        lo = min(max(lo, 0), m)
+        hi = min(max(hi, 0), m)
+        low = f <= tb if side == 0 else side < 0
+        if low:
+            if q + 1 > lo:
+                zl = _sample(z, heights, off, n, ia, ja, ib, jb, lo)
+                if lo >= 1:
+                    return zl + (zl - _sample(z, heights, off, n, ia, ja, ib, jb, lo - 1)) * (f - lo)
+                return zl
+        else:
+            if q < hi:
+                zh = _sample(z, heights, off, n, ia, ja, ib, jb, hi)
+                if hi + 1 <= m:
+                    return zh + (_sample(z, heights, off, n, ia, ja, ib, jb, hi + 1) - zh) * (f - hi)
+                return zh
+    za = _sample(z, heights, off, n, ia, ja, ib, jb, q)
+    zb = _sample(z, heights, off, n, ia, ja, ib, jb, q + 1)
+    return za + (f - q) * (zb - za)
+
+
+@njit(cache=True, inline="always")
+def _edge_xy(k, t, dx, dy):
+    if k == 0:
+        return t * dx, 0.0
+    if k == 1:
+        return dx, t * dy
+    if k == 2:
+        return t * dx, dy
+    return 0.0, t * dy
+
+
+@njit(cache=True, inline="always")
+def _perimeter(k, t):
+    if k == 0:
+        return t
+    if k == 1:
+        return 1.0 + t
+    if k == 2:
+        return 3.0 - t
+    return 4.0 - t
+
+
+@njit(cache=True)
+def _boundary_point(X, Y, dx, dy):
+    """(k, t) of the cell side nearest to the boundary point (X, Y)."""
+    db = abs(Y)
+    dr = abs(dx - X)
+    dt = abs(dy - Y)
+    dl = abs(X)
+    m = min(min(db, dr), min(dt, dl))
+    if m == db:
+        return 0, min(max(X / dx, 0.0), 1.0)
+    if m == dr:
+        return 1, min(max(Y / dy, 0.0), 1.0)
+    if m == dt:
+        return 2, min(max(X / dx, 0.0), 1.0)
+    return 3, min(max(Y / dy, 0.0), 1.0)
+
+
+@njit(cache=True)
+def _find(sorted_ids, key):
+    c = np.searchsorted(sorted_ids, key)
+    if c < sorted_ids.shape[0] and sorted_ids[c] == key:
+        return c
+    return -1
+
+
+@njit(cache=True)
+def _far_crossing(ecell_ids, out_nb, out_bk, out_pts, c, ci, cj, k, px, py, lever, nx, ny, dx, dy):
+    """Walk the trace from cell c out through its break on edge k to the first crossing at
+    least ``lever`` from (px, py); (found, qx, qy) in c's cell-local coordinates."""
+    cur_i, cur_j = ci, cj
+    for _ in range(MAX_WALK):
+        ni, nj = cur_i, cur_j
+        if k == 0:
+            nj -= 1
+        elif k == 1:
+            ni += 1
+        elif k == 2:
+            nj += 1
+        else:
+            ni -= 1
+        if ni < 0 or nj < 0 or ni > nx - 2 or nj > ny - 2:
+            return False, 0.0, 0.0
+        nc = _find(ecell_ids, ni * (ny - 1) + nj)
+        if nc < 0 or out_nb[nc] != 2:
+            return False, 0.0, 0.0
+        shared = (k + 2) % 4
+        if out_bk[nc, 0] == shared:
+            other = 1
+        elif out_bk[nc, 1] == shared:
+            other = 0
+        else:
+            return False, 0.0, 0.0
+        qx = out_pts[nc, 2 * other, 0] + (ni - ci) * dx
+        qy = out_pts[nc, 2 * other, 1] + (nj - cj) * dy
+        if math.hypot(qx - px, qy - py) >= lever:
+            return True, qx, qy
+        k = out_bk[nc, other]
+        cur_i, cur_j = ni, nj
+    return False, 0.0, 0.0
+
+
+@njit(cache=True)
+def cell_geometry(ecell_ids, slots, brk_kind, brk_t, nx, ny, dx, dy, out_nb, out_bk, out_bt, out_pts):
+    """Wall/edge trace of every e-cell with exactly two boundary breaks.
+
+    ``out_nb`` (C,) number of breaks on the cell's boundary; for two: ``out_bk``/``out_bt``
+    (C, 2) their local edges and parameters and ``out_pts`` (C, 3, 2) the trace P1, M, P2 in
+    cell-local metric coordinates. M is the trace's middle: the chord midpoint pushed by the
+    sagitta of the parabola through the crossings of the neighbouring cells (a smooth wall),
+    or the meeting point of the neighbouring traces when they turn by more than
+    ``CORNER_TURN`` and meet inside the cell (a wall corner).
+    """
+    C = ecell_ids.shape[0]
+    for c in range(C):
+        nb = 0
+        for k in range(4):
+            sl = slots[c, k]
+            if sl >= 0 and brk_kind[sl] != BREAK_NONE:
+                if nb < 2:
+                    out_bk[c, nb] = k
+                    out_bt[c, nb] = brk_t[sl]
+                    X, Y = _edge_xy(k, brk_t[sl], dx, dy)
+                    out_pts[c, 2 * nb, 0] = X
+                    out_pts[c, 2 * nb, 1] = Y
+                nb += 1
+        out_nb[c] = nb
+    for c in range(C):
+        if out_nb[c] != 2:
+            continue
+        ci = ecell_ids[c] // (ny - 1)
+        cj = ecell_ids[c] - ci * (ny - 1)
+        p1x = out_pts[c, 0, 0]
+        p1y = out_pts[c, 0, 1]
+        p2x = out_pts[c, 2, 0]
+        p2y = out_pts[c, 2, 1]
+        mx = 0.5 * (p1x + p2x)
+        my = 0.5 * (p1y + p2y)
+        out_pts[c, 1, 0] = mx
+        out_pts[c, 1, 1] = my
+        L = math.hypot(p2x - p1x, p2y - p1y)
+        if L <= 1e-12 * (dx + dy):
+            continue
+        wx = (p2x - p1x) / L
+        wy = (p2y - p1y) / L
+        # neighbours' far crossings Q (beyond P1 for b = 0, beyond P2 for b = 1)
+        qx = np.zeros(2)
+        qy = np.zeros(2)
+        has = np.zeros(2, dtype=np.bool_)
+        for b in range(2):
+            px_ = p1x if b == 0 else p2x
+            py_ = p1y if b == 0 else p2y
+            has[b], qx[b], qy[b] = _far_crossing(ecell_ids, out_nb, out_bk, out_pts, c, ci, cj, out_bk[c, b],
+                                                 px_, py_, MIN_LEVER * min(dx, dy), nx, ny, dx, dy)
+        if has[0] and has[1]:
+            d1x = p1x - qx[0]
+            d1y = p1y - qy[0]
+            d2x = qx[1] - p2x
+            d2y = qy[1] - p2y
+            n1 = math.hypot(d1x, d1y)
+            n2 = math.hypot(d2x, d2y)
+            if n1 > 0.0 and n2 > 0.0:
+                cross = d1x * d2y - d1y * d2x
+                turn = math.atan2(abs(cross), d1x * d2x + d1y * d2y)
+                if turn > CORNER_TURN and abs(cross) > 0.0:
+                    # lines P1 + a*d1 and P2 + b*d2 meet at C
+                    a = ((p2x - p1x) * d2y - (p2y - p1y) * d2x) / cross
+                    cx = p1x + a * d1x
+                    cy = p1y + a * d1y
+                    slack = 1e-9 * (dx + dy)
+                    if -slack <= cx <= dx + slack and -slack <= cy <= dy + slack:
+                        out_pts[c, 1, 0] = min(max(cx, 0.0), dx)
+                        out_pts[c, 1, 1] = min(max(cy, 0.0), dy)
+                        continue
+        # smooth wall: sagitta of the parabola (in the chord frame) through P1, P2 and Q
+        sag = 0.0
+        cnt = 0
+        for b in range(2):
+            if not has[b]:
+                continue
+            rx = qx[b] - mx
+            ry = qy[b] - my
+            xi = rx * wx + ry * wy
+            eta = -rx * wy + ry * wx
+            den = xi * xi - 0.25 * L * L
+            if abs(den) > 1e-6 * L * L:
+                sag += -eta / den * 0.25 * L * L
+                cnt += 1
+        if cnt > 0:
+            sag /= cnt
+            sag = min(max(sag, -0.5 * L), 0.5 * L)
+            out_pts[c, 1, 0] = min(max(mx - sag * wy, 0.0), dx)
+            out_pts[c, 1, 1] = min(max(my + sag * wx, 0.0), dy)
+
+
+@njit(cache=True)
+def _coons(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy):
+    """Bilinearly blended Coons patch of the cell's four boundary curves."""
+    bot = _edge_value(z, i, j, 0, u, 0, slots[c, 0], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
+    rgt = _edge_value(z, i, j, 1, v, 0, slots[c, 1], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
+    top = _edge_value(z, i, j, 2, u, 0, slots[c, 2], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
+    lft = _edge_value(z, i, j, 3, v, 0, slots[c, 3], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
+    bil = ((1.0 - u) * ((1.0 - v) * z[i, j] + v * z[i, j + 1])
+           + u * ((1.0 - v) * z[i + 1, j] + v * z[i + 1, j + 1]))
+    return (1.0 - v) * bot + v * top + (1.0 - u) * lft + u * rgt - bil
+
+
+@njit(cache=True)
+def _in_region_a(X, Y, pts, s1, s2, dx, dy):
+    """Point (X, Y) inside the polygon P1 -> corners CCW from s1 to s2 -> P2 -> M."""
+    span = (s2 - s1) % 4.0
+    inside = False
+    ax = pts[1, 0]  # start from M (the last vertex)
+    ay = pts[1, 1]
+    for idx in range(7):
+        if idx == 0:
+            bx = pts[0, 0]
+            by = pts[0, 1]
+        elif idx <= 4:
+            kk = math.floor(s1) + idx
+            if kk - s1 >= span or kk - s1 <= 0.0:
+                continue
+            cc = int(kk) % 4
+            bx = dx if (cc == 1 or cc == 2) else 0.0
+            by = dy if (cc == 2 or cc == 3) else 0.0
+        elif idx == 5:
+            bx = pts[2, 0]
+            by = pts[2, 1]
+        else:
+            bx = pts[1, 0]
+            by = pts[1, 1]
+        if (ay > Y) != (by > Y):
+            xint = ax + (Y - ay) * (bx - ax) / (by - ay)
+            if X < xint:
+                inside = not inside
+        ax = bx
+        ay = by
+    return inside
+
+
+@njit(cache=True)
+def _split(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, bk, bt, pts, dx, dy):
+    """Height on the side of the cell's trace that holds the point, from that side's data.
+
+    The line through the point parallel to the trace's chord meets the cell boundary at A
+    and B; their boundary heights (taken from the point's side; a hit beyond the side's arc
+    is pulled back to the arc's end at the break) are blended linearly along the line.
+    """
+    X = u * dx
+    Y = v * dy
+    k1 = bk[c, 0]
+    k2 = bk[c, 1]
+    t1 = bt[c, 0]
+    t2 = bt[c, 1]
+    s1 = _perimeter(k1, t1)
+    s2 = _perimeter(k2, t2)
+    P = pts[c]
+    if _in_region_a(X, Y, P, s1, s2, dx, dy):
+        sa, ka, ta, sb, kb, tb_ = s1, k1, t1, s2, k2, t2
+    else:
+        sa, ka, ta, sb, kb, tb_ = s2, k2, t2, s1, k1, t1
+    span = (sb - sa) % 4.0
+    wx = P[2, 0] - P[0, 0]
+    wy = P[2, 1] - P[0, 1]
+    L = math.hypot(wx, wy)
+    wx /= L
+    wy /= L
+    lo = -1e300
+    hi = 1e300
+    if abs(wx) > 1e-15:
+        l1 = -X / wx
+        l2 = (dx - X) / wx
+        lo = max(lo, min(l1, l2))
+        hi = min(hi, max(l1, l2))
+    if abs(wy) > 1e-15:
+        l1 = -Y / wy
+        l2 = (dy - Y) / wy
+        lo = max(lo, min(l1, l2))
+        hi = min(hi, max(l1, l2))
+    va, da = _hit(z, i, j, X, Y, lo, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, edge_ids, offsets, heights,
+                  brk_kind, brk_t, dx, dy)
+    vb, db = _hit(z, i, j, X, Y, hi, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, edge_ids, offsets, heights,
+                  brk_kind, brk_t, dx, dy)
+    if da + db <= 0.0:
+        return va
+    return (va * db + vb * da) / (da + db)
+
+
+@njit(cache=True)
+def _hit(z, i, j, X, Y, lam, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy):
+    """Boundary height and distance of the hit ``P + lam*w``, kept on the arc [sa, sb]."""
+    k, t = _boundary_point(X + lam * wx, Y + lam * wy, dx, dy)
+    s = _perimeter(k, t)
+    if (s - sa) % 4.0 <= span:
+        return (_edge_value(z, i, j, k, t, 0, slots[c, k], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy), abs(lam))
+    if (sa - s) % 4.0 <= (s - sb) % 4.0:  # pull back to the arc's start; the arc runs CCW from it
+        k, t = ka, ta
+        sd = 1 if (k == 0 or k == 1) else -1
+    else:  # to the arc's end; the arc lies CW from it
+        k, t = kb, tb_
+        sd = -1 if (k == 0 or k == 1) else 1
+    ex, ey = _edge_xy(k, t, dx, dy)
+    return (_edge_value(z, i, j, k, t, sd, slots[c, k], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy),
+            math.hypot(ex - X, ey - Y))
+
+
+@njit(cache=True, parallel=True)
+def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, heights, brk_kind, brk_t,
+              ecell_ids, slots, nb, bk, bt, pts, out):
+    """EZ heights at every query point; NaN outside e-cells (the caller uses the base)."""
+    nx, ny = z.shape
+    for p in prange(xs.shape[0]):
+        i, j, u, v = _locate(xs[p], ys[p], x0, y0, dx, dy, cs, sn, ox, oy, nx, ny)
+        if i < 0:
+            out[p] = np.nan
+            continue
+        c = _find(ecell_ids, i * (ny - 1) + j)
+        if c < 0 or math.isnan(z[i, j]) or math.isnan(z[i + 1, j]) or math.isnan(z[i, j + 1]) or math.isnan(z[i + 1, j + 1]):
+            out[p] = np.nan
+            continue
+        if nb[c] == 2 and (pts[c, 0, 0] != pts[c, 2, 0] or pts[c, 0, 1] != pts[c, 2, 1]):
+            out[p] = _split(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, bk, bt, pts, dx, dy)
+        else:
+            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)

@@ -1,0 +1,437 @@
+"""EZ-map: extra height samples on the grid edges of a base z-map (paper 004, §3.2).
+
+Procedure Construct_EZmap: every grid edge of the base that is steep (slope >= eps_r) or is
+crossed by a sharp-edge (SE) curve gets e-map points, evenly spaced at no more than
+``interval`` (default the tolerance), whose heights come from the exact surface. They are
+stored compactly, CSR over the selected edges, heights as float32 (1.9e-6 mm resolution at
+30 mm, 1.5e-5 mm at 250 mm: far below any machining tolerance).
+
+Evaluation. A cell with e-points on any of its edges is a Coons patch of its four boundary
+sequences (grid corners + e-points, linear between samples; an edge without e-points is the
+base's cubic Bezier along it, so the patch meets the base cells continuously). Where a
+boundary sequence is not G1 (a jump: a vertical wall; a kink: a sharp edge), the break is
+located on the sequence (within half the e-map interval for a jump); a cell with two breaks
+is split along the trace joining them (through its midpoint, bent by the neighbouring
+crossings, or through the wall's corner) and each side is evaluated from the boundary data
+on its side only, by blending the two boundary heights on the line through the point
+parallel to the trace. A wall's position is so held to the e-map interval.
+
+Grid edges and ids (the contract shared with :mod:`zmap.model`): the x-edge
+``(i, j)-(i+1, j)`` has id ``i*ny + j``, the y-edge ``(i, j)-(i, j+1)`` has id
+``(nx-1)*ny + i*(ny-1) + j``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import features
+from ..errors import RefineError
+from ..grid import ZMap
+
+__all__ = ["EZMap", "build_ez", "edge_count"]
+
+FORMAT_VERSION = 1
+#: A jump or kink must stand out this many times from its neighbours to count as a break.
+BREAK_RATIO = 4.0
+
+
+def edge_count(nx: int, ny: int) -> int:
+    """Number of grid edges of an ``nx`` by ``ny`` grid: ``(nx-1)*ny + nx*(ny-1)``."""
+    return (nx - 1) * ny + nx * (ny - 1)
+
+
+def _n_points(length: float, interval: float) -> int:
+    """Interior points that split ``length`` into pieces no longer than ``interval``."""
+    return max(int(math.ceil(length / interval - 1e-9)) - 1, 0)
+
+
+@dataclass(eq=False)
+class EZMap:
+    """The e-map of a base z-map: samples on selected grid edges.
+
+    Parameters
+    ----------
+    x0, y0, dx, dy : float
+        Grid of the base (local frame of the base), mm.
+    nx, ny : int
+        Grid points of the base.
+    interval : float
+        Largest spacing of the e-points along an edge, mm.
+    tol : float
+        Tolerance the map was built for, mm (sets the break thresholds).
+    edge_ids : ndarray of shape (E,), int64
+        Sorted ids of the edges that carry e-points.
+    offsets : ndarray of shape (E+1,), int64
+        CSR offsets: edge ``edge_ids[k]`` owns ``heights[offsets[k]:offsets[k+1]]``.
+    heights : ndarray of shape (P,), float32
+        Heights in mm of the ``n_e`` interior points of each edge at ``t = (q+1)/(n_e+1)``
+        from its first grid point; NaN where the surface gave none.
+    failed : int
+        E-points whose height came back NaN from the ``heights`` callable.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from zmap import ZMap
+    >>> f = lambda x, y: np.where(x > 1.23, 5.0, 0.0)
+    >>> base = ZMap.from_function(f, (0, 0, 3, 3), 0.5)
+    >>> ez = build_ez(base, f, tol=0.01)
+    >>> round(float(ez.evaluate(base, 1.225, 1.6)), 6), round(float(ez.evaluate(base, 1.235, 1.6)), 6)
+    (0.0, 5.0)
+    """
+
+    x0: float
+    y0: float
+    dx: float
+    dy: float
+    nx: int
+    ny: int
+    interval: float
+    tol: float
+    edge_ids: np.ndarray
+    offsets: np.ndarray
+    heights: np.ndarray
+    failed: int = 0
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self.x0, self.y0, self.dx, self.dy = (float(v) for v in (self.x0, self.y0, self.dx, self.dy))
+        self.nx, self.ny, self.failed = int(self.nx), int(self.ny), int(self.failed)
+        self.interval, self.tol = float(self.interval), float(self.tol)
+        if self.nx < 2 or self.ny < 2:
+            raise ValueError(f"nx and ny must be >= 2, got nx={self.nx}, ny={self.ny}")
+        self.edge_ids = np.ascontiguousarray(self.edge_ids, dtype=np.int64)
+        self.offsets = np.ascontiguousarray(self.offsets, dtype=np.int64)
+        self.heights = np.ascontiguousarray(self.heights, dtype=np.float32)
+        E = self.edge_ids.shape[0]
+        if self.edge_ids.ndim != 1 or self.offsets.shape != (E + 1,):
+            raise ValueError(f"offsets must have shape (E+1,) = ({E + 1},) for {E} edge ids, got {self.offsets.shape}")
+        if E and (np.any(np.diff(self.edge_ids) <= 0) or self.edge_ids[0] < 0
+                  or self.edge_ids[-1] >= edge_count(self.nx, self.ny)):
+            raise ValueError("edge_ids must be strictly increasing ids of edges of the grid")
+        if self.offsets[0] != 0 or np.any(np.diff(self.offsets) < 0) or self.offsets[-1] != self.heights.shape[0]:
+            raise ValueError(f"offsets must rise from 0 to len(heights)={self.heights.shape[0]}, "
+                             f"got {self.offsets[0]}..{self.offsets[-1] if E + 1 else None}")
+
+    # ---- figures --------------------------------------------------------------------------
+
+    @property
+    def n_points(self) -> int:
+        """Number of e-points."""
+        return int(self.heights.shape[0])
+
+    @property
+    def n_edges(self) -> int:
+        """Number of grid edges carrying e-points."""
+        return int(self.edge_ids.shape[0])
+
+    @property
+    def edge_ratio(self) -> float:
+        """Share of all grid edges that carry e-points (Table 2's 'e-map ratio')."""
+        return self.n_edges / edge_count(self.nx, self.ny)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the stored e-map (edge ids, offsets, heights); the evaluation cache,
+        rebuilt from them, is :attr:`cache_nbytes`."""
+        return int(self.edge_ids.nbytes + self.offsets.nbytes + self.heights.nbytes)
+
+    @property
+    def cache_nbytes(self) -> int:
+        """Bytes of the per-cell evaluation tables currently cached (0 before evaluate)."""
+        return int(sum(a.nbytes for a in self._cache.get("arrays", {}).values()))
+
+    def __repr__(self) -> str:
+        return (f"EZMap({self.nx}x{self.ny} grid, {self.n_edges} edges ({100 * self.edge_ratio:.1f}%), "
+                f"{self.n_points} points at <= {self.interval:g} mm, {self.nbytes / 1024:.1f} KB)")
+
+    # ---- points ---------------------------------------------------------------------------
+
+    def points(self) -> tuple[np.ndarray, np.ndarray]:
+        """Local xy of every e-point, each ndarray of shape (P,), float64, in heights order."""
+        from . import _ez_kernels as _k
+
+        px = np.empty(self.n_points)
+        py = np.empty(self.n_points)
+        _k.edge_points(self.edge_ids, self.offsets, self.x0, self.y0, self.dx, self.dy, self.nx, self.ny, px, py)
+        return px, py
+
+    # ---- evaluation -----------------------------------------------------------------------
+
+    def _check_base(self, base: ZMap) -> None:
+        if not isinstance(base, ZMap):
+            raise TypeError(f"base must be a zmap.ZMap, got {type(base).__name__}")
+        if (base.nx, base.ny) != (self.nx, self.ny) or not np.allclose(
+                (base.x0, base.y0, base.dx, base.dy), (self.x0, self.y0, self.dx, self.dy), rtol=0, atol=1e-12):
+            raise ValueError(f"base grid {base.nx}x{base.ny} at ({base.x0}, {base.y0}) step ({base.dx}, {base.dy}) "
+                             f"is not the e-map's {self.nx}x{self.ny} at ({self.x0}, {self.y0}) "
+                             f"step ({self.dx}, {self.dy})")
+
+    def _tables(self, base: ZMap) -> dict:
+        """Per-edge breaks and per-cell traces, cached per base object."""
+        key = (id(base), base.z.ctypes.data)
+        if self._cache.get("key") == key:
+            return self._cache["arrays"]
+        from . import _ez_kernels as _k
+
+        nx, ny = self.nx, self.ny
+        E = self.n_edges
+        kind = np.zeros(E, dtype=np.int8)
+        brk_t = np.zeros(E, dtype=np.float64)
+        n_max = max(_n_points(self.dx, self.interval), _n_points(self.dy, self.interval)) + 1
+        h = max(self.dx, self.dy)
+        jump_min = self.tol
+        kink_min = 4.0 * self.tol * (h / n_max) / h
+        if E:
+            _k.detect_breaks(base.z, self.edge_ids, self.offsets, self.heights, jump_min, kink_min, BREAK_RATIO,
+                             kind, brk_t)
+        # cells touching an e-edge, and the slot of each of their four edges
+        ecell = np.concatenate([np.flatnonzero(self.cell_mask()), self._ring_cells(kind)])
+        ecell = np.unique(ecell).astype(np.int64)
+        ids = self.edge_ids
+        nxe = (nx - 1) * ny
+        ci, cj = ecell // (ny - 1), ecell % (ny - 1)
+        want = np.stack([ci * ny + cj, nxe + (ci + 1) * (ny - 1) + cj, ci * ny + cj + 1,
+                         nxe + ci * (ny - 1) + cj], axis=1)
+        pos = np.searchsorted(ids, want)
+        pos_c = np.minimum(pos, max(E - 1, 0))
+        slots = np.where((pos < E) & (ids[pos_c] == want) if E else np.zeros(want.shape, bool), pos, -1)
+        slots = np.ascontiguousarray(slots, dtype=np.int64)
+        C = ecell.shape[0]
+        nb = np.zeros(C, dtype=np.int8)
+        bk = np.zeros((C, 2), dtype=np.int8)
+        bt = np.zeros((C, 2), dtype=np.float64)
+        pts = np.zeros((C, 3, 2), dtype=np.float64)
+        if C:
+            _k.cell_geometry(ecell, slots, kind, brk_t, nx, ny, self.dx, self.dy, nb, bk, bt, pts)
+        arrays = {"brk_kind": kind, "brk_t": brk_t, "ecell_ids": ecell, "slots": slots, "nb": nb, "bk": bk,
+                  "bt": bt, "pts": pts}
+        self._cache = {"key": key, "arrays": arrays}
+        return arrays
+
+    def _ring_cells(self, kind: np.ndarray) -> np.ndarray:
+        """Cells whose base stencil (the outer edges their corner slopes use) holds a break."""
+        nx, ny, nxe = self.nx, self.ny, (self.nx - 1) * self.ny
+        ids = self.edge_ids[kind != 0]
+        is_x = ids < nxe
+        a, r = ids[is_x] // ny, ids[is_x] % ny  # x-edge (a, r): cells (a+-1, r) and (a+-1, r-1)
+        yi = (ids[~is_x] - nxe) // (ny - 1)
+        yb = (ids[~is_x] - nxe) % (ny - 1)  # y-edge (yi, yb): cells (yi, yb+-1) and (yi-1, yb+-1)
+        ci = np.concatenate([a + 1, a + 1, a - 1, a - 1, yi, yi - 1, yi, yi - 1])
+        cj = np.concatenate([r, r - 1, r, r - 1, yb + 1, yb + 1, yb - 1, yb - 1])
+        ok = (ci >= 0) & (ci <= nx - 2) & (cj >= 0) & (cj <= ny - 2)
+        return (ci[ok] * (ny - 1) + cj[ok]).astype(np.int64)
+
+    def cell_mask(self) -> np.ndarray:
+        """Cells with e-points on any edge, ndarray of shape (nx-1, ny-1), bool.
+
+        :meth:`evaluate` answers in these cells and in the ring around breaks whose base
+        stencil reaches across a wall or sharp edge (see :meth:`eval_mask`)."""
+        m = np.zeros((self.nx - 1) * (self.ny - 1), dtype=bool)
+        ids = self.edge_ids
+        ny, nxe = self.ny, (self.nx - 1) * self.ny
+        is_x = ids < nxe
+        xi, xj = ids[is_x] // ny, ids[is_x] % ny
+        r = ids[~is_x] - nxe
+        yi, yj = r // (ny - 1), r % (ny - 1)
+        m[(xi * (ny - 1) + xj)[xj <= ny - 2]] = True
+        m[(xi * (ny - 1) + xj - 1)[xj >= 1]] = True
+        m[(yi * (ny - 1) + yj)[yi <= self.nx - 2]] = True
+        m[((yi - 1) * (ny - 1) + yj)[yi >= 1]] = True
+        return m.reshape(self.nx - 1, self.ny - 1)
+
+    def eval_mask(self, base: ZMap) -> np.ndarray:
+        """Cells where :meth:`evaluate` answers, ndarray of shape (nx-1, ny-1), bool."""
+        self._check_base(base)
+        m = np.zeros((self.nx - 1) * (self.ny - 1), dtype=bool)
+        m[self._tables(base)["ecell_ids"]] = True
+        return m.reshape(self.nx - 1, self.ny - 1)
+
+    def breaks(self, base: ZMap) -> tuple[np.ndarray, np.ndarray]:
+        """Break found on each e-edge: ``kind`` (E,) int8 (0 none, 1 jump, 2 kink) and
+        ``t`` (E,) float64, the parameter along the edge from its first grid point."""
+        self._check_base(base)
+        a = self._tables(base)
+        return a["brk_kind"].copy(), a["brk_t"].copy()
+
+    def evaluate(self, base: ZMap, x, y) -> np.ndarray:
+        """Heights in cells with e-points on any edge; NaN elsewhere (use the base there).
+
+        Cells next to a break whose base stencil reaches across it answer too (their
+        edge curves take the slope from the plain side), so that no base cell blends
+        heights across a wall or a sharp edge.
+
+        Parameters
+        ----------
+        base : ZMap
+            The base z-map the e-map was built on (same grid and frame).
+        x, y : array_like of float, broadcastable
+            World coordinates, mm.
+
+        Returns
+        -------
+        ndarray of float64, broadcast shape of x and y (float for scalars)
+            Heights in mm; NaN outside e-cells, outside the map, in cells with a missing
+            corner height, and where a needed e-point has no height.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from zmap import ZMap
+        >>> f = lambda x, y: 0.3 * x - 0.2 * y + np.where(y > 0.7 * x + 0.1, 4.0, 0.0)
+        >>> base = ZMap.from_function(f, (0, 0, 2, 2), 0.5)
+        >>> ez = build_ez(base, f, tol=0.01)
+        >>> x, y = np.array([0.9, 1.0]), np.array([0.4, 1.3])
+        >>> bool(np.allclose(ez.evaluate(base, x, y), f(x, y)))
+        True
+        """
+        from . import _ez_kernels as _k
+
+        self._check_base(base)
+        xb, yb = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+        shape = xb.shape
+        xs = np.ascontiguousarray(xb).ravel()
+        ys = np.ascontiguousarray(yb).ravel()
+        out = np.full(xs.shape[0], np.nan)
+        if self.n_edges and xs.size:
+            a = self._tables(base)
+            _k.ez_kernel(base.z, base.x0, base.y0, base.dx, base.dy, math.cos(base.angle), math.sin(base.angle),
+                         base.origin[0], base.origin[1], xs, ys, self.edge_ids, self.offsets, self.heights, a["brk_kind"],
+                         a["brk_t"], a["ecell_ids"], a["slots"], a["nb"], a["bk"], a["bt"], a["pts"], out)
+        out = out.reshape(shape)
+        return out[()] if out.ndim == 0 else out
+
+    def height(self, base: ZMap, x, y) -> np.ndarray:
+        """EZ model heights everywhere: :meth:`evaluate` in e-cells, the base's Bezier
+        elsewhere (the scheme the e-cells' plain edges follow)."""
+        from ..interpolate import bezier
+
+        h = np.asarray(self.evaluate(base, x, y), dtype=np.float64)
+        miss = np.isnan(h)
+        if miss.any():
+            xb, yb = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+            h = np.array(h, copy=True).reshape(xb.shape)
+            h[miss] = bezier(base, xb[miss], yb[miss])
+        return h[()] if h.ndim == 0 else h
+
+    # ---- storage --------------------------------------------------------------------------
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Arrays to save inside another file; :meth:`from_arrays` restores the map exactly."""
+        return {
+            "version": np.array([FORMAT_VERSION], dtype=np.int64),
+            "grid": np.array([self.x0, self.y0, self.dx, self.dy, self.interval, self.tol], dtype=np.float64),
+            "shape": np.array([self.nx, self.ny, self.failed], dtype=np.int64),
+            "edge_ids": self.edge_ids,
+            "offsets": self.offsets,
+            "heights": self.heights,
+        }
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> "EZMap":
+        """Inverse of :meth:`to_arrays`."""
+        missing = {"version", "grid", "shape", "edge_ids", "offsets", "heights"} - set(arrays)
+        if missing:
+            raise ValueError(f"e-map arrays lack {sorted(missing)}, got {sorted(arrays)}")
+        version = int(np.asarray(arrays["version"]).ravel()[0])
+        if not 1 <= version <= FORMAT_VERSION:
+            raise ValueError(f"e-map format version {version} is not supported (this zmap reads 1..{FORMAT_VERSION})")
+        g = np.asarray(arrays["grid"], dtype=np.float64).ravel()
+        s = np.asarray(arrays["shape"], dtype=np.int64).ravel()
+        return cls(g[0], g[1], g[2], g[3], int(s[0]), int(s[1]), g[4], g[5], arrays["edge_ids"], arrays["offsets"],
+                   arrays["heights"], failed=int(s[2]))
+
+
+def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray], *, tol: float,
+             eps_r: float | None = None, se_curves: Sequence[np.ndarray] = (), interval: float | None = None) -> EZMap:
+    """Procedure Construct_EZmap: e-points on the steep and SE-crossed edges of ``base``.
+
+    Parameters
+    ----------
+    base : ZMap
+        Master z-map (its local frame is honoured).
+    heights : callable
+        ``heights(x, y) -> z``: exact top-most heights at world xy (two float64 arrays of
+        shape (P,)), NaN where there is no surface; called once with every e-point.
+    tol : float
+        Tolerance in mm, smaller than the grid interval ``min(dx, dy)``.
+    eps_r : float, optional
+        Slope threshold of a steep edge; default :func:`zmap.features.default_eps_r`.
+    se_curves : sequence of ndarray of shape (n, 2)
+        Sharp-edge curves, world xy (:func:`zmap.features.sharp_edge_curves`).
+    interval : float, optional
+        Largest spacing of e-points along an edge, mm; default ``tol``.
+
+    Returns
+    -------
+    EZMap
+        ``failed`` counts the e-points whose height came back NaN.
+
+    Raises
+    ------
+    ValueError
+        ``tol`` or ``interval`` not smaller than the grid interval, or not positive.
+    RefineError
+        ``heights`` missing or returning the wrong shape.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from zmap import ZMap
+    >>> f = lambda x, y: np.where(np.hypot(x - 2, y - 2) < 1.1, 3.0, 0.0)
+    >>> base = ZMap.from_function(f, (0, 0, 4, 4), 0.5)
+    >>> ez = build_ez(base, f, tol=0.01)
+    >>> ez.n_points // ez.n_edges, ez.failed
+    (49, 0)
+    """
+    if not isinstance(base, ZMap):
+        raise TypeError(f"base must be a zmap.ZMap, got {type(base).__name__}")
+    if heights is None or not callable(heights):
+        raise RefineError(f"the EZ-map needs the exact surface: heights must be a callable heights(x, y) -> z, "
+                          f"got {type(heights).__name__}")
+    h_min = min(base.dx, base.dy)
+    tol = float(tol)
+    if not (math.isfinite(tol) and tol > 0.0):
+        raise ValueError(f"tol must be a positive length in mm, got {tol!r}")
+    if tol >= h_min:
+        raise ValueError(f"tol={tol!r} must be smaller than the grid interval min(dx, dy)={h_min!r}")
+    interval = tol if interval is None else float(interval)
+    if not (math.isfinite(interval) and 0.0 < interval < h_min):
+        raise ValueError(f"interval={interval!r} must be positive and smaller than the grid interval "
+                         f"min(dx, dy)={h_min!r}")
+    eps_r = features.default_eps_r(tol, base.dx, base.dy) if eps_r is None else float(eps_r)
+    if not (eps_r >= 0.0):
+        raise ValueError(f"eps_r must be a slope >= 0, got {eps_r!r}")
+
+    sx, sy = features.steep_edges(base, eps_r) if math.isfinite(eps_r) else (
+        np.zeros((base.nx - 1, base.ny), bool), np.zeros((base.nx, base.ny - 1), bool))
+    if len(se_curves):
+        cx, cy = features.edges_crossing(base, se_curves)
+        sx |= cx
+        sy |= cy
+    # an edge with no height at either end has nothing to refine
+    zf = ~np.isnan(base.z)
+    sx &= zf[:-1, :] | zf[1:, :]
+    sy &= zf[:, :-1] | zf[:, 1:]
+    nx, ny = base.shape
+    edge_ids = np.concatenate([np.flatnonzero(sx.ravel()), (nx - 1) * ny + np.flatnonzero(sy.ravel())]).astype(np.int64)
+    n_x, n_y = _n_points(base.dx, interval), _n_points(base.dy, interval)
+    counts = np.where(edge_ids < (nx - 1) * ny, n_x, n_y)
+    offsets = np.zeros(edge_ids.shape[0] + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    ez = EZMap(base.x0, base.y0, base.dx, base.dy, nx, ny, interval, tol, edge_ids, offsets,
+               np.zeros(int(offsets[-1]), dtype=np.float32))
+    if ez.n_points:
+        lx, ly = ez.points()
+        wx, wy = base.local_to_world(lx, ly)
+        z = np.asarray(heights(wx, wy), dtype=np.float64)
+        if z.shape != wx.shape:
+            raise RefineError(f"heights(x, y) must return one height per point, shape {wx.shape}, got {z.shape}")
+        ez.failed = int(np.count_nonzero(np.isnan(z)))
+        ez.heights = z.astype(np.float32)
+    return ez
