@@ -6,9 +6,12 @@ imported inside the command, so ``zmap --help`` and ``zmap accuracy`` never load
 
 from __future__ import annotations
 
-import click
+import math
 
-__all__ = ["convert_cmd"]
+import click
+import numpy as np
+
+__all__ = ["convert_cmd", "refine_cmd", "refine_models", "report_cmd", "report_rows", "format_report"]
 
 _AXES = ("+z", "-z", "+x", "-x", "+y", "-y")
 
@@ -62,3 +65,253 @@ def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progr
     click.echo(f"time     {seconds:.2f} s (sampling {zm.meta['seconds']:.2f} s)")
     click.echo(f"memory   {zm.nbytes / 1e6:.2f} MB map, {estimate_bytes(*grid_shape(zm.bounds, zm.dx, zm.dy)) / 1e6:.2f} MB "
                f"working estimate")
+
+
+# ---- precision refinements: zmap refine, zmap report ------------------------------------------
+
+_NEEDS_PART = ("refinement needs the exact surface: pass --part PART.step, the STEP file the z-map "
+               "was converted from")
+
+
+class _CountingHeights:
+    """``heights(x, y)`` from the exact sampler that counts the points answered by facets."""
+
+    def __init__(self, part, deflection: float):
+        from cad_io.sampler import FACET, height_function
+
+        self._h = height_function(part, deflection=deflection)
+        self._facet = FACET
+        self.points = 0
+        self.facet = 0
+        self.empty = 0
+
+    def __call__(self, x, y):
+        z = self._h(x, y)
+        m = self._h.last_method
+        self.points += int(m.size)
+        self.facet += int(np.count_nonzero(m == self._facet))
+        self.empty += int(np.count_nonzero(m == 0))
+        return z
+
+
+def _check_tol(tol: float, base) -> None:
+    if not (tol > 0 and math.isfinite(tol)):
+        raise click.BadParameter(f"must be a positive number of mm, got {tol!r}", param_hint="--tol")
+    if tol >= min(base.dx, base.dy):
+        raise click.BadParameter(f"tolerance {tol:g} mm is not smaller than the grid interval "
+                                 f"(dx={base.dx:g}, dy={base.dy:g} mm); use a smaller --tol or a finer grid",
+                                 param_hint="--tol")
+
+
+def refine_models(part, base, tol: float, methods=("ez", "cz"), *, theta_x: float = math.radians(20.0),
+                  deflection: float | None = None) -> dict:
+    """Build the EZ and/or CZ precision models of ``base`` from the exact ``part``.
+
+    EZ: e-points on the steep grid edges and on those crossed by SE curves. CZ: domains
+    along the VW curves (slope at least ``max(eps_r, 1)``, the walls) and the SE curves.
+
+    Returns
+    -------
+    dict
+        ``{method: (PrecisionModel, info)}``; ``info`` has the counts of sampled points,
+        of those answered by facets (where the Jacobian inversion failed), and the seconds.
+    """
+    import time
+
+    from zmap.features import default_eps_r, sharp_edge_curves, vertical_wall_curves
+    from zmap.model import PrecisionModel
+
+    deflection = tol / 2.0 if deflection is None else float(deflection)
+    se = sharp_edge_curves(part.edges)
+    eps_r = default_eps_r(tol, base.dx, base.dy)
+    out = {}
+    for method in methods:
+        h = _CountingHeights(part, deflection)
+        t0 = time.perf_counter()
+        if method == "ez":
+            from zmap.refine.ez import build_ez
+
+            ez = build_ez(base, h, tol=tol, eps_r=eps_r, se_curves=se)
+            model = PrecisionModel(base, ez=ez, meta={"method": "ez", "tol": tol, "eps_r": eps_r})
+        elif method == "cz":
+            from zmap.refine.cz import build_cz
+
+            curves = vertical_wall_curves(base, max(eps_r, 1.0)) + list(se)
+            cz = build_cz(base, h, tol=tol, curves=curves, theta_x=theta_x)
+            model = PrecisionModel(base, cz=cz, meta={"method": "cz", "tol": tol, "theta_x": theta_x,
+                                                      "curves": len(curves)})
+        else:
+            raise ValueError(f"method={method!r} is not one of 'ez', 'cz'")
+        info = {"sampled": h.points, "facet": h.facet, "empty": h.empty,
+                "seconds": round(time.perf_counter() - t0, 3)}
+        model.meta.update({"source": str(getattr(part, "source", "")), "facet_points": h.facet,
+                           "deflection": deflection})
+        out[method] = (model, info)
+    return out
+
+
+@click.command("refine")
+@click.argument("zmap_path", metavar="PART.zmap.npz", type=click.Path(dir_okay=False))
+@click.option("--part", "part_path", default=None, metavar="PART.step", help="The exact surface (STEP).")
+@click.option("--tol", required=True, type=float, metavar="MM", help="Tolerance in mm (below the grid interval).")
+@click.option("--method", type=click.Choice(["ez", "cz"]), default="ez", show_default=True)
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="PART.zpm to write.")
+def refine_cmd(zmap_path, part_path, tol, method, output) -> None:
+    """Refine a master z-map by an EZ-map or CZ-maps sampled from the exact part (paper 004 §3)."""
+    import os
+
+    from cad_io.step import read_step
+    from zmap.errors import StepImportError
+    from zmap.grid import ZMap
+
+    if part_path is None:
+        raise click.UsageError(_NEEDS_PART)
+    base = ZMap.load(zmap_path)
+    _check_tol(tol, base)
+    if not os.path.exists(part_path):
+        raise StepImportError(f"{part_path}: no such file; {_NEEDS_PART}")
+    part = read_step(part_path)
+    if not part.faces:
+        raise StepImportError(f"{part_path}: no faces in the file; {_NEEDS_PART}")
+    axis = base.meta.get("axis", "+z")
+    if axis != "+z":
+        raise click.BadParameter(f"the z-map was sampled along axis {axis!r}; refine supports '+z' only",
+                                 param_hint="PART.zmap.npz")
+    model, info = refine_models(part, base, tol, (method,))[method]
+    model.meta["source"] = os.path.basename(part_path)
+    model.save(output)
+    nb = model.nbytes
+    click.echo(f"wrote    {output}")
+    if method == "ez":
+        click.echo(f"ez       {model.ez.n_edges:,} edges ({100 * model.ez.edge_ratio:.2f} %), "
+                   f"{model.ez.n_points:,} e-points at <= {model.ez.interval:g} mm")
+    else:
+        click.echo(f"cz       {len(model.cz)} CZ-maps, {sum(c.z.size for c in model.cz):,} points")
+    click.echo(f"memory   base {nb['base'] / 1024:.1f} KB, {method} {nb[method] / 1024:.1f} KB, "
+               f"total {nb['total'] / 1024:.1f} KB")
+    click.echo(f"sampled  {info['sampled']:,} points in {info['seconds']:.2f} s; "
+               f"{info['facet']:,} from facet heights where the Jacobian inversion failed, "
+               f"{info['empty']:,} without surface")
+
+
+def _steep(part, x, y, h0, deflection: float, step: float = 0.01, max_slope: float = 1.0) -> np.ndarray:
+    """True where the exact surface is steeper than ``max_slope`` (or jumps) within ``step``."""
+    from cad_io.sampler import sample_points
+
+    hx = sample_points(part, x + step, y, deflection=deflection)[0]
+    hy = sample_points(part, x, y + step, deflection=deflection)[0]
+    with np.errstate(invalid="ignore"):
+        slope = np.hypot(hx - h0, hy - h0) / step
+    return ~(slope <= max_slope)
+
+
+def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed: int = 0,
+                methods=("ez", "cz"), models: dict | None = None, base=None) -> dict:
+    """Accuracy and memory of the base z-map and its EZ and CZ models (a Table 2 analogue).
+
+    Returns
+    -------
+    dict
+        ``grid``, ``tol``, ``points``, ``plain_fine_bytes`` (a plain z-map at the e-map
+        interval, computed) and ``rows``: for ``base``, ``ez``, ``cz`` the memory in bytes
+        (``zmap``, ``extra``, ``total``), the e-map ratio, the largest vertical deviation
+        where the surface is not steep, the largest 3D distance to the B-rep everywhere,
+        and (CZ) inside the CZ domains.
+    """
+    from cad_io.distance import distance_to_part
+    from cad_io.sampler import sample, sample_points
+    from zmap.model import PrecisionModel
+
+    if base is None:
+        base = sample(part, grid)
+    _check_tol(tol, base)
+    if models is None:
+        models = refine_models(part, base, tol, methods)
+    all_models = {"base": (PrecisionModel(base), {})} | dict(models)
+    rng = np.random.default_rng(seed)
+    x0, y0, x1, y1 = base.bounds
+    xs = rng.uniform(x0, x1, n_points)
+    ys = rng.uniform(y0, y1, n_points)
+    defl = tol / 10.0
+    zex = sample_points(part, xs, ys, deflection=defl)[0]
+    steep = _steep(part, xs, ys, zex, defl)
+    nx_f = int(math.floor((x1 - x0) / tol + 1e-9)) + 1
+    ny_f = int(math.floor((y1 - y0) / tol + 1e-9)) + 1
+    rows = {}
+    for name, (model, info) in all_models.items():
+        h = model.height(xs, ys)
+        ok = np.isfinite(h)
+        d = np.full(n_points, np.nan)
+        d[ok] = distance_to_part(part, np.c_[xs[ok], ys[ok], h[ok]], deflection=defl / 2)
+        flat = ok & np.isfinite(zex) & ~steep
+        nb = model.nbytes
+        row = {"zmap_bytes": nb["base"], "extra_bytes": nb["cz"] + nb["ez"], "total_bytes": nb["total"],
+               "emap_ratio": float(model.ez.edge_ratio) if model.ez is not None else None,
+               "n_cz": len(model.cz),
+               "max_vertical_flat": float(np.max(np.abs(h[flat] - zex[flat]), initial=0.0)),
+               "max_dist": float(np.nanmax(d)) if ok.any() else None,
+               "p999_dist": float(np.nanpercentile(d, 99.9)) if ok.any() else None,
+               "points_with_height": int(ok.sum()), "points_flat": int(flat.sum())}
+        if model.cz:
+            inside = model.source(xs, ys) == 2
+            row["cz_points"] = int(inside.sum())
+            row["max_dist_in_cz"] = float(np.nanmax(d[inside])) if inside.any() else None
+        if info:
+            row["facet_points"] = info["facet"]
+            row["build_seconds"] = info["seconds"]
+        rows[name] = row
+    return {"part": str(getattr(part, "source", "")), "grid": float(base.dx), "tol": float(tol),
+            "points": n_points, "plain_fine_bytes": nx_f * ny_f * 8, "plain_fine_shape": [nx_f, ny_f], "rows": rows}
+
+
+def format_report(rep: dict) -> str:
+    """Markdown table of :func:`report_rows`."""
+    kb = lambda b: f"{b / 1024:,.1f}"  # noqa: E731
+    f = lambda v, n=4: "-" if v is None else f"{v:.{n}f}"  # noqa: E731
+    lines = [f"part {rep['part']}: grid {rep['grid']:g} mm, tol {rep['tol']:g} mm, {rep['points']:,} random points; "
+             f"a plain z-map at {rep['tol']:g} mm ({rep['plain_fine_shape'][0]:,} x {rep['plain_fine_shape'][1]:,}) "
+             f"would take {kb(rep['plain_fine_bytes'])} KB",
+             "",
+             "| model | z-map KB | e-map / CZ KB | total KB | e-map ratio % | CZ-maps | max vertical dev (not steep) mm "
+             "| max 3D dist mm | 99.9% 3D dist mm | max 3D dist in CZ mm |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for name, r in rep["rows"].items():
+        ratio = "-" if r["emap_ratio"] is None else f"{100 * r['emap_ratio']:.2f}"
+        lines.append(f"| {name} | {kb(r['zmap_bytes'])} | {kb(r['extra_bytes'])} | {kb(r['total_bytes'])} | {ratio} "
+                     f"| {r['n_cz']} | {f(r['max_vertical_flat'])} | {f(r['max_dist'])} | {f(r['p999_dist'])} "
+                     f"| {f(r.get('max_dist_in_cz'))} |")
+    return "\n".join(lines)
+
+
+@click.command("report")
+@click.argument("part_path", metavar="PART.step", type=click.Path(dir_okay=False))
+@click.option("--grid", required=True, type=float, metavar="MM", help="Base grid interval in mm.")
+@click.option("--tol", required=True, type=float, metavar="MM", help="Tolerance in mm.")
+@click.option("--points", default=100_000, show_default=True, type=int, help="Random query points.")
+@click.option("--seed", default=0, show_default=True, type=int)
+@click.option("--method", "methods", multiple=True, type=click.Choice(["ez", "cz"]),
+              help="Refinements to build (repeatable); default both.")
+@click.option("--format", "fmt", type=click.Choice(["markdown", "json"]), default="markdown", show_default=True)
+def report_cmd(part_path, grid, tol, points, seed, methods, fmt) -> None:
+    """Memory and accuracy of the base z-map, the CZ model and the EZ model (paper 004 Table 2)."""
+    import json
+    import os
+
+    from cad_io.step import read_step
+    from zmap.errors import StepImportError
+
+    if not os.path.exists(part_path):
+        raise StepImportError(f"{part_path}: no such file")
+    if grid <= 0:
+        raise click.BadParameter(f"must be positive, got {grid!r}", param_hint="--grid")
+    if points < 1:
+        raise click.BadParameter(f"must be at least 1, got {points!r}", param_hint="--points")
+    if not (0 < tol < grid):
+        raise click.BadParameter(f"tolerance {tol:g} mm must be positive and smaller than the grid interval "
+                                 f"{grid:g} mm", param_hint="--tol")
+    part = read_step(part_path)
+    if not part.faces:
+        raise StepImportError(f"{part_path}: no faces in the file")
+    rep = report_rows(part, grid, tol, n_points=points, seed=seed, methods=methods or ("ez", "cz"))
+    rep["part"] = os.path.basename(part_path)
+    click.echo(json.dumps(rep, indent=1) if fmt == "json" else format_report(rep))

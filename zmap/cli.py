@@ -69,9 +69,11 @@ def info(path: str) -> None:
 from .sim.commands import replay_cmd, simulate_cmd  # noqa: E402  (sim commands)
 cli.add_command(simulate_cmd)  # sim commands
 cli.add_command(replay_cmd)  # sim commands
-# cad commands (cad_io/commands.py): convert; it imports OCP and the sampler only when run
-from cad_io.commands import convert_cmd  # noqa: E402  (cad commands)
+# cad commands (cad_io/commands.py): convert, refine, report; they import OCP and the sampler only when run
+from cad_io.commands import convert_cmd, refine_cmd, report_cmd  # noqa: E402  (cad commands)
 cli.add_command(convert_cmd)  # cad commands
+cli.add_command(refine_cmd)  # cad commands
+cli.add_command(report_cmd)  # cad commands
 
 
 def main(argv: list[str] | None = None) -> int:
