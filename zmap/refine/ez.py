@@ -191,8 +191,7 @@ class EZMap:
             _k.detect_breaks(base.z, self.edge_ids, self.offsets, self.heights, jump_min, kink_min, BREAK_RATIO,
                              kind, brk_t)
         # cells touching an e-edge, and the slot of each of their four edges
-        ecell = np.concatenate([np.flatnonzero(self.cell_mask()), self._ring_cells(kind)])
-        ecell = np.unique(ecell).astype(np.int64)
+        ecell = np.flatnonzero(self.cell_mask().ravel()).astype(np.int64)
         ids = self.edge_ids
         nxe = (nx - 1) * ny
         ci, cj = ecell // (ny - 1), ecell % (ny - 1)
@@ -214,43 +213,27 @@ class EZMap:
         self._cache = {"key": key, "arrays": arrays}
         return arrays
 
-    def _ring_cells(self, kind: np.ndarray) -> np.ndarray:
-        """Cells whose base stencil (the outer edges their corner slopes use) holds a break."""
-        nx, ny, nxe = self.nx, self.ny, (self.nx - 1) * self.ny
-        ids = self.edge_ids[kind != 0]
-        is_x = ids < nxe
-        a, r = ids[is_x] // ny, ids[is_x] % ny  # x-edge (a, r): cells (a+-1, r) and (a+-1, r-1)
-        yi = (ids[~is_x] - nxe) // (ny - 1)
-        yb = (ids[~is_x] - nxe) % (ny - 1)  # y-edge (yi, yb): cells (yi, yb+-1) and (yi-1, yb+-1)
-        ci = np.concatenate([a + 1, a + 1, a - 1, a - 1, yi, yi - 1, yi, yi - 1])
-        cj = np.concatenate([r, r - 1, r, r - 1, yb + 1, yb + 1, yb - 1, yb - 1])
-        ok = (ci >= 0) & (ci <= nx - 2) & (cj >= 0) & (cj <= ny - 2)
-        return (ci[ok] * (ny - 1) + cj[ok]).astype(np.int64)
-
     def cell_mask(self) -> np.ndarray:
-        """Cells with e-points on any edge, ndarray of shape (nx-1, ny-1), bool.
+        """Cells where :meth:`evaluate` answers, ndarray of shape (nx-1, ny-1), bool.
 
-        :meth:`evaluate` answers in these cells and in the ring around breaks whose base
-        stencil reaches across a wall or sharp edge (see :meth:`eval_mask`)."""
-        m = np.zeros((self.nx - 1) * (self.ny - 1), dtype=bool)
+        These are the cells with e-points on any edge, and the ring around them whose base
+        Bezier stencil (the outer edges their corner slopes use) holds an e-edge: there the
+        edge curves take their slopes from the side away from a break, so that no cell
+        blends base heights across a wall or a sharp edge.
+        """
+        nx, ny, nxe = self.nx, self.ny, (self.nx - 1) * self.ny
         ids = self.edge_ids
-        ny, nxe = self.ny, (self.nx - 1) * self.ny
         is_x = ids < nxe
-        xi, xj = ids[is_x] // ny, ids[is_x] % ny
-        r = ids[~is_x] - nxe
-        yi, yj = r // (ny - 1), r % (ny - 1)
-        m[(xi * (ny - 1) + xj)[xj <= ny - 2]] = True
-        m[(xi * (ny - 1) + xj - 1)[xj >= 1]] = True
-        m[(yi * (ny - 1) + yj)[yi <= self.nx - 2]] = True
-        m[((yi - 1) * (ny - 1) + yj)[yi >= 1]] = True
-        return m.reshape(self.nx - 1, self.ny - 1)
-
-    def eval_mask(self, base: ZMap) -> np.ndarray:
-        """Cells where :meth:`evaluate` answers, ndarray of shape (nx-1, ny-1), bool."""
-        self._check_base(base)
-        m = np.zeros((self.nx - 1) * (self.ny - 1), dtype=bool)
-        m[self._tables(base)["ecell_ids"]] = True
-        return m.reshape(self.nx - 1, self.ny - 1)
+        a, r = ids[is_x] // ny, ids[is_x] % ny
+        yi, yb = (ids[~is_x] - nxe) // (ny - 1), (ids[~is_x] - nxe) % (ny - 1)
+        # x-edge (a, r): own cells (a, r), (a, r-1); stencil ring (a+-1, r), (a+-1, r-1)
+        # y-edge (yi, yb): own cells (yi, yb), (yi-1, yb); ring (yi, yb+-1), (yi-1, yb+-1)
+        ci = np.concatenate([a, a, a + 1, a + 1, a - 1, a - 1, yi, yi - 1, yi, yi - 1, yi, yi - 1])
+        cj = np.concatenate([r, r - 1, r, r - 1, r, r - 1, yb, yb, yb + 1, yb + 1, yb - 1, yb - 1])
+        ok = (ci >= 0) & (ci <= nx - 2) & (cj >= 0) & (cj <= ny - 2)
+        m = np.zeros((nx - 1) * (ny - 1), dtype=bool)
+        m[ci[ok] * (ny - 1) + cj[ok]] = True
+        return m.reshape(nx - 1, ny - 1)
 
     def breaks(self, base: ZMap) -> tuple[np.ndarray, np.ndarray]:
         """Break found on each e-edge: ``kind`` (E,) int8 (0 none, 1 jump, 2 kink) and
@@ -260,11 +243,11 @@ class EZMap:
         return a["brk_kind"].copy(), a["brk_t"].copy()
 
     def evaluate(self, base: ZMap, x, y) -> np.ndarray:
-        """Heights in cells with e-points on any edge; NaN elsewhere (use the base there).
+        """Heights in the cells of :meth:`cell_mask`; NaN elsewhere (use the base there).
 
-        Cells next to a break whose base stencil reaches across it answer too (their
-        edge curves take the slope from the plain side), so that no base cell blends
-        heights across a wall or a sharp edge.
+        Those are the cells with e-points on any edge and the ring of cells whose base
+        stencil reaches an e-edge (their plain edges take slopes from the side away from a
+        break), so that no base cell blends heights across a wall or a sharp edge.
 
         Parameters
         ----------
