@@ -25,7 +25,9 @@ __all__ = ["DEFLECTION", "distance_to_part"]
 #: default mesh deflection, mm: bounds the error where the mesh answers
 DEFLECTION = 0.002
 #: nearest KD-tree samples per point (candidate faces and triangles)
-NEIGHBOURS = 12
+NEIGHBOURS = 32
+#: finest spacing (mm) of the samples spread over the mesh
+SPACING = 0.15
 #: most samples spread over the mesh (the sample spacing grows to stay below it)
 MAX_SAMPLES = 3_000_000
 
@@ -67,12 +69,16 @@ class _Index:
         self.fs = fs
         self.deflection = deflection
         nodes, tris = fs.nodes, fs.tris
-        e = np.linalg.norm(nodes[tris[:, 1]] - nodes[tris[:, 0]], axis=1)
         area = 0.5 * np.linalg.norm(np.cross(nodes[tris[:, 1]] - nodes[tris[:, 0]],
                                              nodes[tris[:, 2]] - nodes[tris[:, 0]]), axis=1).sum()
-        spacing = max(0.5, math.sqrt(2.0 * area / MAX_SAMPLES), 0.0 if not len(e) else 0.0)
-        self.xyz, self.uv, self.tri = _spread(nodes, fs.uv, tris, spacing)
-        self.face = fs.tri_face[self.tri]
+        spacing = max(SPACING, math.sqrt(2.0 * area / MAX_SAMPLES))
+        xyz, uv, tri = _spread(nodes, fs.uv, tris, spacing)
+        face = fs.tri_face[tri]
+        # one sample per face and place: nodes shared by many triangles would crowd out
+        # the other faces from a point's nearest neighbours
+        key = np.ascontiguousarray(np.c_[face, np.round(xyz / (1e-6 * spacing))].astype(np.int64))
+        _, first = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize * 4))).ravel(), return_index=True)
+        self.xyz, self.uv, self.tri, self.face = xyz[first], uv[first], tri[first], face[first]
         self.tree = cKDTree(self.xyz)
         self.spacing = spacing
 

@@ -1,0 +1,41 @@
+"""sample_points: the grid sampler's heights at scattered points."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cad_io.sampler import height_function, sample, sample_points
+from cad_io.step import read_step
+
+DATA = Path(__file__).resolve().parents[2] / "data"
+
+
+@pytest.fixture(scope="module")
+def boss():
+    return read_step(DATA / "boss.step")
+
+
+def test_equals_grid_sampler_at_grid_points(boss):
+    zm = sample(boss, 1.0)
+    X, Y = zm.grid_points()
+    z, face, how = sample_points(boss, X, Y, deflection=zm.meta["deflection"])
+    assert np.array_equal(np.isnan(z), np.isnan(zm.z))
+    assert np.array_equal(z[np.isfinite(z)], zm.z[np.isfinite(zm.z)])
+    assert np.array_equal(how, zm.layers["method"])
+    assert np.array_equal(face, zm.layers["face"])
+
+
+def test_exact_tops_and_nan(boss):
+    z, _, how = sample_points(boss, [-15.0, 22.0, 30.0, 500.0, np.nan], [5.0, -12.0, 25.0, 0.0, 0.0])
+    assert np.allclose(z[:3], [22.0, 16.0, 10.0], atol=1e-9)
+    assert np.isnan(z[3:]).all() and (how[3:] == 0).all()
+
+
+def test_height_function_and_bad_method(boss):
+    h = height_function(boss)
+    assert h(np.array([[-15.0]]), np.array([[5.0]])).shape == (1, 1)
+    with pytest.raises(ValueError, match="method"):
+        sample_points(boss, 0.0, 0.0, method="newton")
