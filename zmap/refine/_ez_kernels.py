@@ -322,9 +322,14 @@ def _find(sorted_ids, key):
 
 
 @njit(cache=True)
-def _far_crossing(ecell_ids, out_nb, out_bk, out_pts, c, ci, cj, k, px, py, lever, nx, ny, dx, dy):
-    """Walk the trace from cell c out through its break on edge k to the first crossing at
-    least ``lever`` from (px, py); (found, qx, qy) in c's cell-local coordinates."""
+def _far_crossing(ecell_ids, out_nb, out_bk, out_pts, corner, ci, cj, k, ri, rj, px, py, lever, nx, ny, dx, dy):
+    """Walk the trace from cell (ci, cj) out through its break on edge k to the first
+    crossing at least ``lever`` from (px, py).
+
+    Returns (found, qx, qy, i, j, k_out): the crossing in the cell-local coordinates of cell
+    (ri, rj), the cell it closes and the edge through which the trace leaves that cell. The
+    walk stops (not found) at a cell that is not a plain two-break cell or holds a corner.
+    """
     cur_i, cur_j = ci, cj
     for _ in range(MAX_WALK):
         ni, nj = cur_i, cur_j
@@ -337,36 +342,47 @@ def _far_crossing(ecell_ids, out_nb, out_bk, out_pts, c, ci, cj, k, px, py, leve
         else:
             ni -= 1
         if ni < 0 or nj < 0 or ni > nx - 2 or nj > ny - 2:
-            return False, 0.0, 0.0
+            break
         nc = _find(ecell_ids, ni * (ny - 1) + nj)
-        if nc < 0 or out_nb[nc] != 2:
-            return False, 0.0, 0.0
+        if nc < 0 or out_nb[nc] != 2 or corner[nc]:
+            break
         shared = (k + 2) % 4
         if out_bk[nc, 0] == shared:
             other = 1
         elif out_bk[nc, 1] == shared:
             other = 0
         else:
-            return False, 0.0, 0.0
-        qx = out_pts[nc, 2 * other, 0] + (ni - ci) * dx
-        qy = out_pts[nc, 2 * other, 1] + (nj - cj) * dy
-        if math.hypot(qx - px, qy - py) >= lever:
-            return True, qx, qy
+            break
+        qx = out_pts[nc, 2 * other, 0] + (ni - ri) * dx
+        qy = out_pts[nc, 2 * other, 1] + (nj - rj) * dy
         k = out_bk[nc, other]
+        if math.hypot(qx - px, qy - py) >= lever:
+            return True, qx, qy, ni, nj, k
         cur_i, cur_j = ni, nj
-    return False, 0.0, 0.0
+    return False, 0.0, 0.0, 0, 0, 0
+
+
+@njit(cache=True, inline="always")
+def _line_gap(ax, ay, bx, by, px, py):
+    """Distance of P from the line through A and B."""
+    L = math.hypot(bx - ax, by - ay)
+    return abs((bx - ax) * (py - ay) - (by - ay) * (px - ax)) / L
 
 
 @njit(cache=True)
-def cell_geometry(ecell_ids, slots, brk_kind, brk_t, nx, ny, dx, dy, out_nb, out_bk, out_bt, out_pts):
+def cell_geometry(ecell_ids, slots, brk_kind, brk_t, nx, ny, dx, dy, straight_tol, out_nb, out_bk, out_bt, out_pts,
+                  out_arc):
     """Wall/edge trace of every e-cell with exactly two boundary breaks.
 
     ``out_nb`` (C,) number of breaks on the cell's boundary; for two: ``out_bk``/``out_bt``
     (C, 2) their local edges and parameters and ``out_pts`` (C, 3, 2) the trace P1, M, P2 in
-    cell-local metric coordinates. M is the trace's middle: the chord midpoint pushed by the
-    sagitta of the parabola through the crossings of the neighbouring cells (a smooth wall),
-    or the meeting point of the neighbouring traces when they turn by more than
-    ``CORNER_TURN`` and meet inside the cell (a wall corner).
+    cell-local metric coordinates, ``out_arc`` (C, 3) the trace's circle (centre x, y and
+    radius; radius 0 for a polyline P1-M-P2). A smooth wall is the arc through P1 and P2
+    with the mean sagitta of the circles through them and the crossing beyond each (found
+    by walking the trace at least ``MIN_LEVER`` grid intervals out). A wall corner is
+    taken where the traces on both sides are straight (the next crossing out lies within
+    ``straight_tol`` of their line), turn by more than ``CORNER_TURN`` and meet inside the
+    cell: the trace is then the polyline through that meeting point.
     """
     C = ecell_ids.shape[0]
     for c in range(C):
@@ -382,72 +398,124 @@ def cell_geometry(ecell_ids, slots, brk_kind, brk_t, nx, ny, dx, dy, out_nb, out
                     out_pts[c, 2 * nb, 1] = Y
                 nb += 1
         out_nb[c] = nb
-    for c in range(C):
-        if out_nb[c] != 2:
-            continue
-        ci = ecell_ids[c] // (ny - 1)
-        cj = ecell_ids[c] - ci * (ny - 1)
-        p1x = out_pts[c, 0, 0]
-        p1y = out_pts[c, 0, 1]
-        p2x = out_pts[c, 2, 0]
-        p2y = out_pts[c, 2, 1]
-        mx = 0.5 * (p1x + p2x)
-        my = 0.5 * (p1y + p2y)
+    corner = np.zeros(C, dtype=np.bool_)
+    for c in range(C):  # pass 1: corners (straight traces on both sides meeting in the cell)
+        if out_nb[c] == 2:
+            corner[c] = _trace(c, ecell_ids, out_nb, out_bk, out_pts, out_arc, corner, nx, ny, dx, dy, straight_tol, True)
+    for c in range(C):  # pass 2: arcs, from crossings not beyond a corner
+        if out_nb[c] == 2 and not corner[c]:
+            _trace(c, ecell_ids, out_nb, out_bk, out_pts, out_arc, corner, nx, ny, dx, dy, straight_tol, False)
+
+
+@njit(cache=True)
+def _trace(c, ecell_ids, out_nb, out_bk, out_pts, out_arc, corner, nx, ny, dx, dy, straight_tol, corners):
+    """Corner pass (``corners=True``: set M at the corner, return whether there is one) or
+    arc pass (set M and the circle of a smooth trace)."""
+    ci = ecell_ids[c] // (ny - 1)
+    cj = ecell_ids[c] - ci * (ny - 1)
+    p1x = out_pts[c, 0, 0]
+    p1y = out_pts[c, 0, 1]
+    p2x = out_pts[c, 2, 0]
+    p2y = out_pts[c, 2, 1]
+    mx = 0.5 * (p1x + p2x)
+    my = 0.5 * (p1y + p2y)
+    L = math.hypot(p2x - p1x, p2y - p1y)
+    if corners:
         out_pts[c, 1, 0] = mx
         out_pts[c, 1, 1] = my
-        L = math.hypot(p2x - p1x, p2y - p1y)
-        if L <= 1e-12 * (dx + dy):
+    if L <= 1e-12 * (dx + dy):
+        return False
+    wx = (p2x - p1x) / L
+    wy = (p2y - p1y) / L
+    lever = MIN_LEVER * min(dx, dy)
+    qx = np.zeros(2)
+    qy = np.zeros(2)
+    has = np.zeros(2, dtype=np.bool_)
+    straight = np.zeros(2, dtype=np.bool_)
+    for b in range(2):
+        px_ = p1x if b == 0 else p2x
+        py_ = p1y if b == 0 else p2y
+        found, qx[b], qy[b], qi, qj, qk = _far_crossing(ecell_ids, out_nb, out_bk, out_pts, corner, ci, cj,
+                                                         out_bk[c, b], ci, cj, px_, py_, lever, nx, ny, dx, dy)
+        has[b] = found
+        if found and corners:
+            f2, rx, ry, _, _, _ = _far_crossing(ecell_ids, out_nb, out_bk, out_pts, corner, qi, qj, qk, ci, cj,
+                                                qx[b], qy[b], lever, nx, ny, dx, dy)
+            straight[b] = f2 and _line_gap(qx[b], qy[b], px_, py_, rx, ry) <= straight_tol
+    if corners:
+        if not (has[0] and has[1] and straight[0] and straight[1]):
+            return False
+        d1x = p1x - qx[0]
+        d1y = p1y - qy[0]
+        d2x = qx[1] - p2x
+        d2y = qy[1] - p2y
+        cross = d1x * d2y - d1y * d2x
+        turn = math.atan2(abs(cross), d1x * d2x + d1y * d2y)
+        if turn <= CORNER_TURN:
+            return False
+        a = ((p2x - p1x) * d2y - (p2y - p1y) * d2x) / cross
+        cx = p1x + a * d1x
+        cy = p1y + a * d1y
+        slack = 1e-9 * (dx + dy)
+        if not (-slack <= cx <= dx + slack and -slack <= cy <= dy + slack):
+            return False
+        out_pts[c, 1, 0] = min(max(cx, 0.0), dx)
+        out_pts[c, 1, 1] = min(max(cy, 0.0), dy)
+        return True
+    # smooth wall: the arc through P1 and P2 whose sagitta is the mean of those of the
+    # circles through Q, P1 and P2 on either side
+    sag = 0.0
+    cnt = 0
+    for b in range(2):
+        if not has[b]:
             continue
-        wx = (p2x - p1x) / L
-        wy = (p2y - p1y) / L
-        # neighbours' far crossings Q (beyond P1 for b = 0, beyond P2 for b = 1)
-        qx = np.zeros(2)
-        qy = np.zeros(2)
-        has = np.zeros(2, dtype=np.bool_)
-        for b in range(2):
-            px_ = p1x if b == 0 else p2x
-            py_ = p1y if b == 0 else p2y
-            has[b], qx[b], qy[b] = _far_crossing(ecell_ids, out_nb, out_bk, out_pts, c, ci, cj, out_bk[c, b],
-                                                 px_, py_, MIN_LEVER * min(dx, dy), nx, ny, dx, dy)
-        if has[0] and has[1]:
-            d1x = p1x - qx[0]
-            d1y = p1y - qy[0]
-            d2x = qx[1] - p2x
-            d2y = qy[1] - p2y
-            n1 = math.hypot(d1x, d1y)
-            n2 = math.hypot(d2x, d2y)
-            if n1 > 0.0 and n2 > 0.0:
-                cross = d1x * d2y - d1y * d2x
-                turn = math.atan2(abs(cross), d1x * d2x + d1y * d2y)
-                if turn > CORNER_TURN and abs(cross) > 0.0:
-                    # lines P1 + a*d1 and P2 + b*d2 meet at C
-                    a = ((p2x - p1x) * d2y - (p2y - p1y) * d2x) / cross
-                    cx = p1x + a * d1x
-                    cy = p1y + a * d1y
-                    slack = 1e-9 * (dx + dy)
-                    if -slack <= cx <= dx + slack and -slack <= cy <= dy + slack:
-                        out_pts[c, 1, 0] = min(max(cx, 0.0), dx)
-                        out_pts[c, 1, 1] = min(max(cy, 0.0), dy)
-                        continue
-        # smooth wall: sagitta of the parabola (in the chord frame) through P1, P2 and Q
-        sag = 0.0
-        cnt = 0
-        for b in range(2):
-            if not has[b]:
-                continue
-            rx = qx[b] - mx
-            ry = qy[b] - my
-            xi = rx * wx + ry * wy
-            eta = -rx * wy + ry * wx
-            den = xi * xi - 0.25 * L * L
-            if abs(den) > 1e-6 * L * L:
-                sag += -eta / den * 0.25 * L * L
-                cnt += 1
-        if cnt > 0:
-            sag /= cnt
-            sag = min(max(sag, -0.5 * L), 0.5 * L)
-            out_pts[c, 1, 0] = min(max(mx - sag * wy, 0.0), dx)
-            out_pts[c, 1, 1] = min(max(my + sag * wx, 0.0), dy)
+        ok, sg = _arc_sagitta(qx[b], qy[b], p1x, p1y, p2x, p2y)
+        if ok:
+            sag += sg
+            cnt += 1
+    if cnt == 0:
+        return False
+    sag = min(max(sag / cnt, -0.5 * L), 0.5 * L)
+    if abs(sag) <= 1e-9 * L:
+        return False
+    out_pts[c, 1, 0] = mx - sag * wy
+    out_pts[c, 1, 1] = my + sag * wx
+    # circle through P1, M, P2: centre on the chord's bisector, (L/2)^2 = sag*(2*rho - sag)
+    rho = (0.25 * L * L + sag * sag) / (2.0 * abs(sag))
+    off = rho - abs(sag)  # centre's distance from the chord, on the side away from M
+    sgn = 1.0 if sag > 0 else -1.0
+    out_arc[c, 0] = mx + sgn * off * wy
+    out_arc[c, 1] = my - sgn * off * wx
+    out_arc[c, 2] = rho
+    return False
+
+
+@njit(cache=True)
+def _arc_sagitta(ax, ay, p1x, p1y, p2x, p2y):
+    """Signed sagitta (along the left normal of P1->P2) of the minor arc P1-P2 of the circle
+    through A, P1, P2; (False, 0) when the three are collinear."""
+    d = 2.0 * (ax * (p1y - p2y) + p1x * (p2y - ay) + p2x * (ay - p1y))
+    L = math.hypot(p2x - p1x, p2y - p1y)
+    scale = max(math.hypot(ax - p1x, ay - p1y), L)
+    if abs(d) <= 1e-12 * scale * scale:
+        return True, 0.0
+    a2 = ax * ax + ay * ay
+    b2 = p1x * p1x + p1y * p1y
+    c2 = p2x * p2x + p2y * p2y
+    ux = (a2 * (p1y - p2y) + b2 * (p2y - ay) + c2 * (ay - p1y)) / d
+    uy = (a2 * (p2x - p1x) + b2 * (ax - p2x) + c2 * (p1x - ax)) / d
+    rho = math.hypot(p1x - ux, p1y - uy)
+    mx = 0.5 * (p1x + p2x)
+    my = 0.5 * (p1y + p2y)
+    vx = mx - ux
+    vy = my - uy
+    dist = math.hypot(vx, vy)
+    if dist <= 1e-12 * rho:
+        return False, 0.0
+    ex = ux + rho * vx / dist - mx
+    ey = uy + rho * vy / dist - my
+    # left normal of P1->P2 is (-wy, wx)
+    return True, (-ex * (p2y - p1y) + ey * (p2x - p1x)) / L
 
 
 @njit(cache=True)
@@ -463,16 +531,16 @@ def _coons(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t,
 
 
 @njit(cache=True)
-def _in_region_a(X, Y, pts, s1, s2, dx, dy):
+def _in_region_a(X, Y, p1x, p1y, mx, my, p2x, p2y, s1, s2, dx, dy):
     """Point (X, Y) inside the polygon P1 -> corners CCW from s1 to s2 -> P2 -> M."""
     span = (s2 - s1) % 4.0
     inside = False
-    ax = pts[1, 0]  # start from M (the last vertex)
-    ay = pts[1, 1]
+    ax = mx  # start from M (the last vertex)
+    ay = my
     for idx in range(7):
         if idx == 0:
-            bx = pts[0, 0]
-            by = pts[0, 1]
+            bx = p1x
+            by = p1y
         elif idx <= 4:
             kk = math.floor(s1) + idx
             if kk - s1 >= span or kk - s1 <= 0.0:
@@ -481,11 +549,11 @@ def _in_region_a(X, Y, pts, s1, s2, dx, dy):
             bx = dx if (cc == 1 or cc == 2) else 0.0
             by = dy if (cc == 2 or cc == 3) else 0.0
         elif idx == 5:
-            bx = pts[2, 0]
-            by = pts[2, 1]
+            bx = p2x
+            by = p2y
         else:
-            bx = pts[1, 0]
-            by = pts[1, 1]
+            bx = mx
+            by = my
         if (ay > Y) != (by > Y):
             xint = ax + (Y - ay) * (bx - ax) / (by - ay)
             if X < xint:
@@ -496,7 +564,29 @@ def _in_region_a(X, Y, pts, s1, s2, dx, dy):
 
 
 @njit(cache=True)
-def _split(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, bk, bt, pts, dx, dy):
+def _region_a(X, Y, P, arc, s1, s2, dx, dy):
+    """Side of the trace holding (X, Y): True for the region whose boundary arc runs CCW
+    from P1 (perimeter s1) to P2 (s2)."""
+    if arc[2] <= 0.0:
+        return _in_region_a(X, Y, P[0, 0], P[0, 1], P[1, 0], P[1, 1], P[2, 0], P[2, 1], s1, s2, dx, dy)
+    # circular trace: split by the chord, then move the circular segment between chord
+    # and arc (on M's side of the chord, inside the circle) to the other side
+    mx = 0.5 * (P[0, 0] + P[2, 0])
+    my = 0.5 * (P[0, 1] + P[2, 1])
+    a = _in_region_a(X, Y, P[0, 0], P[0, 1], mx, my, P[2, 0], P[2, 1], s1, s2, dx, dy)
+    cx = P[2, 0] - P[0, 0]
+    cy = P[2, 1] - P[0, 1]
+    side_p = cx * (Y - P[0, 1]) - cy * (X - P[0, 0])
+    side_m = cx * (P[1, 1] - P[0, 1]) - cy * (P[1, 0] - P[0, 0])
+    if side_p * side_m > 0.0 and math.hypot(X - arc[0], Y - arc[1]) <= arc[2]:
+        # in the segment: on the side of the arc away from M's side of the chord
+        m_in_a = _in_region_a(P[1, 0], P[1, 1], P[0, 0], P[0, 1], mx, my, P[2, 0], P[2, 1], s1, s2, dx, dy)
+        return not m_in_a
+    return a
+
+
+@njit(cache=True)
+def _split(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, bk, bt, pts, arc, dx, dy):
     """Height on the side of the cell's trace that holds the point, from that side's data.
 
     The line through the point parallel to the trace's chord meets the cell boundary at A
@@ -512,7 +602,7 @@ def _split(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t,
     s1 = _perimeter(k1, t1)
     s2 = _perimeter(k2, t2)
     P = pts[c]
-    if _in_region_a(X, Y, P, s1, s2, dx, dy):
+    if _region_a(X, Y, P, arc[c], s1, s2, dx, dy):
         sa, ka, ta, sb, kb, tb_ = s1, k1, t1, s2, k2, t2
     else:
         sa, ka, ta, sb, kb, tb_ = s2, k2, t2, s1, k1, t1
@@ -563,7 +653,7 @@ def _hit(z, i, j, X, Y, lam, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, ed
 
 @njit(cache=True, parallel=True)
 def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, heights, brk_kind, brk_t,
-              ecell_ids, slots, nb, bk, bt, pts, out):
+              ecell_ids, slots, nb, bk, bt, pts, arc, out):
     """EZ heights at every query point; NaN outside e-cells (the caller uses the base)."""
     nx, ny = z.shape
     for p in prange(xs.shape[0]):
@@ -576,6 +666,6 @@ def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, heig
             out[p] = np.nan
             continue
         if nb[c] == 2 and (pts[c, 0, 0] != pts[c, 2, 0] or pts[c, 0, 1] != pts[c, 2, 1]):
-            out[p] = _split(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, bk, bt, pts, dx, dy)
+            out[p] = _split(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, bk, bt, pts, arc, dx, dy)
         else:
             out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)

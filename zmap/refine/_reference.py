@@ -135,7 +135,7 @@ def evaluate(ez, base: ZMap, x, y) -> np.ndarray:
         c = int(np.searchsorted(tables["ecell_ids"], i * (ny - 1) + j))
         P = tables["pts"][c]
         if len(breaks) == 2 and not np.array_equal(P[0], P[2]):
-            out[idx] = _split(value, breaks, P, u * ez.dx, v * ez.dy, ez.dx, ez.dy)
+            out[idx] = _split(value, breaks, P, tables["arc"][c], u * ez.dx, v * ez.dy, ez.dx, ez.dy)
         else:
             zc = base.z
             bil = ((1 - u) * (1 - v) * zc[i, j] + u * (1 - v) * zc[i + 1, j] + (1 - u) * v * zc[i, j + 1]
@@ -160,13 +160,28 @@ def _winding(poly, X, Y):
     return round(total / (2 * math.pi))
 
 
-def _split(value, breaks, P, X, Y, dx, dy):
+def _split(value, breaks, P, arc, X, Y, dx, dy):
+    """The side of the trace (polyline P1-M-P2, or the circle arc through them when
+    ``arc[2] > 0``) holding the point, evaluated along the chord direction."""
     (k1, t1), (k2, t2) = breaks
     s1, s2 = _perim(k1, t1), _perim(k2, t2)
     corner_xy = [(0.0, 0.0), (dx, 0.0), (dx, dy), (0.0, dy)]
     span = (s2 - s1) % 4
-    poly = [tuple(P[0])] + [corner_xy[int(c) % 4] for c in range(math.floor(s1) + 1, math.floor(s1) + 5)
-                            if 0 < c - s1 < span] + [tuple(P[2]), tuple(P[1])]
+    arc_corners = [corner_xy[int(c) % 4] for c in range(math.floor(s1) + 1, math.floor(s1) + 5) if 0 < c - s1 < span]
+    if arc[2] > 0:
+        # region A: the cell's boundary arc from P1 to P2, closed by the circle arc back to P1
+        # (sampled densely: a slow but obvious polygon)
+        a1 = math.atan2(P[2][1] - arc[1], P[2][0] - arc[0])
+        a0 = math.atan2(P[0][1] - arc[1], P[0][0] - arc[0])
+        am = math.atan2(P[1][1] - arc[1], P[1][0] - arc[0])
+        sweep = (a0 - a1) % (2 * math.pi)  # CCW from P2 to P1
+        if not ((am - a1) % (2 * math.pi) < sweep):
+            sweep -= 2 * math.pi  # the arc through M runs CW
+        back = [(arc[0] + arc[2] * math.cos(a1 + sweep * q / 400), arc[1] + arc[2] * math.sin(a1 + sweep * q / 400))
+                for q in range(1, 400)]
+        poly = [tuple(P[0])] + arc_corners + [tuple(P[2])] + back
+    else:
+        poly = [tuple(P[0])] + arc_corners + [tuple(P[2]), tuple(P[1])]
     if _winding(poly, X, Y) != 0:
         arc = ((k1, t1, s1), (k2, t2, s2))
     else:

@@ -206,10 +206,11 @@ class EZMap:
         bk = np.zeros((C, 2), dtype=np.int8)
         bt = np.zeros((C, 2), dtype=np.float64)
         pts = np.zeros((C, 3, 2), dtype=np.float64)
+        arc = np.zeros((C, 3), dtype=np.float64)
         if C:
-            _k.cell_geometry(ecell, slots, kind, brk_t, nx, ny, self.dx, self.dy, nb, bk, bt, pts)
+            _k.cell_geometry(ecell, slots, kind, brk_t, nx, ny, self.dx, self.dy, self.interval, nb, bk, bt, pts, arc)
         arrays = {"brk_kind": kind, "brk_t": brk_t, "ecell_ids": ecell, "slots": slots, "nb": nb, "bk": bk,
-                  "bt": bt, "pts": pts}
+                  "bt": bt, "pts": pts, "arc": arc}
         self._cache = {"key": key, "arrays": arrays}
         return arrays
 
@@ -285,7 +286,7 @@ class EZMap:
             a = self._tables(base)
             _k.ez_kernel(base.z, base.x0, base.y0, base.dx, base.dy, math.cos(base.angle), math.sin(base.angle),
                          base.origin[0], base.origin[1], xs, ys, self.edge_ids, self.offsets, self.heights, a["brk_kind"],
-                         a["brk_t"], a["ecell_ids"], a["slots"], a["nb"], a["bk"], a["bt"], a["pts"], out)
+                         a["brk_t"], a["ecell_ids"], a["slots"], a["nb"], a["bk"], a["bt"], a["pts"], a["arc"], out)
         out = out.reshape(shape)
         return out[()] if out.ndim == 0 else out
 
