@@ -50,6 +50,9 @@ NEWTON_TOL = 1e-10
 NEWTON_MAX_ITER = 30
 #: uv lattice size for faces with a surface but no (u, v) triangulation
 LATTICE = 48
+#: Points this close (mm) to a face's trim loop count as inside it: the loops are polylines
+#: within about 1e-4 mm of the true boundary (see _trim_slack_uv).
+TRIM_SLACK_MM = 5e-4
 
 
 def _spacing(grid: Any) -> tuple[float, float]:
@@ -136,9 +139,41 @@ def _boundary_triangles(tris: np.ndarray) -> np.ndarray:
     return bnodes[tris].any(axis=1)
 
 
-def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: int) -> tuple[np.ndarray, ...]:
+def _trim_slack_uv(packed, face_loops: dict[int, list[np.ndarray]], F: int) -> np.ndarray:
+    """Per face, the uv distance that spans :data:`TRIM_SLACK_MM` on the surface.
+
+    The trim loops are polylines within about 1e-4 mm of the true boundary, so a point
+    exactly on a curved boundary can fall just outside the polygon of both faces that meet
+    there (a wall's top edge and the fillet below it), and a lower face would answer. A
+    point within the slack of a loop counts as inside. The mm-per-uv scale is the median
+    of |dS| / |duv| over the loop's segments.
+    """
+    from .nurbs import evaluate_packed
+
+    slack = np.zeros(F)
+    for k, lps in face_loops.items():
+        if not lps:
+            continue
+        a = np.concatenate(lps)
+        b = np.concatenate([np.roll(lp, -1, axis=0) for lp in lps])
+        pa = evaluate_packed(packed, np.full(len(a), k), a[:, 0], a[:, 1])[:, 0, :]
+        pb = evaluate_packed(packed, np.full(len(b), k), b[:, 0], b[:, 1])[:, 0, :]
+        duv = np.hypot(*(b - a).T)
+        ok = duv > 0
+        if not ok.any():
+            continue
+        ratio = np.linalg.norm(pb - pa, axis=1)[ok] / duv[ok]
+        mm_per_uv = float(np.median(ratio))
+        if mm_per_uv > 0 and np.isfinite(mm_per_uv):
+            slack[k] = TRIM_SLACK_MM / mm_per_uv
+    return slack
+
+
+def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: int,
+                slack_uv: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
     """Trim loop edges of every face bucketed in bands of v (see ``_sample_kernels.point_in_bands``).
 
+    ``slack_uv[k]`` (optional) widens face k's loops: points that close count as inside.
     Returns ``edges (E, 4), band_ptr (B+1,), band_edges (X,), face_bi (F, 2), face_bf (F, 3)``.
     """
     face_bi = np.zeros((F, 2), dtype=np.int64)
@@ -154,6 +189,8 @@ def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: 
         b = np.concatenate([np.roll(lp, -1, axis=0) for lp in lps])
         e = np.hstack([a, b])
         eps = 1e-9 * max(domain[k, 1] - domain[k, 0], domain[k, 3] - domain[k, 2], 1e-300)
+        if slack_uv is not None:
+            eps = max(eps, float(slack_uv[k]))
         vlo = float(min(a[:, 1].min(), b[:, 1].min())) - eps
         vhi = float(max(a[:, 1].max(), b[:, 1].max())) + eps
         nb = int(min(max(len(e) // 2, 1), 4096))
@@ -305,7 +342,7 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
         fs.tris = np.ascontiguousarray(np.concatenate(tris_l))
         fs.tri_face = np.ascontiguousarray(np.concatenate(tface_l))
         fs.tri_check = np.ascontiguousarray(np.concatenate(check_l))
-        fs.trim = _trim_bands(face_loops, np.nan_to_num(packed.domain), F)
+        fs.trim = _trim_bands(face_loops, np.nan_to_num(packed.domain), F, _trim_slack_uv(packed, face_loops, F))
     return fs
 
 

@@ -39,3 +39,14 @@ def test_height_function_and_bad_method(boss):
     assert h(np.array([[-15.0]]), np.array([[5.0]])).shape == (1, 1)
     with pytest.raises(ValueError, match="method"):
         sample_points(boss, 0.0, 0.0, method="newton")
+
+
+def test_points_on_a_curved_wall_top_never_fall_through_to_a_lower_face():
+    # Pocket corner: wall arc of radius 8 about (22, 12), top at 30, fillet edge at 18.
+    # Within the trim polygons' 1e-4 mm chord error of the arc, a point used to miss both the
+    # top face and the fillet, and the block's bottom face (z = 0) answered.
+    part = read_step(DATA / "pocket.step")
+    th = np.linspace(0.01, np.pi / 2 - 0.01, 2000)
+    for r in (8.0, 8.0 - 1e-6, 8.0 - 1e-4, 8.0 + 1e-6):
+        z, _, _ = sample_points(part, 22 + r * np.cos(th), 12 + r * np.sin(th))
+        assert np.all(z > 17.9), (r, np.unique(np.round(z, 4)))
