@@ -77,6 +77,27 @@ def edge_points(edge_ids, offsets, x0, y0, dx, dy, nx, ny, px, py):
 
 
 @njit(cache=True, parallel=True)
+def despike(z, edge_ids, offsets, heights, thresh, out_count):
+    """Lift every e-point that lies more than ``thresh`` below both neighbours of its
+    sequence to the higher neighbour (a sample on a wall's line answered by a lower face);
+    ``out_count[k]`` counts the points lifted on edge k. ``heights`` float64, in place."""
+    nx, ny = z.shape
+    for k in prange(edge_ids.shape[0]):
+        axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
+        off = offsets[k]
+        n = offsets[k + 1] - off
+        cnt = 0
+        for q in range(1, n + 1):
+            zp = z[ia, ja] if q == 1 else heights[off + q - 2]
+            zn = z[ib, jb] if q == n else heights[off + q]
+            zq = heights[off + q - 1]
+            if zq < zp - thresh and zq < zn - thresh:
+                heights[off + q - 1] = max(zp, zn)
+                cnt += 1
+        out_count[k] = cnt
+
+
+@njit(cache=True, parallel=True)
 def detect_breaks(z, edge_ids, offsets, heights, jump_min, kink_min, ratio, out_kind, out_t):
     """One break per edge: the dominant jump, else the dominant kink, of its sequence.
 
@@ -374,7 +395,8 @@ def cell_geometry(ecell_ids, slots, brk_kind, brk_t, nx, ny, dx, dy, straight_to
                   out_arc):
     """Wall/edge trace of every e-cell with exactly two boundary breaks.
 
-    ``out_nb`` (C,) number of breaks on the cell's boundary; for two: ``out_bk``/``out_bt``
+    ``out_nb`` (C,) number of breaks on the cell's boundary that a trace may join (its jumps,
+    or its kinks where it has no jump); for two: ``out_bk``/``out_bt``
     (C, 2) their local edges and parameters and ``out_pts`` (C, 3, 2) the trace P1, M, P2 in
     cell-local metric coordinates, ``out_arc`` (C, 3) the trace's circle (centre x, y and
     radius; radius 0 for a polyline P1-M-P2). A smooth wall is the arc through P1 and P2
@@ -386,10 +408,22 @@ def cell_geometry(ecell_ids, slots, brk_kind, brk_t, nx, ny, dx, dy, straight_to
     """
     C = ecell_ids.shape[0]
     for c in range(C):
+        # the trace joins two breaks: two jumps (a wall) if there are exactly two, else two
+        # kinks (a sharp edge) when there are no jumps; any other count is no single trace
+        nj = 0
+        nk = 0
+        for k in range(4):
+            sl = slots[c, k]
+            if sl >= 0:
+                if brk_kind[sl] == BREAK_JUMP:
+                    nj += 1
+                elif brk_kind[sl] == BREAK_KINK:
+                    nk += 1
+        want = BREAK_JUMP if nj > 0 else BREAK_KINK
         nb = 0
         for k in range(4):
             sl = slots[c, k]
-            if sl >= 0 and brk_kind[sl] != BREAK_NONE:
+            if sl >= 0 and brk_kind[sl] == want:
                 if nb < 2:
                     out_bk[c, nb] = k
                     out_bt[c, nb] = brk_t[sl]
@@ -519,15 +553,22 @@ def _arc_sagitta(ax, ay, p1x, p1y, p2x, p2y):
 
 
 @njit(cache=True)
-def _coons(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy):
-    """Bilinearly blended Coons patch of the cell's four boundary curves."""
+def _coons(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy, broken):
+    """Bilinearly blended Coons patch of the cell's four boundary curves; ``broken`` (a
+    cell with breaks but no single trace) clamps it to the range of the four curves."""
     bot = _edge_value(z, i, j, 0, u, 0, slots[c, 0], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
     rgt = _edge_value(z, i, j, 1, v, 0, slots[c, 1], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
     top = _edge_value(z, i, j, 2, u, 0, slots[c, 2], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
     lft = _edge_value(z, i, j, 3, v, 0, slots[c, 3], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
     bil = ((1.0 - u) * ((1.0 - v) * z[i, j] + v * z[i, j + 1])
            + u * ((1.0 - v) * z[i + 1, j] + v * z[i + 1, j + 1]))
-    return (1.0 - v) * bot + v * top + (1.0 - u) * lft + u * rgt - bil
+    h = (1.0 - v) * bot + v * top + (1.0 - u) * lft + u * rgt - bil
+    if broken:
+        # boundary curves with jumps at unmatched places: keep within their values
+        lo = min(min(bot, top), min(lft, rgt))
+        hi = max(max(bot, top), max(lft, rgt))
+        h = min(max(h, lo), hi)
+    return h
 
 
 @njit(cache=True)
@@ -668,4 +709,4 @@ def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, heig
         if nb[c] == 2 and (pts[c, 0, 0] != pts[c, 2, 0] or pts[c, 0, 1] != pts[c, 2, 1]):
             out[p] = _split(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, bk, bt, pts, arc, dx, dy)
         else:
-            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
+            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy, nb[c] > 0)

@@ -131,7 +131,9 @@ def evaluate(ez, base: ZMap, x, y) -> np.ndarray:
             c0, c1, c2, c3 = za, za + sa * h / 3, zb - sb * h / 3, zb
             return (1 - t) ** 3 * c0 + 3 * (1 - t) ** 2 * t * c1 + 3 * (1 - t) * t ** 2 * c2 + t ** 3 * c3
 
-        breaks = [(k, brk[ids[k]][1]) for k in range(4) if ids[k] in brk and brk[ids[k]][0]]
+        kinds = [brk[ids[k]][0] if ids[k] in brk else 0 for k in range(4)]
+        want = 1 if 1 in kinds else 2  # a trace joins two jumps, else two kinks
+        breaks = [(k, brk[ids[k]][1]) for k in range(4) if kinds[k] == want]
         c = int(np.searchsorted(tables["ecell_ids"], i * (ny - 1) + j))
         P = tables["pts"][c]
         if len(breaks) == 2 and not np.array_equal(P[0], P[2]):
@@ -140,7 +142,11 @@ def evaluate(ez, base: ZMap, x, y) -> np.ndarray:
             zc = base.z
             bil = ((1 - u) * (1 - v) * zc[i, j] + u * (1 - v) * zc[i + 1, j] + (1 - u) * v * zc[i, j + 1]
                    + u * v * zc[i + 1, j + 1])
-            out[idx] = ((1 - v) * value(0, u) + v * value(2, u) + (1 - u) * value(3, v) + u * value(1, v) - bil)
+            b, r, t, l_ = value(0, u), value(1, v), value(2, u), value(3, v)
+            h = (1 - v) * b + v * t + (1 - u) * l_ + u * r - bil
+            if breaks:  # breaks but no single trace: kept within the four curves' values
+                h = min(max(h, min(b, r, t, l_)), max(b, r, t, l_))
+            out[idx] = h
     return out
 
 

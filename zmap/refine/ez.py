@@ -73,6 +73,10 @@ class EZMap:
         from its first grid point; NaN where the surface gave none.
     failed : int
         E-points whose height came back NaN from the ``heights`` callable.
+    lifted : int
+        E-points lifted to their higher neighbour: a single sample more than ``tol`` below
+        both neighbours is a point on a wall's line that the surface callable answered
+        with a lower face (the top-most height there is the wall's top).
 
     Examples
     --------
@@ -97,11 +101,12 @@ class EZMap:
     offsets: np.ndarray
     heights: np.ndarray
     failed: int = 0
+    lifted: int = 0
     _cache: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         self.x0, self.y0, self.dx, self.dy = (float(v) for v in (self.x0, self.y0, self.dx, self.dy))
-        self.nx, self.ny, self.failed = int(self.nx), int(self.ny), int(self.failed)
+        self.nx, self.ny, self.failed, self.lifted = int(self.nx), int(self.ny), int(self.failed), int(self.lifted)
         self.interval, self.tol = float(self.interval), float(self.tol)
         if self.nx < 2 or self.ny < 2:
             raise ValueError(f"nx and ny must be >= 2, got nx={self.nx}, ny={self.ny}")
@@ -310,7 +315,7 @@ class EZMap:
         return {
             "version": np.array([FORMAT_VERSION], dtype=np.int64),
             "grid": np.array([self.x0, self.y0, self.dx, self.dy, self.interval, self.tol], dtype=np.float64),
-            "shape": np.array([self.nx, self.ny, self.failed], dtype=np.int64),
+            "shape": np.array([self.nx, self.ny, self.failed, self.lifted], dtype=np.int64),
             "edge_ids": self.edge_ids,
             "offsets": self.offsets,
             "heights": self.heights,
@@ -328,7 +333,7 @@ class EZMap:
         g = np.asarray(arrays["grid"], dtype=np.float64).ravel()
         s = np.asarray(arrays["shape"], dtype=np.int64).ravel()
         return cls(g[0], g[1], g[2], g[3], int(s[0]), int(s[1]), g[4], g[5], arrays["edge_ids"], arrays["offsets"],
-                   arrays["heights"], failed=int(s[2]))
+                   arrays["heights"], failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0)
 
 
 def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray], *, tol: float,
@@ -354,7 +359,9 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
     Returns
     -------
     EZMap
-        ``failed`` counts the e-points whose height came back NaN.
+        ``failed`` counts the e-points whose height came back NaN, ``lifted`` the single
+        e-points more than ``tol`` below both neighbours, lifted to the higher one (a
+        sample on a wall's line answered with a lower face).
 
     Raises
     ------
@@ -417,5 +424,11 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
         if z.shape != wx.shape:
             raise RefineError(f"heights(x, y) must return one height per point, shape {wx.shape}, got {z.shape}")
         ez.failed = int(np.count_nonzero(np.isnan(z)))
+        from . import _ez_kernels as _k
+
+        lifted = np.zeros(ez.n_edges, dtype=np.int64)
+        z = np.ascontiguousarray(z)
+        _k.despike(base.z, ez.edge_ids, ez.offsets, z, tol, lifted)
+        ez.lifted = int(lifted.sum())
         ez.heights = z.astype(np.float32)
     return ez

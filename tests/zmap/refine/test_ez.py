@@ -380,6 +380,23 @@ def test_nan_heights_counted():
     assert EZMap.from_arrays(ez.to_arrays()).failed == ez.failed
 
 
+def test_single_low_samples_on_a_wall_line_are_lifted():
+    f = Step(0.0, 1.2)
+
+    def faulty(x, y):  # answers points on the wall's line with a lower face
+        return np.where(np.abs(x - 1.2) < 1e-9, -5.0, f(x, y))
+
+    base = ZMap.from_function(f, (0, 0, 3, 3), 0.5)
+    ez = build_ez(base, faulty, tol=TOL)
+    px, _ = ez.points()
+    on_line = np.abs(px - 1.2) < 1e-9
+    assert ez.lifted == on_line.sum() == base.ny
+    assert np.all(ez.heights[on_line] == 10.0)
+    assert ez.failed == 0 and EZMap.from_arrays(ez.to_arrays()).lifted == ez.lifted
+    clean = build_ez(base, f, tol=TOL)
+    assert clean.lifted == 0
+
+
 # ---- bundled parts with vertical walls and sharp edges ---------------------------------------
 
 def _occ_distance(shape, pts):
@@ -444,14 +461,12 @@ def test_bundled_parts_exact_heights(name):
     assert (base.nbytes + ez.nbytes) / plain <= 1 / 50
 
 
-@pytest.mark.parametrize("name", [
-    "boss",
-    pytest.param("pocket", marks=pytest.mark.xfail(
-        strict=True, reason="cad_io.sampler.sample_points answers the bottom face (z = 0) at some points on the "
-                            "pocket's corner tori (e.g. x=-29.19, y=-15.5), so those e-points are 15 mm low")),
-])
+@pytest.mark.parametrize("name", ["pocket", "boss"])
 def test_bundled_parts_sample_points(name):
-    """E-point heights from the converter's own sampler, as `zmap refine` takes them."""
+    """E-point heights from the converter's own sampler, as `zmap refine` takes them.
+
+    Where the sampler answers a point on a wall's line with a lower face (seen on the
+    pocket's corner tori and the round boss), the single low e-point is lifted."""
     base, ez, d, db = _part_case(name, "sample_points")
     assert d.max() <= TOL
     assert db.max() > 0.1
