@@ -12,7 +12,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from zmap import ZMap
-from zmap.features import default_eps_r, edges_crossing, sharp_edge_curves, steep_edges, vertical_wall_curves
+from zmap.features import (
+    default_eps_r,
+    edges_crossing,
+    sharp_edge_curves,
+    steep_edges,
+    vertical_wall_curves,
+)
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-__all__ = ["EZMap", "build_ez", "ez", "cz"]
+__all__ = ["EZMap", "build_ez", "cz", "ez"]
 
 _LAZY = {"EZMap": "ez", "build_ez": "ez"}
 

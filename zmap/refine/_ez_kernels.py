@@ -21,7 +21,14 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .._interp_kernels import BOUNDARY_DUMMY, TANGENT_CIRCLE, _bezier1d, _circle_tangent_slope, _locate, _slope
+from .._interp_kernels import (
+    BOUNDARY_DUMMY,
+    TANGENT_CIRCLE,
+    _bezier1d,
+    _circle_tangent_slope,
+    _locate,
+    _slope,
+)
 
 BREAK_NONE = 0
 BREAK_JUMP = 1
@@ -63,7 +70,7 @@ def _sample(z, heights, off, n, ia, ja, ib, jb, q):
 def edge_points(edge_ids, offsets, x0, y0, dx, dy, nx, ny, px, py):
     """Local xy of every e-point (preallocated ``px``, ``py`` of length offsets[-1])."""
     for k in prange(edge_ids.shape[0]):
-        axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
+        axis, ia, ja, _ib, _jb = _edge_corners(edge_ids[k], nx, ny)
         off = offsets[k]
         n = offsets[k + 1] - off
         for q in range(n):
@@ -83,7 +90,7 @@ def despike(z, edge_ids, offsets, heights, thresh, out_count):
     ``out_count[k]`` counts the points lifted on edge k. ``heights`` float64, in place."""
     nx, ny = z.shape
     for k in prange(edge_ids.shape[0]):
-        axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
+        _axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
         off = offsets[k]
         n = offsets[k + 1] - off
         cnt = 0
@@ -110,7 +117,7 @@ def detect_breaks(z, edge_ids, offsets, heights, jump_min, kink_min, ratio, out_
     for k in prange(edge_ids.shape[0]):
         out_kind[k] = BREAK_NONE
         out_t[k] = -1.0
-        axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
+        _axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
         off = offsets[k]
         n = offsets[k + 1] - off
         m = n + 1
@@ -248,7 +255,6 @@ def _edge_value(z, i, j, k, t, side, slot, edge_ids, offsets, heights, brk_kind,
     from its own last two samples (``side`` -1 low t, +1 high t, 0 by t). An edge without
     e-points is the base's cubic Bezier along it (as the base evaluates it).
     """
-    nx, ny = z.shape
     if k == 0:
         ia, ja, ib, jb = i, j, i + 1, j
     elif k == 1:
@@ -269,12 +275,12 @@ def _edge_value(z, i, j, k, t, side, slot, edge_ids, offsets, heights, brk_kind,
     n = offsets[slot + 1] - off
     m = n + 1
     f = t * m
-    q = int(math.floor(f))
+    q = math.floor(f)
     q = min(max(q, 0), m - 1)
     if brk_kind[slot] != BREAK_NONE:
         tb = brk_t[slot] * m
-        lo = int(math.floor(tb + 1e-9))
-        hi = int(math.ceil(tb - 1e-9))
+        lo = math.floor(tb + 1e-9)
+        hi = math.ceil(tb - 1e-9)
         lo = min(max(lo, 0), m)
         hi = min(max(hi, 0), m)
         low = f <= tb if side == 0 else side < 0

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..grid import ZMap
 
-__all__ = ["edge_points", "edge_sequence", "detect_break", "evaluate"]
+__all__ = ["detect_break", "edge_points", "edge_sequence", "evaluate"]
 
 
 def _edge(ez, eid: int) -> tuple[int, int, int, int, int]:
@@ -98,7 +98,9 @@ def _edge_value(seq, kind, tb, t, side):
 
 def evaluate(ez, base: ZMap, x, y) -> np.ndarray:
     """EZ heights point by point (NaN outside :meth:`EZMap.cell_mask`)."""
-    from ._ez_kernels import _edge_slope  # the base's slope rule, plain-side tangent at breaks
+    from ._ez_kernels import (
+        _edge_slope,  # the base's slope rule, plain-side tangent at breaks
+    )
 
     tables = ez._tables(base)
     brk = {int(e): (int(k), float(t)) for e, k, t in zip(ez.edge_ids, tables["brk_kind"], tables["brk_t"])}
@@ -111,14 +113,14 @@ def evaluate(ez, base: ZMap, x, y) -> np.ndarray:
         fi, fj = (float(lx) - base.x0) / base.dx, (float(ly) - base.y0) / base.dy
         if not (-1e-9 <= fi <= nx - 1 + 1e-9 and -1e-9 <= fj <= ny - 1 + 1e-9):
             continue
-        i, j = min(max(int(math.floor(fi)), 0), nx - 2), min(max(int(math.floor(fj)), 0), ny - 2)
+        i, j = min(max((math.floor(fi)), 0), nx - 2), min(max((math.floor(fj)), 0), ny - 2)
         u, v = min(max(fi - i, 0.0), 1.0), min(max(fj - j, 0.0), 1.0)
         if not cells[i, j] or np.isnan(base.z[i:i + 2, j:j + 2]).any():
             continue
         ids = [i * ny + j, nxe + (i + 1) * (ny - 1) + j, i * ny + j + 1, nxe + i * (ny - 1) + j]
         corners = [((i, j), (i + 1, j)), ((i + 1, j), (i + 1, j + 1)), ((i, j + 1), (i + 1, j + 1)), ((i, j), (i, j + 1))]
 
-        def value(k, t, side=0):
+        def value(k, t, side=0, ids=ids, corners=corners):
             eid = ids[k]
             if eid in brk:
                 kind, tb = brk[eid]

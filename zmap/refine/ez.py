@@ -4,17 +4,32 @@ Procedure Construct_EZmap: every grid edge of the base that is steep (slope >= e
 crossed by a sharp-edge (SE) curve gets e-map points, evenly spaced at no more than
 ``interval`` (default the tolerance), whose heights come from the exact surface. They are
 stored compactly, CSR over the selected edges, heights as float32 (1.9e-6 mm resolution at
-30 mm, 1.5e-5 mm at 250 mm: far below any machining tolerance).
+30 mm, 1.5e-5 mm at 250 mm: far below any machining tolerance). A single e-point more
+than ``tol`` below both neighbours is lifted to the higher one and counted
+(:attr:`EZMap.lifted`): it is a sample on a wall's line answered with a lower face.
 
-Evaluation. A cell with e-points on any of its edges is a Coons patch of its four boundary
-sequences (grid corners + e-points, linear between samples; an edge without e-points is the
-base's cubic Bezier along it, so the patch meets the base cells continuously). Where a
-boundary sequence is not G1 (a jump: a vertical wall; a kink: a sharp edge), the break is
-located on the sequence (within half the e-map interval for a jump); a cell with two breaks
-is split along the trace joining them (through its midpoint, bent by the neighbouring
-crossings, or through the wall's corner) and each side is evaluated from the boundary data
-on its side only, by blending the two boundary heights on the line through the point
-parallel to the trace. A wall's position is so held to the e-map interval.
+Evaluation. A cell with e-points on any of its edges is a Coons patch (bilinearly blended,
+transfinite) of its four boundary sequences: grid corners + e-points, linear between
+samples; an edge without e-points is the base's cubic Bezier along it, so the patch meets
+the base cells continuously. Where a boundary sequence is not G1 the break is located on
+it: a jump (a vertical wall) mid-way between the two samples it falls between, so within
+half the e-map interval, or a kink (a sharp edge) where the lines through the samples on
+either side meet. A cell whose boundary holds two jumps (or, without jumps, two kinks) is
+split along the trace joining them, and each side is evaluated from the boundary data on
+its side only: the line through the point parallel to the trace's chord meets the cell
+boundary at two points whose side heights are blended linearly (exact for planes and for
+any surface that varies only across the trace, as walls, fillets along them and ridges
+do). The trace is the circle arc through the two crossings whose sagitta is that of the
+circles through them and the crossing found one lever (half a grid interval or more) out
+along the trace on either side; where both neighbouring traces are straight and turn by
+more than 30 degrees inside the cell it is the polyline through their meeting point (a
+wall corner). A wall's position is so held to the e-map interval.
+
+Cells whose base stencil reaches an e-edge answer too (:meth:`EZMap.cell_mask`): their
+plain edges take the slope on the side away from a break, so that no cell of the model
+blends heights across a wall or a sharp edge. Cells with breaks but no single trace (a
+wall crossing one edge twice, two walls in one cell) fall back to the Coons patch kept
+within the range of its boundary curves.
 
 Grid edges and ids (the contract shared with :mod:`zmap.model`): the x-edge
 ``(i, j)-(i+1, j)`` has id ``i*ny + j``, the y-edge ``(i, j)-(i, j+1)`` has id
@@ -47,7 +62,7 @@ def edge_count(nx: int, ny: int) -> int:
 
 def _n_points(length: float, interval: float) -> int:
     """Interior points that split ``length`` into pieces no longer than ``interval``."""
-    return max(int(math.ceil(length / interval - 1e-9)) - 1, 0)
+    return max(math.ceil(length / interval - 1e-9) - 1, 0)
 
 
 @dataclass(eq=False)
@@ -322,7 +337,7 @@ class EZMap:
         }
 
     @classmethod
-    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> "EZMap":
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> EZMap:
         """Inverse of :meth:`to_arrays`."""
         missing = {"version", "grid", "shape", "edge_ids", "offsets", "heights"} - set(arrays)
         if missing:

@@ -467,6 +467,6 @@ def test_bundled_parts_sample_points(name):
 
     Where the sampler answers a point on a wall's line with a lower face (seen on the
     pocket's corner tori and the round boss), the single low e-point is lifted."""
-    base, ez, d, db = _part_case(name, "sample_points")
+    _, _, d, db = _part_case(name, "sample_points")
     assert d.max() <= TOL
     assert db.max() > 0.1
