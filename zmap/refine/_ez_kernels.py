@@ -33,6 +33,8 @@ from .._interp_kernels import (
 BREAK_NONE = 0
 BREAK_JUMP = 1
 BREAK_KINK = 2
+# 16-bit e-point code meaning 'no height' (valid codes are 0..NAN_CODE-1).
+NAN_CODE = 65535
 
 # A cell whose two boundary breaks turn by more than this is taken as holding a corner of
 # the wall (trace through the corner), else as a smooth arc (trace through its midpoint).
@@ -58,12 +60,18 @@ def _edge_corners(eid, nx, ny):
 
 
 @njit(cache=True, inline="always")
-def _sample(z, heights, off, n, ia, ja, ib, jb, q):
+def _sample(z, hq, e, off, n, ia, ja, ib, jb, q):
+    """Sample q of the sequence of e-edge slot e: grid corners at q = 0 and n+1, else the
+    decoded e-point ``lo[e] + step[e] * code`` (NaN for ``NAN_CODE``); ``hq`` is the tuple
+    (codes, lo, step)."""
     if q <= 0:
         return z[ia, ja]
     if q >= n + 1:
         return z[ib, jb]
-    return np.float64(heights[off + q - 1])
+    code = hq[0][off + q - 1]
+    if code == NAN_CODE:
+        return np.nan
+    return np.float64(hq[1][e]) + np.float64(hq[2][e]) * np.float64(code)
 
 
 @njit(cache=True, parallel=True)
@@ -105,7 +113,7 @@ def despike(z, edge_ids, offsets, heights, thresh, out_count):
 
 
 @njit(cache=True, parallel=True)
-def detect_breaks(z, edge_ids, offsets, heights, jump_min, kink_min, ratio, out_kind, out_t):
+def detect_breaks(z, edge_ids, offsets, hq, jump_min, kink_min, ratio, out_kind, out_t):
     """One break per edge: the dominant jump, else the dominant kink, of its sequence.
 
     A jump is the interval whose rise exceeds its neighbours' by ``jump_min`` and is
@@ -123,7 +131,7 @@ def detect_breaks(z, edge_ids, offsets, heights, jump_min, kink_min, ratio, out_
         m = n + 1
         ok = True
         for q in range(m + 1):
-            if math.isnan(_sample(z, heights, off, n, ia, ja, ib, jb, q)):
+            if math.isnan(_sample(z, hq, k, off, n, ia, ja, ib, jb, q)):
                 ok = False
                 break
         if not ok or m < 2:
@@ -132,17 +140,17 @@ def detect_breaks(z, edge_ids, offsets, heights, jump_min, kink_min, ratio, out_
         best = -1
         bval = -1.0
         for q in range(m):
-            d = abs(_sample(z, heights, off, n, ia, ja, ib, jb, q + 1) - _sample(z, heights, off, n, ia, ja, ib, jb, q))
+            d = abs(_sample(z, hq, k, off, n, ia, ja, ib, jb, q + 1) - _sample(z, hq, k, off, n, ia, ja, ib, jb, q))
             if d > bval:
                 bval = d
                 best = q
         nb = 0.0
         if best > 0:
-            nb = max(nb, abs(_sample(z, heights, off, n, ia, ja, ib, jb, best)
-                             - _sample(z, heights, off, n, ia, ja, ib, jb, best - 1)))
+            nb = max(nb, abs(_sample(z, hq, k, off, n, ia, ja, ib, jb, best)
+                             - _sample(z, hq, k, off, n, ia, ja, ib, jb, best - 1)))
         if best < m - 1:
-            nb = max(nb, abs(_sample(z, heights, off, n, ia, ja, ib, jb, best + 2)
-                             - _sample(z, heights, off, n, ia, ja, ib, jb, best + 1)))
+            nb = max(nb, abs(_sample(z, hq, k, off, n, ia, ja, ib, jb, best + 2)
+                             - _sample(z, hq, k, off, n, ia, ja, ib, jb, best + 1)))
         if bval - nb > jump_min and bval > ratio * nb:
             out_kind[k] = BREAK_JUMP
             out_t[k] = (best + 0.5) / m
@@ -153,8 +161,8 @@ def detect_breaks(z, edge_ids, offsets, heights, jump_min, kink_min, ratio, out_
         kbest = -1
         kval = -1.0
         for q in range(1, m):
-            dd = abs(_sample(z, heights, off, n, ia, ja, ib, jb, q + 1) - 2.0 * _sample(z, heights, off, n, ia, ja, ib, jb, q)
-                     + _sample(z, heights, off, n, ia, ja, ib, jb, q - 1))
+            dd = abs(_sample(z, hq, k, off, n, ia, ja, ib, jb, q + 1) - 2.0 * _sample(z, hq, k, off, n, ia, ja, ib, jb, q)
+                     + _sample(z, hq, k, off, n, ia, ja, ib, jb, q - 1))
             if dd > kval:
                 kval = dd
                 kbest = q
@@ -162,12 +170,12 @@ def detect_breaks(z, edge_ids, offsets, heights, jump_min, kink_min, ratio, out_
         dr = 0.0
         if kbest - 1 >= 1:
             q = kbest - 1
-            dl = abs(_sample(z, heights, off, n, ia, ja, ib, jb, q + 1) - 2.0 * _sample(z, heights, off, n, ia, ja, ib, jb, q)
-                     + _sample(z, heights, off, n, ia, ja, ib, jb, q - 1))
+            dl = abs(_sample(z, hq, k, off, n, ia, ja, ib, jb, q + 1) - 2.0 * _sample(z, hq, k, off, n, ia, ja, ib, jb, q)
+                     + _sample(z, hq, k, off, n, ia, ja, ib, jb, q - 1))
         if kbest + 1 <= m - 1:
             q = kbest + 1
-            dr = abs(_sample(z, heights, off, n, ia, ja, ib, jb, q + 1) - 2.0 * _sample(z, heights, off, n, ia, ja, ib, jb, q)
-                     + _sample(z, heights, off, n, ia, ja, ib, jb, q - 1))
+            dr = abs(_sample(z, hq, k, off, n, ia, ja, ib, jb, q + 1) - 2.0 * _sample(z, hq, k, off, n, ia, ja, ib, jb, q)
+                     + _sample(z, hq, k, off, n, ia, ja, ib, jb, q - 1))
         if dl >= dr:
             a = kbest - 1
             total = kval + dl
@@ -178,17 +186,17 @@ def detect_breaks(z, edge_ids, offsets, heights, jump_min, kink_min, ratio, out_
         for q in range(1, m):
             if q >= kbest - 1 and q <= kbest + 1:
                 continue
-            dd = abs(_sample(z, heights, off, n, ia, ja, ib, jb, q + 1) - 2.0 * _sample(z, heights, off, n, ia, ja, ib, jb, q)
-                     + _sample(z, heights, off, n, ia, ja, ib, jb, q - 1))
+            dd = abs(_sample(z, hq, k, off, n, ia, ja, ib, jb, q + 1) - 2.0 * _sample(z, hq, k, off, n, ia, ja, ib, jb, q)
+                     + _sample(z, hq, k, off, n, ia, ja, ib, jb, q - 1))
             rest = max(rest, dd)
         if not (total > kink_min and total > ratio * rest):
             continue
         a = max(a, 1)
         b = min(a + 1, m - 1)
-        za = _sample(z, heights, off, n, ia, ja, ib, jb, a)
-        zb = _sample(z, heights, off, n, ia, ja, ib, jb, b)
-        sl = za - _sample(z, heights, off, n, ia, ja, ib, jb, a - 1)
-        sr = _sample(z, heights, off, n, ia, ja, ib, jb, b + 1) - zb
+        za = _sample(z, hq, k, off, n, ia, ja, ib, jb, a)
+        zb = _sample(z, hq, k, off, n, ia, ja, ib, jb, b)
+        sl = za - _sample(z, hq, k, off, n, ia, ja, ib, jb, a - 1)
+        sr = _sample(z, hq, k, off, n, ia, ja, ib, jb, b + 1) - zb
         x = 0.5 * (a + b)
         if sl != sr:
             x = (zb - za + sl * a - sr * b) / (sl - sr)
@@ -248,7 +256,7 @@ def _edge_slope(z, i, j, di, dj, h, outer, edge_ids, brk_kind):
 
 
 @njit(cache=True)
-def _edge_value(z, i, j, k, t, side, slot, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy):
+def _edge_value(z, i, j, k, t, side, slot, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy):
     """Boundary curve of local edge ``k`` of cell (i, j) at parameter t.
 
     An e-edge interpolates its sequence linearly; across its break, each side is extended
@@ -286,18 +294,18 @@ def _edge_value(z, i, j, k, t, side, slot, edge_ids, offsets, heights, brk_kind,
         low = f <= tb if side == 0 else side < 0
         if low:
             if q + 1 > lo:
-                zl = _sample(z, heights, off, n, ia, ja, ib, jb, lo)
+                zl = _sample(z, hq, slot, off, n, ia, ja, ib, jb, lo)
                 if lo >= 1:
-                    return zl + (zl - _sample(z, heights, off, n, ia, ja, ib, jb, lo - 1)) * (f - lo)
+                    return zl + (zl - _sample(z, hq, slot, off, n, ia, ja, ib, jb, lo - 1)) * (f - lo)
                 return zl
         else:
             if q < hi:
-                zh = _sample(z, heights, off, n, ia, ja, ib, jb, hi)
+                zh = _sample(z, hq, slot, off, n, ia, ja, ib, jb, hi)
                 if hi + 1 <= m:
-                    return zh + (_sample(z, heights, off, n, ia, ja, ib, jb, hi + 1) - zh) * (f - hi)
+                    return zh + (_sample(z, hq, slot, off, n, ia, ja, ib, jb, hi + 1) - zh) * (f - hi)
                 return zh
-    za = _sample(z, heights, off, n, ia, ja, ib, jb, q)
-    zb = _sample(z, heights, off, n, ia, ja, ib, jb, q + 1)
+    za = _sample(z, hq, slot, off, n, ia, ja, ib, jb, q)
+    zb = _sample(z, hq, slot, off, n, ia, ja, ib, jb, q + 1)
     return za + (f - q) * (zb - za)
 
 
@@ -559,13 +567,13 @@ def _arc_sagitta(ax, ay, p1x, p1y, p2x, p2y):
 
 
 @njit(cache=True)
-def _coons(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy, broken):
+def _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy, broken):
     """Bilinearly blended Coons patch of the cell's four boundary curves; ``broken`` (a
     cell with breaks but no single trace) clamps it to the range of the four curves."""
-    bot = _edge_value(z, i, j, 0, u, 0, slots[c, 0], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
-    rgt = _edge_value(z, i, j, 1, v, 0, slots[c, 1], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
-    top = _edge_value(z, i, j, 2, u, 0, slots[c, 2], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
-    lft = _edge_value(z, i, j, 3, v, 0, slots[c, 3], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy)
+    bot = _edge_value(z, i, j, 0, u, 0, slots[c, 0], edge_ids, offsets, hq, brk_kind, brk_t, dx, dy)
+    rgt = _edge_value(z, i, j, 1, v, 0, slots[c, 1], edge_ids, offsets, hq, brk_kind, brk_t, dx, dy)
+    top = _edge_value(z, i, j, 2, u, 0, slots[c, 2], edge_ids, offsets, hq, brk_kind, brk_t, dx, dy)
+    lft = _edge_value(z, i, j, 3, v, 0, slots[c, 3], edge_ids, offsets, hq, brk_kind, brk_t, dx, dy)
     bil = ((1.0 - u) * ((1.0 - v) * z[i, j] + v * z[i, j + 1])
            + u * ((1.0 - v) * z[i + 1, j] + v * z[i + 1, j + 1]))
     h = (1.0 - v) * bot + v * top + (1.0 - u) * lft + u * rgt - bil
@@ -633,11 +641,11 @@ def _region_a(X, Y, P, arc, s1, s2, dx, dy):
 
 
 @njit(cache=True)
-def _split(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, bk, bt, pts, arc, dx, dy):
+def _split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, bk, bt, pts, arc, dx, dy):
     """Height on the side of the cell's trace that holds the point, from that side's data.
 
     The line through the point parallel to the trace's chord meets the cell boundary at A
-    and B; their boundary heights (taken from the point's side; a hit beyond the side's arc
+    and B; their boundary hq (taken from the point's side; a hit beyond the side's arc
     is pulled back to the arc's end at the break) are blended linearly along the line.
     """
     X = u * dx
@@ -671,9 +679,9 @@ def _split(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t,
         l2 = (dy - Y) / wy
         lo = max(lo, min(l1, l2))
         hi = min(hi, max(l1, l2))
-    va, da = _hit(z, i, j, X, Y, lo, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, edge_ids, offsets, heights,
+    va, da = _hit(z, i, j, X, Y, lo, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, edge_ids, offsets, hq,
                   brk_kind, brk_t, dx, dy)
-    vb, db = _hit(z, i, j, X, Y, hi, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, edge_ids, offsets, heights,
+    vb, db = _hit(z, i, j, X, Y, hi, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, edge_ids, offsets, hq,
                   brk_kind, brk_t, dx, dy)
     if da + db <= 0.0:
         return va
@@ -681,12 +689,12 @@ def _split(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t,
 
 
 @njit(cache=True)
-def _hit(z, i, j, X, Y, lam, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy):
+def _hit(z, i, j, X, Y, lam, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy):
     """Boundary height and distance of the hit ``P + lam*w``, kept on the arc [sa, sb]."""
     k, t = _boundary_point(X + lam * wx, Y + lam * wy, dx, dy)
     s = _perimeter(k, t)
     if (s - sa) % 4.0 <= span:
-        return (_edge_value(z, i, j, k, t, 0, slots[c, k], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy), abs(lam))
+        return (_edge_value(z, i, j, k, t, 0, slots[c, k], edge_ids, offsets, hq, brk_kind, brk_t, dx, dy), abs(lam))
     if (sa - s) % 4.0 <= (s - sb) % 4.0:  # pull back to the arc's start; the arc runs CCW from it
         k, t = ka, ta
         sd = 1 if (k == 0 or k == 1) else -1
@@ -694,14 +702,14 @@ def _hit(z, i, j, X, Y, lam, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, ed
         k, t = kb, tb_
         sd = -1 if (k == 0 or k == 1) else 1
     ex, ey = _edge_xy(k, t, dx, dy)
-    return (_edge_value(z, i, j, k, t, sd, slots[c, k], edge_ids, offsets, heights, brk_kind, brk_t, dx, dy),
+    return (_edge_value(z, i, j, k, t, sd, slots[c, k], edge_ids, offsets, hq, brk_kind, brk_t, dx, dy),
             math.hypot(ex - X, ey - Y))
 
 
 @njit(cache=True, parallel=True)
-def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, heights, brk_kind, brk_t,
+def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, hq, brk_kind, brk_t,
               ecell_ids, slots, nb, bk, bt, pts, arc, out):
-    """EZ heights at every query point; NaN outside e-cells (the caller uses the base)."""
+    """EZ hq at every query point; NaN outside e-cells (the caller uses the base)."""
     nx, ny = z.shape
     for p in prange(xs.shape[0]):
         i, j, u, v = _locate(xs[p], ys[p], x0, y0, dx, dy, cs, sn, ox, oy, nx, ny)
@@ -713,6 +721,6 @@ def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, heig
             out[p] = np.nan
             continue
         if nb[c] == 2 and (pts[c, 0, 0] != pts[c, 2, 0] or pts[c, 0, 1] != pts[c, 2, 1]):
-            out[p] = _split(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, bk, bt, pts, arc, dx, dy)
+            out[p] = _split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, bk, bt, pts, arc, dx, dy)
         else:
-            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, heights, brk_kind, brk_t, dx, dy, nb[c] > 0)
+            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy, nb[c] > 0)
