@@ -29,11 +29,11 @@ _FLAT_EPS = 1e-12
 
 
 @njit(cache=True, inline="always")
-def _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny):
-    xmin = min(ax, min(bx, cx))
-    xmax = max(ax, max(bx, cx))
-    ymin = min(ay, min(by, cy))
-    ymax = max(ay, max(by, cy))
+def _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, margin):
+    xmin = min(ax, min(bx, cx)) - margin
+    xmax = max(ax, max(bx, cx)) + margin
+    ymin = min(ay, min(by, cy)) - margin
+    ymax = max(ay, max(by, cy)) + margin
     i0 = max(0, int(math.ceil((xmin - x0) / dx - 1e-9)))
     i1 = min(nx - 1, int(math.floor((xmax - x0) / dx + 1e-9)))
     j0 = max(0, int(math.ceil((ymin - y0) / dy - 1e-9)))
@@ -41,9 +41,31 @@ def _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny):
     return i0, i1, j0, j1
 
 
+@njit(cache=True, inline="always")
+def _bary_limits(ax, ay, bx, by, cx, cy, area, margin):
+    """Lower bounds of the barycentric weights (w0, w1, w2) that admit points up to
+    ``margin`` (xy, mm) outside the triangle: w_k >= -margin * |opposite edge| / |area|.
+
+    ``area`` is twice the signed xy area. ``margin`` 0 gives the exact triangle (with a
+    1e-12 rounding slack).
+    """
+    if margin <= 0.0:
+        return -1e-12, -1e-12, -1e-12
+    f = margin / abs(area)
+    la = math.sqrt((cx - bx) ** 2 + (cy - by) ** 2)
+    lb = math.sqrt((ax - cx) ** 2 + (ay - cy) ** 2)
+    lc = math.sqrt((bx - ax) ** 2 + (by - ay) ** 2)
+    return -1e-12 - f * la, -1e-12 - f * lb, -1e-12 - f * lc
+
+
 @njit(cache=True, parallel=True)
-def count_pairs(nodes, tris, x0, y0, dx, dy, nx, ny, counts):
-    """Number of grid points inside each triangle's xy projection, into ``counts`` (M,)."""
+def count_pairs(nodes, tris, tri_margin, x0, y0, dx, dy, nx, ny, counts):
+    """Number of grid points inside each triangle's xy projection, into ``counts`` (M,).
+
+    ``tri_margin`` (M,): how far (mm) outside its triangle a point still pairs with it: the
+    mesh deflection on triangles at a face's mesh boundary, whose polygon may cut inside
+    the true (curved) boundary; 0 elsewhere.
+    """
     for t in prange(tris.shape[0]):
         a = tris[t, 0]
         b = tris[t, 1]
@@ -59,21 +81,22 @@ def count_pairs(nodes, tris, x0, y0, dx, dy, nx, ny, counts):
         n = 0
         if abs(area) > _FLAT_EPS * l2 and area == area:
             inv = 1.0 / area
-            tol = 1e-12
-            i0, i1, j0, j1 = _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny)
+            mg = tri_margin[t]
+            l0, l1, l2_ = _bary_limits(ax, ay, bx, by, cx, cy, area, mg)
+            i0, i1, j0, j1 = _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, mg)
             for i in range(i0, i1 + 1):
                 px = x0 + i * dx
                 for j in range(j0, j1 + 1):
                     py = y0 + j * dy
                     w1 = ((px - ax) * (cy - ay) - (cx - ax) * (py - ay)) * inv
                     w2 = ((bx - ax) * (py - ay) - (px - ax) * (by - ay)) * inv
-                    if w1 >= -tol and w2 >= -tol and w1 + w2 <= 1.0 + tol:
+                    if w1 >= l1 and w2 >= l2_ and 1.0 - w1 - w2 >= l0:
                         n += 1
         counts[t] = n
 
 
 @njit(cache=True, parallel=True)
-def fill_pairs(nodes, tris, t0, offsets, x0, y0, dx, dy, nx, ny, gidx, tri, w):
+def fill_pairs(nodes, tris, tri_margin, t0, offsets, x0, y0, dx, dy, nx, ny, gidx, tri, w):
     """Grid index, triangle and barycentric weights of every pair of triangles t0.. .
 
     ``offsets[t - t0]`` is where triangle ``t``'s pairs start (its count from
@@ -96,15 +119,16 @@ def fill_pairs(nodes, tris, t0, offsets, x0, y0, dx, dy, nx, ny, gidx, tri, w):
         cy = nodes[c, 1]
         area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
         inv = 1.0 / area
-        tol = 1e-12
-        i0, i1, j0, j1 = _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny)
+        mg = tri_margin[t]
+        l0, l1, l2_ = _bary_limits(ax, ay, bx, by, cx, cy, area, mg)
+        i0, i1, j0, j1 = _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, mg)
         for i in range(i0, i1 + 1):
             px = x0 + i * dx
             for j in range(j0, j1 + 1):
                 py = y0 + j * dy
                 w1 = ((px - ax) * (cy - ay) - (cx - ax) * (py - ay)) * inv
                 w2 = ((bx - ax) * (py - ay) - (px - ax) * (by - ay)) * inv
-                if w1 >= -tol and w2 >= -tol and w1 + w2 <= 1.0 + tol:
+                if w1 >= l1 and w2 >= l2_ and 1.0 - w1 - w2 >= l0:
                     gidx[p] = i * ny + j
                     tri[p] = t
                     w[p, 0] = w1
@@ -261,6 +285,10 @@ def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mod
     w2 = w[p, 1]
     w0 = 1.0 - w1 - w2
     zf = w0 * nodes[a, 2] + w1 * nodes[b, 2] + w2 * nodes[c, 2]
+    if min(w0, min(w1, w2)) < -1e-12 and (mode == 2 or face_mode[k] == 2):
+        z[p] = np.nan  # paired by the boundary margin: only an exact solution may answer
+        status[p] = 0
+        return
     if mode == 2 or face_mode[k] == 2:
         z[p] = zf
         status[p] = 2
@@ -296,9 +324,17 @@ def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mod
     edge = n_edge == n_try  # every start ran out of the domain: the point is off the face
     if ok:
         zn = out[0, 2]
-        if abs(zn - zf) > face_zgap[k]:
+        if min(w0, min(w1, w2)) < -1e-12:
+            # outside its triangle (boundary margin): the extrapolated facet height means
+            # little on a steep triangle, so check against the triangle's z range
+            za = nodes[a, 2]
+            zb = nodes[b, 2]
+            zc_ = nodes[c, 2]
+            if zn < min(za, min(zb, zc_)) - face_zgap[k] or zn > max(za, max(zb, zc_)) + face_zgap[k]:
+                ok = False
+        elif abs(zn - zf) > face_zgap[k]:
             ok = False
-        elif tri_check[t] and face_bi[k, 1] > 0:
+        if ok and tri_check[t] and face_bi[k, 1] > 0:
             if not point_in_bands(u, v, edges, band_ptr, band_edges, face_bi[k, 0], face_bi[k, 1],
                                   face_bf[k, 0], face_bf[k, 1], face_bf[k, 2]):
                 status[p] = 0  # outside the trimmed face
@@ -307,8 +343,9 @@ def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mod
     if ok:
         z[p] = out[0, 2]
         status[p] = 1
-    elif mode == 0 and not edge:
-        # facet fallback; on a boundary triangle only where its start is in the face
+    elif mode == 0 and not edge and min(w0, min(w1, w2)) >= -1e-12:
+        # facet fallback (not for a point paired from outside its triangle by the boundary
+        # margin); on a boundary triangle only where its start is in the face
         if tri_check[t] and face_bi[k, 1] > 0:
             u = w0 * uv[a, 0] + w1 * uv[b, 0] + w2 * uv[c, 0]
             v = w0 * uv[a, 1] + w1 * uv[b, 1] + w2 * uv[c, 1]
@@ -378,7 +415,7 @@ def solve_pairs_xy(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode
 
 
 @njit(cache=True, parallel=True)
-def count_pairs_xy(nodes, tris, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, counts):
+def count_pairs_xy(nodes, tris, tri_margin, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, counts):
     """Scattered points inside each triangle's xy projection, into ``counts`` (M,).
 
     The points are bucketed on a ``nbx`` x ``nby`` grid of square bins of side ``bh`` from
@@ -387,22 +424,23 @@ def count_pairs_xy(nodes, tris, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts
     no_i = np.empty(0, dtype=np.int64)
     no_w = np.empty((0, 2))
     for t in prange(tris.shape[0]):
-        counts[t] = _scan_tri(nodes, tris, t, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts,
+        counts[t] = _scan_tri(nodes, tris, tri_margin, t, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts,
                               0, no_i, no_i, no_w, False)
 
 
 @njit(cache=True, parallel=True)
-def fill_pairs_xy(nodes, tris, t0, offsets, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, gidx, tri, w):
+def fill_pairs_xy(nodes, tris, tri_margin, t0, offsets, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts,
+                  gidx, tri, w):
     """:func:`fill_pairs` for scattered points (``gidx`` = point index), bins as :func:`count_pairs_xy`."""
     for tt in prange(offsets.shape[0] - 1):
         if offsets[tt + 1] == offsets[tt]:
             continue
-        _scan_tri(nodes, tris, t0 + tt, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts,
+        _scan_tri(nodes, tris, tri_margin, t0 + tt, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts,
                   offsets[tt], gidx, tri, w, True)
 
 
 @njit(cache=True)
-def _scan_tri(nodes, tris, t, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, p, gidx, tri, w, fill):
+def _scan_tri(nodes, tris, tri_margin, t, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, p, gidx, tri, w, fill):
     """Count (``fill`` False) or write from ``p`` (``fill`` True) the points inside triangle ``t``."""
     a = tris[t, 0]
     b = tris[t, 1]
@@ -419,11 +457,12 @@ def _scan_tri(nodes, tris, t, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, 
     if not (abs(area) > _FLAT_EPS * l2 and area == area):
         return 0
     inv = 1.0 / area
-    tl = 1e-12
-    i0 = max(0, int(math.floor((min(ax, min(bx, cx)) - bx0) / bh)))
-    i1 = min(nbx - 1, int(math.floor((max(ax, max(bx, cx)) - bx0) / bh)))
-    j0 = max(0, int(math.floor((min(ay, min(by, cy)) - by0) / bh)))
-    j1 = min(nby - 1, int(math.floor((max(ay, max(by, cy)) - by0) / bh)))
+    mg = tri_margin[t]
+    l0, l1, l2_ = _bary_limits(ax, ay, bx, by, cx, cy, area, mg)
+    i0 = max(0, int(math.floor((min(ax, min(bx, cx)) - mg - bx0) / bh)))
+    i1 = min(nbx - 1, int(math.floor((max(ax, max(bx, cx)) + mg - bx0) / bh)))
+    j0 = max(0, int(math.floor((min(ay, min(by, cy)) - mg - by0) / bh)))
+    j1 = min(nby - 1, int(math.floor((max(ay, max(by, cy)) + mg - by0) / bh)))
     for i in range(i0, i1 + 1):
         for j in range(j0, j1 + 1):
             q = i * nby + j
@@ -433,7 +472,7 @@ def _scan_tri(nodes, tris, t, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, 
                 y = py[g]
                 w1 = ((x - ax) * (cy - ay) - (cx - ax) * (y - ay)) * inv
                 w2 = ((bx - ax) * (y - ay) - (x - ax) * (by - ay)) * inv
-                if w1 >= -tl and w2 >= -tl and w1 + w2 <= 1.0 + tl:
+                if w1 >= l1 and w2 >= l2_ and 1.0 - w1 - w2 >= l0:
                     if fill:
                         gidx[p + n] = g
                         tri[p + n] = t

@@ -53,6 +53,9 @@ LATTICE = 48
 #: Points this close (mm) to a face's trim loop count as inside it: the loops are polylines
 #: within about 1e-4 mm of the true boundary (see _trim_slack_uv).
 TRIM_SLACK_MM = 5e-4
+#: Boundary triangles of an exact face pair with points up to this many mesh deflections
+#: outside them (Newton and the trim test then decide)
+BOUNDARY_MARGIN = 2.0
 
 
 def _spacing(grid: Any) -> tuple[float, float]:
@@ -254,6 +257,7 @@ class _FaceSet:
     tris: np.ndarray | None = None
     tri_face: np.ndarray | None = None
     tri_check: np.ndarray | None = None
+    tri_margin: np.ndarray | None = None
     face_mode: np.ndarray | None = None
     face_zgap: np.ndarray | None = None
     trim: tuple = ()
@@ -309,7 +313,7 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
     fs.face_mode = np.full(F, 2, dtype=np.int8)
     fs.face_zgap = np.full(F, 1e-6)
     face_loops: dict[int, list[np.ndarray]] = {}
-    nodes_l, uv_l, tris_l, tface_l, check_l = [], [], [], [], []
+    nodes_l, uv_l, tris_l, tface_l, check_l, margin_l = [], [], [], [], [], []
     n_nodes = 0
     lattice_set = set(lattice)
     for k, f in enumerate(vpart.faces):
@@ -334,7 +338,12 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
         tris_l.append(tri + n_nodes)
         tface_l.append(np.full(len(tri), k, dtype=np.int64))
         # a lattice covers the untrimmed domain: every solution is tested against the loops
-        check_l.append(np.ones(len(tri), dtype=np.bool_) if on_lattice else _boundary_triangles(tri))
+        check = np.ones(len(tri), dtype=np.bool_) if on_lattice else _boundary_triangles(tri)
+        check_l.append(check)
+        # a mesh's boundary polygon may cut up to its deflection inside a curved trim
+        # boundary: boundary triangles of an exact face pair with points that far outside
+        margin = BOUNDARY_MARGIN * max(m.deflection, deflection) if fs.face_mode[k] == 1 else 0.0
+        margin_l.append(np.where(check, margin, 0.0))
         n_nodes += len(m.nodes)
     if tris_l:
         fs.nodes = np.ascontiguousarray(np.concatenate(nodes_l))
@@ -342,6 +351,7 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
         fs.tris = np.ascontiguousarray(np.concatenate(tris_l))
         fs.tri_face = np.ascontiguousarray(np.concatenate(tface_l))
         fs.tri_check = np.ascontiguousarray(np.concatenate(check_l))
+        fs.tri_margin = np.ascontiguousarray(np.concatenate(margin_l))
         fs.trim = _trim_bands(face_loops, np.nan_to_num(packed.domain), F, _trim_slack_uv(packed, face_loops, F))
     return fs
 
@@ -510,11 +520,11 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
     n_pairs = 0
     if fs.tris is not None:
         counts = np.zeros(len(fs.tris), dtype=np.int64)
-        K.count_pairs(fs.nodes, fs.tris, x0, y0, dx, dy, nx, ny, counts)
+        K.count_pairs(fs.nodes, fs.tris, fs.tri_margin, x0, y0, dx, dy, nx, ny, counts)
         mode = _MODE[method]
 
         def fill(t, offsets, gidx, tri_p, w):
-            K.fill_pairs(fs.nodes, fs.tris, t, offsets, x0, y0, dx, dy, nx, ny, gidx, tri_p, w)
+            K.fill_pairs(fs.nodes, fs.tris, fs.tri_margin, t, offsets, x0, y0, dx, dy, nx, ny, gidx, tri_p, w)
 
         def solve(gidx, tri_p, w, zc, st):
             K.solve_pairs(gidx, tri_p, w, *fs.solve_args(), x0, y0, dx, dy, ny, mode, NEWTON_TOL,
@@ -652,11 +662,11 @@ def sample_points(part: Part, x, y, *, deflection: float | None = None, method: 
         gy = np.ascontiguousarray(py[good])
         bins = _bins(gx, gy, fs)
         counts = np.zeros(len(fs.tris), dtype=np.int64)
-        K.count_pairs_xy(fs.nodes, fs.tris, gx, gy, *bins, counts)
+        K.count_pairs_xy(fs.nodes, fs.tris, fs.tri_margin, gx, gy, *bins, counts)
         mode = _MODE[method]
 
         def fill(t, offsets, gidx, tri_p, w):
-            K.fill_pairs_xy(fs.nodes, fs.tris, t, offsets, gx, gy, *bins, gidx, tri_p, w)
+            K.fill_pairs_xy(fs.nodes, fs.tris, fs.tri_margin, t, offsets, gx, gy, *bins, gidx, tri_p, w)
 
         def solve(gidx, tri_p, w, zc, st):
             K.solve_pairs_xy(gidx, tri_p, w, *fs.solve_args(), gx, gy, mode, NEWTON_TOL, NEWTON_MAX_ITER, zc, st)

@@ -50,3 +50,16 @@ def test_points_on_a_curved_wall_top_never_fall_through_to_a_lower_face():
     for r in (8.0, 8.0 - 1e-6, 8.0 - 1e-4, 8.0 + 1e-6):
         z, _, _ = sample_points(part, 22 + r * np.cos(th), 12 + r * np.sin(th))
         assert np.all(z > 17.9), (r, np.unique(np.round(z, 4)))
+
+
+def test_points_inside_a_curved_wall_get_the_fillet_not_the_top():
+    # 1 and 3 um inside the pocket's corner wall the surface is the floor fillet (R 3 up to
+    # z = 18): points there pair with the top face's boundary triangles (mesh margin) but its
+    # trim loops reject them, and the fillet answers.
+    part = read_step(DATA / "pocket.step")
+    th = np.linspace(0.01, np.pi / 2 - 0.01, 2000)
+    for d in (1e-3, 3e-3):
+        z, _, _ = sample_points(part, 22 + (8 - d) * np.cos(th), 12 + (8 - d) * np.sin(th), deflection=0.005)
+        fillet = 15 + 3 - np.sqrt(9 - (3 - d) ** 2)
+        assert np.sum(np.abs(z - fillet) < 1e-6) >= 0.99 * th.size
+        assert np.all((z > 17.5) & (z <= 18.0 + 1e-9))
