@@ -7,34 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cad_io.distance import distance_to_part
+from cad_io.distance import distance_to_part, occ_distance as _occ_distance
 from cad_io.sampler import sample_points
 from cad_io.step import read_step
 
 DATA = Path(__file__).resolve().parents[2] / "data"
-
-
-def _occ_distance(shape, pts):
-    from OCP.BRep import BRep_Builder
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
-    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
-    from OCP.gp import gp_Pnt
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS_Compound
-
-    comp = TopoDS_Compound()
-    bb = BRep_Builder()
-    bb.MakeCompound(comp)  # the faces, not the solid: a point inside a solid is at 0 from it
-    ex = TopExp_Explorer(shape, TopAbs_FACE)
-    while ex.More():
-        bb.Add(comp, ex.Current())
-        ex.Next()
-    out = []
-    for p in pts:
-        v = BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, p))).Vertex()
-        out.append(BRepExtrema_DistShapeShape(v, comp).Value())
-    return np.array(out)
 
 
 def _near_surface(part, n, seed):
