@@ -195,14 +195,19 @@ def refine_cmd(zmap_path, part_path, tol, method, output) -> None:
 
 
 def _steep(part, x, y, h0, deflection: float, step: float = 0.01, max_slope: float = 1.0) -> np.ndarray:
-    """True where the exact surface is steeper than ``max_slope`` (or jumps) within ``step``."""
+    """True where the exact surface is steeper than ``max_slope``, or jumps, within ``step``.
+
+    Probes the four directions +-x, +-y: a point within ``step`` of a wall on any side
+    counts as steep (the models may place a wall up to the tolerance off).
+    """
     from cad_io.sampler import sample_points
 
-    hx = sample_points(part, x + step, y, deflection=deflection)[0]
-    hy = sample_points(part, x, y + step, deflection=deflection)[0]
-    with np.errstate(invalid="ignore"):
-        slope = np.hypot(hx - h0, hy - h0) / step
-    return ~(slope <= max_slope)
+    steep = np.zeros(np.shape(x), dtype=bool)
+    for ox, oy in ((step, 0.0), (-step, 0.0), (0.0, step), (0.0, -step)):
+        h = sample_points(part, x + ox, y + oy, deflection=deflection)[0]
+        with np.errstate(invalid="ignore"):
+            steep |= ~(np.abs(h - h0) / step <= max_slope)
+    return steep
 
 
 def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed: int = 0,
@@ -234,7 +239,7 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
     ys = rng.uniform(y0, y1, n_points)
     defl = tol / 10.0
     zex = sample_points(part, xs, ys, deflection=defl)[0]
-    steep = _steep(part, xs, ys, zex, defl)
+    steep = _steep(part, xs, ys, zex, defl, step=tol)
     nx_f = int(math.floor((x1 - x0) / tol + 1e-9)) + 1
     ny_f = int(math.floor((y1 - y0) / tol + 1e-9)) + 1
     rows = {}
