@@ -66,33 +66,10 @@ def count_pairs(nodes, tris, tri_margin, x0, y0, dx, dy, nx, ny, counts):
     mesh deflection on triangles at a face's mesh boundary, whose polygon may cut inside
     the true (curved) boundary; 0 elsewhere.
     """
+    no_i = np.empty(0, dtype=np.int64)
+    no_w = np.empty((0, 2))
     for t in prange(tris.shape[0]):
-        a = tris[t, 0]
-        b = tris[t, 1]
-        c = tris[t, 2]
-        ax = nodes[a, 0]
-        ay = nodes[a, 1]
-        bx = nodes[b, 0]
-        by = nodes[b, 1]
-        cx = nodes[c, 0]
-        cy = nodes[c, 1]
-        area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
-        l2 = max((bx - ax) ** 2 + (by - ay) ** 2, max((cx - ax) ** 2 + (cy - ay) ** 2, (cx - bx) ** 2 + (cy - by) ** 2))
-        n = 0
-        if abs(area) > _FLAT_EPS * l2 and area == area:
-            inv = 1.0 / area
-            mg = tri_margin[t]
-            l0, l1, l2_ = _bary_limits(ax, ay, bx, by, cx, cy, area, mg)
-            i0, i1, j0, j1 = _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, mg)
-            for i in range(i0, i1 + 1):
-                px = x0 + i * dx
-                for j in range(j0, j1 + 1):
-                    py = y0 + j * dy
-                    w1 = ((px - ax) * (cy - ay) - (cx - ax) * (py - ay)) * inv
-                    w2 = ((bx - ax) * (py - ay) - (px - ax) * (by - ay)) * inv
-                    if w1 >= l1 and w2 >= l2_ and 1.0 - w1 - w2 >= l0:
-                        n += 1
-        counts[t] = n
+        counts[t] = _scan_grid_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, 0, no_i, no_i, no_w, False)
 
 
 @njit(cache=True, parallel=True)
@@ -104,36 +81,46 @@ def fill_pairs(nodes, tris, tri_margin, t0, offsets, x0, y0, dx, dy, nx, ny, gid
     ``w`` (P, 2) float64 = weights of the triangle's 2nd and 3rd node.
     """
     for tt in prange(offsets.shape[0] - 1):
-        t = t0 + tt
-        p = offsets[tt]
-        if offsets[tt + 1] == p:
+        if offsets[tt + 1] == offsets[tt]:
             continue
-        a = tris[t, 0]
-        b = tris[t, 1]
-        c = tris[t, 2]
-        ax = nodes[a, 0]
-        ay = nodes[a, 1]
-        bx = nodes[b, 0]
-        by = nodes[b, 1]
-        cx = nodes[c, 0]
-        cy = nodes[c, 1]
-        area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
-        inv = 1.0 / area
-        mg = tri_margin[t]
-        l0, l1, l2_ = _bary_limits(ax, ay, bx, by, cx, cy, area, mg)
-        i0, i1, j0, j1 = _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, mg)
-        for i in range(i0, i1 + 1):
-            px = x0 + i * dx
-            for j in range(j0, j1 + 1):
-                py = y0 + j * dy
-                w1 = ((px - ax) * (cy - ay) - (cx - ax) * (py - ay)) * inv
-                w2 = ((bx - ax) * (py - ay) - (px - ax) * (by - ay)) * inv
-                if w1 >= l1 and w2 >= l2_ and 1.0 - w1 - w2 >= l0:
-                    gidx[p] = i * ny + j
-                    tri[p] = t
-                    w[p, 0] = w1
-                    w[p, 1] = w2
-                    p += 1
+        _scan_grid_tri(nodes, tris, tri_margin, t0 + tt, x0, y0, dx, dy, nx, ny, offsets[tt], gidx, tri, w, True)
+
+
+@njit(cache=True)
+def _scan_grid_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, p, gidx, tri, w, fill):
+    """Count (``fill`` False) or write from ``p`` (``fill`` True) the grid points in triangle ``t``."""
+    a = tris[t, 0]
+    b = tris[t, 1]
+    c = tris[t, 2]
+    ax = nodes[a, 0]
+    ay = nodes[a, 1]
+    bx = nodes[b, 0]
+    by = nodes[b, 1]
+    cx = nodes[c, 0]
+    cy = nodes[c, 1]
+    area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
+    l2 = max((bx - ax) ** 2 + (by - ay) ** 2, max((cx - ax) ** 2 + (cy - ay) ** 2, (cx - bx) ** 2 + (cy - by) ** 2))
+    if not (abs(area) > _FLAT_EPS * l2 and area == area):
+        return 0  # vertical (or degenerate) in xy: covers no grid point
+    inv = 1.0 / area
+    mg = tri_margin[t]
+    l0, l1, l2_ = _bary_limits(ax, ay, bx, by, cx, cy, area, mg)
+    i0, i1, j0, j1 = _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, mg)
+    n = 0
+    for i in range(i0, i1 + 1):
+        px = x0 + i * dx
+        for j in range(j0, j1 + 1):
+            py = y0 + j * dy
+            w1 = ((px - ax) * (cy - ay) - (cx - ax) * (py - ay)) * inv
+            w2 = ((bx - ax) * (py - ay) - (px - ax) * (by - ay)) * inv
+            if w1 >= l1 and w2 >= l2_ and 1.0 - w1 - w2 >= l0:
+                if fill:
+                    gidx[p + n] = i * ny + j
+                    tri[p + n] = t
+                    w[p + n, 0] = w1
+                    w[p + n, 1] = w2
+                n += 1
+    return n
 
 
 @njit(cache=True)
