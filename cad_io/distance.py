@@ -74,9 +74,10 @@ class _Index:
         spacing = max(SPACING, math.sqrt(2.0 * area / MAX_SAMPLES))
         xyz, uv, tri = _spread(nodes, fs.uv, tris, spacing)
         face = fs.tri_face[tri]
-        # one sample per face and place: nodes shared by many triangles would crowd out
-        # the other faces from a point's nearest neighbours
-        key = np.ascontiguousarray(np.c_[face, np.round(xyz / (1e-6 * spacing))].astype(np.int64))
+        # one sample per face and cell of half the spacing: a densely meshed face (or nodes
+        # shared by many triangles) would otherwise fill a point's nearest neighbours and
+        # crowd out the face that is truly nearest (seen on the pocket's corner tori)
+        key = np.ascontiguousarray(np.c_[face, np.floor(xyz / (0.5 * spacing))].astype(np.int64))
         _, first = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize * 4))).ravel(), return_index=True)
         self.xyz, self.uv, self.tri, self.face = xyz[first], uv[first], tri[first], face[first]
         self.tree = cKDTree(self.xyz)

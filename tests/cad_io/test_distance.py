@@ -51,3 +51,13 @@ def test_on_surface_is_zero_and_nan_rows():
     assert np.isnan(d[2])
     with pytest.raises(ValueError, match="shape"):
         distance_to_part(part, np.zeros((3, 2)))
+
+
+def test_dense_face_does_not_crowd_out_the_nearest_one():
+    # Beside the pocket's corner torus a floor-fillet cylinder is meshed far more densely;
+    # its samples used to fill all the nearest neighbours and the distance came out 0.044
+    # where OCC gives 0.00038.
+    part = read_step(DATA / "pocket.step")
+    pts = np.array([[22.0441, 18.498, 15.4013], [-28.8087, 12.0374, 15.6071]])
+    d = distance_to_part(part, pts, deflection=0.002)
+    np.testing.assert_allclose(d, _occ_distance(part.shape, pts), atol=1e-6)
