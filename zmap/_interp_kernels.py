@@ -97,17 +97,35 @@ def _slope(z, i, j, di, dj, h, nx, ny, tangent, boundary):
         zp2 = _height(z, i + 2 * di, j + 2 * dj, nx, ny)
         if math.isnan(zp2):
             return (zp1 - z0) / h
+        parab = (-3.0 * z0 + 4.0 * zp1 - zp2) / (2.0 * h)
         if tangent == TANGENT_CIRCLE:
-            return _circle_tangent_slope(h, zp1 - z0, 2.0 * h, zp2 - z0)
-        return (-3.0 * z0 + 4.0 * zp1 - zp2) / (2.0 * h)
+            return _bounded_end_slope(_circle_tangent_slope(h, zp1 - z0, 2.0 * h, zp2 - z0), (zp1 - z0) / h, parab)
+        return parab
     if has_m:
         zm2 = _height(z, i - 2 * di, j - 2 * dj, nx, ny)
         if math.isnan(zm2):
             return (z0 - zm1) / h
+        parab = (3.0 * z0 - 4.0 * zm1 + zm2) / (2.0 * h)
         if tangent == TANGENT_CIRCLE:
-            return _circle_tangent_slope(-h, zm1 - z0, -2.0 * h, zm2 - z0)
-        return (3.0 * z0 - 4.0 * zm1 + zm2) / (2.0 * h)
+            return _bounded_end_slope(_circle_tangent_slope(-h, zm1 - z0, -2.0 * h, zm2 - z0), (z0 - zm1) / h, parab)
+        return parab
     return 0.0
+
+
+@njit(cache=True, inline="always")
+def _bounded_end_slope(circle, secant, parab):
+    """The circle's tangent at an end point, unless it leaves the band [0, 3] x the secant.
+
+    A circle through three steep heights can have a nearly vertical (or backward) tangent at
+    its end point, and the non-parametric cubic would then overshoot by orders of
+    magnitude. Slopes between 0 and 3 times the secant keep the cubic monotone across the
+    cell (Fritsch and Carlson); outside that band the parabola's end slope is used.
+    """
+    if secant != 0.0:
+        r = circle / secant
+        if r >= 0.0 and r <= 3.0:
+            return circle
+    return parab
 
 
 @njit(cache=True, inline="always")

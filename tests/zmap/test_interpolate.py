@@ -128,3 +128,20 @@ def test_bad_options_name_the_value():
         evaluate(zm, 1, 1, scheme="cubic")
     with pytest.raises(TypeError, match="ZMap"):
         bezier(np.zeros((3, 3)), 1, 1)
+
+
+def test_one_sided_circle_tangent_next_to_a_hole_does_not_overshoot():
+    # Heights from trj8_b1-ec-214.stp beside an empty region: the circle through the three
+    # steep heights 4.8, 17.7, 23.1 has a near-vertical tangent at 4.8, and the Bezier cubic
+    # used to reach 1056 mm inside a cell whose corners lie between 4.8 and 23.5.
+    z = np.array([[np.nan, np.nan, 10.07316167, 22.3024254],
+                  [np.nan, 4.79900634, 17.74701516, 23.0983555],
+                  [np.nan, 12.80438684, 22.88879471, 23.52141674],
+                  [7.73988094, 19.23411314, 23.51642051, 23.83803887]])
+    zm = ZMap(0.0, 0.0, 0.5, 0.5, z)
+    g = np.linspace(0.0, 1.0, 41)
+    X, Y = np.meshgrid(0.5 + 0.5 * g, 0.5 + 0.5 * g, indexing="ij")  # cell (1, 1)
+    for tangent in ("circle", "central", "quartic"):
+        h = bezier(zm, X, Y, tangent=tangent)
+        assert np.isfinite(h).all()
+        assert h.min() >= 4.79900634 - 2.0 and h.max() <= 22.88879471 + 2.0, tangent
