@@ -144,20 +144,11 @@ def point_in_loops(u, v, loop_uv, loop_off, first, last, eps):
                 mb = 0
             ub = loop_uv[s + mb, 0]
             vb = loop_uv[s + mb, 1]
-            eu = ub - ua
-            ev = vb - va
-            ll = eu * eu + ev * ev
-            s_ = 0.0
-            if ll > 0.0:
-                s_ = min(max(((u - ua) * eu + (v - va) * ev) / ll, 0.0), 1.0)
-            du_ = u - (ua + s_ * eu)
-            dv_ = v - (va + s_ * ev)
-            if du_ * du_ + dv_ * dv_ <= eps2:
+            hit = _edge_test(u, v, ua, va, ub, vb, eps2)
+            if hit == 2:
                 return True
-            if (va > v) != (vb > v):
-                ux = ua + (v - va) * (ub - ua) / (vb - va)
-                if u < ux:
-                    inside = not inside
+            if hit == 1:
+                inside = not inside
     return inside
 
 
@@ -182,21 +173,33 @@ def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps)
         va = edges[e, 1]
         ub = edges[e, 2]
         vb = edges[e, 3]
-        eu = ub - ua
-        ev = vb - va
-        ll = eu * eu + ev * ev
-        s_ = 0.0
-        if ll > 0.0:
-            s_ = min(max(((u - ua) * eu + (v - va) * ev) / ll, 0.0), 1.0)
-        du_ = u - (ua + s_ * eu)
-        dv_ = v - (va + s_ * ev)
-        if du_ * du_ + dv_ * dv_ <= eps2:
+        hit = _edge_test(u, v, ua, va, ub, vb, eps2)
+        if hit == 2:
             return True
-        if (va > v) != (vb > v):
-            ux = ua + (v - va) * (ub - ua) / (vb - va)
-            if u < ux:
-                inside = not inside
+        if hit == 1:
+            inside = not inside
     return inside
+
+
+@njit(cache=True, inline="always")
+def _edge_test(u, v, ua, va, ub, vb, eps2):
+    """One loop edge against (u, v): 2 if the point is within sqrt(eps2) of the edge, 1 if
+    the edge crosses the ray from the point towards +u (even-odd rule), else 0."""
+    eu = ub - ua
+    ev = vb - va
+    ll = eu * eu + ev * ev
+    s_ = 0.0
+    if ll > 0.0:
+        s_ = min(max(((u - ua) * eu + (v - va) * ev) / ll, 0.0), 1.0)
+    du_ = u - (ua + s_ * eu)
+    dv_ = v - (va + s_ * ev)
+    if du_ * du_ + dv_ * dv_ <= eps2:
+        return 2
+    if (va > v) != (vb > v):
+        ux = ua + (v - va) * (ub - ua) / (vb - va)
+        if u < ux:
+            return 1
+    return 0
 
 
 @njit(cache=True)
