@@ -86,9 +86,11 @@ def fill_pairs(nodes, tris, tri_margin, t0, offsets, x0, y0, dx, dy, nx, ny, gid
         _scan_grid_tri(nodes, tris, tri_margin, t0 + tt, x0, y0, dx, dy, nx, ny, offsets[tt], gidx, tri, w, True)
 
 
-@njit(cache=True)
-def _scan_grid_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, p, gidx, tri, w, fill):
-    """Count (``fill`` False) or write from ``p`` (``fill`` True) the grid points in triangle ``t``."""
+@njit(cache=True, inline="always")
+def _tri_xy(nodes, tris, t):
+    """xy of triangle ``t``'s corners and twice its signed xy area; the area is 0 where the
+    triangle is vertical or degenerate in xy (below ``_FLAT_EPS`` of its squared longest
+    edge, or NaN)."""
     a = tris[t, 0]
     b = tris[t, 1]
     c = tris[t, 2]
@@ -101,6 +103,15 @@ def _scan_grid_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, p, gidx, 
     area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
     l2 = max((bx - ax) ** 2 + (by - ay) ** 2, max((cx - ax) ** 2 + (cy - ay) ** 2, (cx - bx) ** 2 + (cy - by) ** 2))
     if not (abs(area) > _FLAT_EPS * l2 and area == area):
+        area = 0.0
+    return ax, ay, bx, by, cx, cy, area
+
+
+@njit(cache=True)
+def _scan_grid_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, p, gidx, tri, w, fill):
+    """Count (``fill`` False) or write from ``p`` (``fill`` True) the grid points in triangle ``t``."""
+    ax, ay, bx, by, cx, cy, area = _tri_xy(nodes, tris, t)
+    if area == 0.0:
         return 0  # vertical (or degenerate) in xy: covers no grid point
     inv = 1.0 / area
     mg = tri_margin[t]
@@ -432,20 +443,10 @@ def fill_pairs_xy(nodes, tris, tri_margin, t0, offsets, px, py, bx0, by0, bh, nb
 @njit(cache=True)
 def _scan_tri(nodes, tris, tri_margin, t, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, p, gidx, tri, w, fill):
     """Count (``fill`` False) or write from ``p`` (``fill`` True) the points inside triangle ``t``."""
-    a = tris[t, 0]
-    b = tris[t, 1]
-    c = tris[t, 2]
-    ax = nodes[a, 0]
-    ay = nodes[a, 1]
-    bx = nodes[b, 0]
-    by = nodes[b, 1]
-    cx = nodes[c, 0]
-    cy = nodes[c, 1]
-    area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
-    l2 = max((bx - ax) ** 2 + (by - ay) ** 2, max((cx - ax) ** 2 + (cy - ay) ** 2, (cx - bx) ** 2 + (cy - by) ** 2))
+    ax, ay, bx, by, cx, cy, area = _tri_xy(nodes, tris, t)
     n = 0
-    if not (abs(area) > _FLAT_EPS * l2 and area == area):
-        return 0
+    if area == 0.0:
+        return 0  # vertical (or degenerate) in xy: covers no point
     inv = 1.0 / area
     mg = tri_margin[t]
     l0, l1, l2_ = _bary_limits(ax, ay, bx, by, cx, cy, area, mg)
