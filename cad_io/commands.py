@@ -216,35 +216,88 @@ def _steep(part, x, y, h0, deflection: float, step: float = 0.01, max_slope: flo
     return steep
 
 
+#: report_rows: default mesh deflection of the reference heights, as a share of the tolerance
+#: (the same as refine_models', so one meshed face set serves the models and the reference)
+REPORT_DEFLECTION_SHARE = 0.5
+#: report_rows: default mesh deflection of the 3D distances, as a share of the tolerance
+REPORT_DISTANCE_DEFLECTION_SHARE = 0.5
+
+
 def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed: int = 0,
-                methods=("ez", "cz"), models: dict | None = None, base=None) -> dict:
+                methods=("ez", "cz"), models: dict | None = None, base=None,
+                deflection: float | None = None, distance_deflection: float | None = None) -> dict:
     """Accuracy and memory of the base z-map and its EZ and CZ models (a Table 2 analogue).
+
+    Parameters
+    ----------
+    part : cad_io.Part
+        The exact surface, in the view frame of ``base`` (see :func:`view_part`).
+    grid : float
+        Base grid interval in mm (used when ``base`` is None).
+    tol : float
+        Tolerance in mm, below the grid interval.
+    n_points, seed : int
+        Random query points, uniform over the base's domain, and the seed of their generator.
+    methods : sequence of {'ez', 'cz'}
+        Models to build when ``models`` is None.
+    models : dict, optional
+        ``{method: (PrecisionModel, info)}`` from :func:`refine_models`, built here if None.
+    base : ZMap, optional
+        The base z-map, sampled here at ``grid`` if None.
+    deflection : float, optional
+        Mesh deflection (mm) of the exact reference heights (and of the models built here);
+        default ``tol / 2``, as :func:`refine_models`, so that both use one meshed face set.
+        The mesh only gives the Jacobian inversion its starts, whose heights are exact
+        whatever the deflection; only points answered by facets (where the inversion failed)
+        are off by up to the deflection. They are counted in ``reference_facet_points``.
+    distance_deflection : float, optional
+        Mesh deflection (mm) of the KD-tree and fallback of :func:`cad_io.distance_to_part`;
+        default ``tol / 2`` (no second meshing of the part). Exact NURBS feet do not depend
+        on it; a distance measured to the mesh may under-report by up to it, so every point
+        whose distance plus that slack exceeds ``tol / 2`` is measured again by OCC: above
+        ``tol / 2`` the figures are exact (up to 2000 points a model), below it they are
+        within the deflection.
 
     Returns
     -------
     dict
-        ``grid``, ``tol``, ``points``, ``plain_fine_bytes`` (a plain z-map at the e-map
-        interval, computed) and ``rows``: for ``base``, ``ez``, ``cz`` the memory in bytes
-        (``zmap``, ``extra``, ``total``), the e-map ratio, the largest vertical deviation
-        where the surface is not steep, the largest 3D distance to the B-rep everywhere,
-        and (CZ) inside the CZ domains.
+        ``grid``, ``tol``, ``points``, ``deflection``, ``distance_deflection``,
+        ``reference_facet_points`` and ``reference_empty_points`` (random points whose
+        reference height came from facets, or that have none), ``plain_fine_bytes`` (a plain
+        z-map at the e-map interval, computed) and ``rows``: for ``base``, ``ez``, ``cz`` the
+        memory in bytes (``zmap``, ``extra``, ``total``), the e-map ratio, the largest
+        vertical deviation where the surface is not steep, the largest 3D distance to the
+        B-rep everywhere, and (CZ) inside the CZ domains.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> import cad_io
+    >>> part = cad_io.read_step(Path(cad_io.__file__).parents[1] / "data" / "boss.step")
+    >>> rep = report_rows(part, 1.0, 0.05, n_points=500, methods=("ez",))
+    >>> sorted(rep["rows"]), rep["deflection"], rep["reference_facet_points"]
+    (['base', 'ez'], 0.025, 0)
     """
     from cad_io.distance import confirm_with_occ, distance_to_part
-    from cad_io.sampler import sample, sample_points
+    from cad_io.sampler import FACET, sample, sample_points
     from zmap.model import PrecisionModel
 
     if base is None:
         base = sample(part, grid)
     _check_tol(tol, base)
+    defl = tol * REPORT_DEFLECTION_SHARE if deflection is None else float(deflection)
+    ddefl = tol * REPORT_DISTANCE_DEFLECTION_SHARE if distance_deflection is None else float(distance_deflection)
+    for name, v in (("deflection", defl), ("distance_deflection", ddefl)):
+        if not (v > 0 and math.isfinite(v)):
+            raise ValueError(f"{name} must be a positive number of mm, got {v!r}")
     if models is None:
-        models = refine_models(part, base, tol, methods)
+        models = refine_models(part, base, tol, methods, deflection=defl)
     all_models = {"base": (PrecisionModel(base), {})} | dict(models)
     rng = np.random.default_rng(seed)
     x0, y0, x1, y1 = base.bounds
     xs = rng.uniform(x0, x1, n_points)
     ys = rng.uniform(y0, y1, n_points)
-    defl = tol / 10.0
-    zex = sample_points(part, xs, ys, deflection=defl)[0]
+    zex, _face, how = sample_points(part, xs, ys, deflection=defl)
     steep = _steep(part, xs, ys, zex, defl, step=tol)
     nx_f = int(math.floor((x1 - x0) / tol + 1e-9)) + 1
     ny_f = int(math.floor((y1 - y0) / tol + 1e-9)) + 1
@@ -254,8 +307,9 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
         ok = np.isfinite(h)
         d = np.full(n_points, np.nan)
         pts = np.c_[xs[ok], ys[ok], h[ok]]
-        d[ok], n_occ, n_unchecked = confirm_with_occ(part, pts, distance_to_part(part, pts, deflection=defl / 2),
-                                                     above=tol / 2)
+        dist, exact = distance_to_part(part, pts, deflection=ddefl, return_exact=True)
+        # a mesh distance may under-report by up to the deflection: those near tol/2 go to OCC too
+        d[ok], n_occ, n_unchecked = confirm_with_occ(part, pts, dist, above=tol / 2, slack=np.where(exact, 0.0, ddefl))
         flat = ok & np.isfinite(zex) & ~steep
         nb = model.nbytes
         row = {"zmap_bytes": nb["base"], "extra_bytes": nb["cz"] + nb["ez"], "total_bytes": nb["total"],
@@ -265,7 +319,8 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
                "max_dist": float(np.nanmax(d)) if ok.any() else None,
                "p999_dist": float(np.nanpercentile(d, 99.9)) if ok.any() else None,
                "points_with_height": int(ok.sum()), "points_flat": int(flat.sum()),
-               "occ_confirmed": n_occ, "above_half_tol_unconfirmed": n_unchecked}
+               "occ_confirmed": n_occ, "above_half_tol_unconfirmed": n_unchecked,
+               "mesh_distance_points": int(np.count_nonzero(~exact))}
         if model.cz:
             inside = model.source(xs, ys) == 2
             row["cz_points"] = int(inside.sum())
@@ -275,7 +330,10 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
             row["build_seconds"] = info["seconds"]
         rows[name] = row
     return {"part": str(getattr(part, "source", "")), "grid": float(base.dx), "tol": float(tol),
-            "points": n_points, "plain_fine_bytes": nx_f * ny_f * 8, "plain_fine_shape": [nx_f, ny_f], "rows": rows}
+            "points": n_points, "deflection": defl, "distance_deflection": ddefl,
+            "reference_facet_points": int(np.count_nonzero(how == FACET)),
+            "reference_empty_points": int(np.count_nonzero(how == 0)),
+            "plain_fine_bytes": nx_f * ny_f * 8, "plain_fine_shape": [nx_f, ny_f], "rows": rows}
 
 
 def format_report(rep: dict) -> str:
@@ -299,6 +357,10 @@ def format_report(rep: dict) -> str:
                  "first, measured again by OCC BRepExtrema: " + ", ".join(
                      f"{name} {r['occ_confirmed']} (left {r['above_half_tol_unconfirmed']})"
                      for name, r in rep["rows"].items()))
+    if "deflection" in rep:
+        lines.append(f"Mesh deflection {rep['deflection']:g} mm (heights), {rep['distance_deflection']:g} mm "
+                     f"(distances); reference heights from facets where the Jacobian inversion failed: "
+                     f"{rep['reference_facet_points']:,} of {rep['points']:,} points")
     return "\n".join(lines)
 
 
@@ -310,8 +372,11 @@ def format_report(rep: dict) -> str:
 @click.option("--seed", default=0, show_default=True, type=int)
 @click.option("--method", "methods", multiple=True, type=click.Choice(["ez", "cz"]),
               help="Refinements to build (repeatable); default both.")
+@click.option("--deflection", type=float, default=None, metavar="MM",
+              help="Mesh deflection of the sampled heights and of the distance index (default tol/2): "
+                   "Newton heights and NURBS feet are exact whatever it is; smaller is slower.")
 @click.option("--format", "fmt", type=click.Choice(["markdown", "json"]), default="markdown", show_default=True)
-def report_cmd(part_path, grid, tol, points, seed, methods, fmt) -> None:
+def report_cmd(part_path, grid, tol, points, seed, methods, deflection, fmt) -> None:
     """Memory and accuracy of the base z-map, the CZ model and the EZ model (paper 004 Table 2)."""
     import json
     import os
@@ -328,9 +393,12 @@ def report_cmd(part_path, grid, tol, points, seed, methods, fmt) -> None:
     if not (0 < tol < grid):
         raise click.BadParameter(f"tolerance {tol:g} mm must be positive and smaller than the grid interval "
                                  f"{grid:g} mm", param_hint="--tol")
+    if deflection is not None and not (deflection > 0 and math.isfinite(deflection)):
+        raise click.BadParameter(f"must be a positive number of mm, got {deflection!r}", param_hint="--deflection")
     part = read_step(part_path)
     if not part.faces:
         raise StepImportError(f"{part_path}: no faces in the file")
-    rep = report_rows(part, grid, tol, n_points=points, seed=seed, methods=methods or ("ez", "cz"))
+    rep = report_rows(part, grid, tol, n_points=points, seed=seed, methods=methods or ("ez", "cz"),
+                      deflection=deflection, distance_deflection=deflection)
     rep["part"] = os.path.basename(part_path)
     click.echo(json.dumps(rep, indent=1) if fmt == "json" else format_report(rep))

@@ -32,26 +32,50 @@ SPACING = 0.15
 MAX_SAMPLES = 3_000_000
 
 
+def _lattice(n: int, m: int) -> np.ndarray:
+    """Barycentric weights (k, 3) of a lattice on a triangle ``n`` steps along its base, ``m`` up.
+
+    Row ``j`` (``t = j / m`` of the way from the base A-B to the apex C) holds
+    ``ceil((1 - t) * n) + 1`` points evenly spaced, so the count grows with the area,
+    ``~ n * m / 2``, not with the square of the longest edge.
+    """
+    rows = []
+    for j in range(m + 1):
+        t = j / m
+        k = int(math.ceil((1.0 - t) * n - 1e-9))
+        s = np.linspace(0.0, 1.0, k + 1) if k > 0 else np.zeros(1)
+        rows.append(np.c_[(1.0 - t) * (1.0 - s), (1.0 - t) * s, np.full(len(s), t)])
+    return np.concatenate(rows)
+
+
 def _spread(nodes: np.ndarray, uv: np.ndarray, tris: np.ndarray, spacing: float) -> tuple[np.ndarray, ...]:
-    """Points on every triangle at most ``spacing`` apart: xyz, uv and triangle index."""
+    """Points on every triangle at most about ``spacing`` apart: xyz, uv and triangle index.
+
+    Each triangle gets a lattice ``n`` steps along its longest edge and ``m`` steps across
+    (its height over that edge). A lattice of ``n`` steps both ways would give a long
+    sliver ``~ n^2 / 2`` points: cylinders meshed at 0.5 um are such slivers, and
+    bug27453_165-174_piattello then took 183 M samples (14.7 GB) for 3 M wanted.
+    """
     a, b, c = nodes[tris[:, 0]], nodes[tris[:, 1]], nodes[tris[:, 2]]
-    longest = np.max(np.stack([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
-                               np.linalg.norm(a - c, axis=1)]), axis=0)
-    level = np.clip(np.ceil(longest / spacing), 1, 200).astype(np.int64)
+    lens = np.stack([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1), np.linalg.norm(a - c, axis=1)])
+    longest = np.argmax(lens, axis=0)
+    # vertices reordered so that edge 0-1 is the longest (the base) and 2 the apex
+    order = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1]])[longest]
+    t3 = np.take_along_axis(tris, order, axis=1)
+    base = lens[longest, np.arange(len(tris))]
+    area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    height = np.divide(area2, base, out=np.zeros_like(area2), where=base > 0)
+    n = np.clip(np.ceil(base / spacing), 1, 200).astype(np.int64)
+    m = np.clip(np.ceil(height / spacing), 1, 200).astype(np.int64)
+    group = n * 256 + m
     xyz_l, uv_l, tri_l = [], [], []
-    for n in np.unique(level):
-        sel = np.flatnonzero(level == n)
-        i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
-        keep = (i + j) <= n
-        w1 = (i[keep] / n)[None, :, None]
-        w2 = (j[keep] / n)[None, :, None]
-        w0 = 1.0 - w1 - w2
-        t = tris[sel]
-        xyz_l.append((w0 * nodes[t[:, 0]][:, None] + w1 * nodes[t[:, 1]][:, None]
-                      + w2 * nodes[t[:, 2]][:, None]).reshape(-1, 3))
-        uv_l.append((w0 * uv[t[:, 0]][:, None] + w1 * uv[t[:, 1]][:, None]
-                     + w2 * uv[t[:, 2]][:, None]).reshape(-1, 2))
-        tri_l.append(np.repeat(sel, int(keep.sum())))
+    for g in np.unique(group):
+        sel = np.flatnonzero(group == g)
+        w = _lattice(int(g // 256), int(g % 256))
+        t = t3[sel]
+        xyz_l.append(np.einsum("kc,tcd->tkd", w, nodes[t]).reshape(-1, 3))
+        uv_l.append(np.einsum("kc,tcd->tkd", w, uv[t]).reshape(-1, 2))
+        tri_l.append(np.repeat(sel, len(w)))
     return np.concatenate(xyz_l), np.concatenate(uv_l), np.concatenate(tri_l)
 
 
@@ -127,7 +151,7 @@ def distance_to_part(part: Part, points: Any, *, deflection: float | None = None
     >>> import cad_io
     >>> part = cad_io.read_step(Path(cad_io.__file__).parents[1] / "data" / "pocket.step")
     >>> distance_to_part(part, [[0.0, 0.0, 16.0], [0.0, 0.0, 35.0]]).round(9).tolist()
-    [1.0, 5.0]
+    [1.0, 20.0]
     """
     from . import _sample_kernels as K
 
@@ -212,7 +236,7 @@ def occ_distance(shape: Any, points: Any) -> np.ndarray:
     return np.array(out, dtype=np.float64)
 
 
-def confirm_with_occ(part: Part, points: Any, dist: np.ndarray, *, above: float,
+def confirm_with_occ(part: Part, points: Any, dist: np.ndarray, *, above: float, slack: Any = 0.0,
                      max_points: int = 2000) -> tuple[np.ndarray, int, int]:
     """Replace the largest distances above ``above`` by OCC's exact ones.
 
@@ -220,6 +244,22 @@ def confirm_with_occ(part: Part, points: Any, dist: np.ndarray, *, above: float,
     (it then measures to a farther face or the mesh). A report's maximum must not rest on
     that, so the points above the threshold, largest first, up to ``max_points``, are
     measured again with :func:`occ_distance`.
+
+    ``slack`` (mm, scalar or per point) is how far a distance may under-report: a point
+    counts as above the threshold where ``dist + slack > above``. Pass the mesh deflection
+    where :func:`distance_to_part` answered from the mesh (``return_exact``) and 0 where
+    from an exact foot (which never under-reports), and every point truly farther than
+    ``above`` is measured by OCC, whatever the deflection.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> import cad_io
+    >>> part = cad_io.read_step(Path(cad_io.__file__).parents[1] / "data" / "pocket.step")
+    >>> d, n_occ, n_left = confirm_with_occ(part, [[0.0, 0.0, 16.0], [0.0, 0.0, 15.0]], [0.9, 0.0],
+    ...                                     above=0.5)
+    >>> d.round(9).tolist(), n_occ, n_left
+    ([1.0, 0.0], 1, 0)
 
     Returns
     -------
@@ -231,10 +271,11 @@ def confirm_with_occ(part: Part, points: Any, dist: np.ndarray, *, above: float,
         Points above the threshold left unchecked (``max_points`` reached).
     """
     dist = np.array(dist, dtype=np.float64, copy=True)
+    upper = np.nan_to_num(dist + np.broadcast_to(np.asarray(slack, dtype=np.float64), dist.shape), nan=-np.inf)
     if part.shape is None:
-        return dist, 0, int(np.sum(dist > above))
-    over = np.flatnonzero(np.nan_to_num(dist, nan=-np.inf) > above)
-    over = over[np.argsort(-dist[over])]
+        return dist, 0, int(np.sum(upper > above))
+    over = np.flatnonzero(upper > above)
+    over = over[np.argsort(-upper[over], kind="stable")]
     check = over[:max_points]
     if check.size:
         dist[check] = occ_distance(part.shape, np.asarray(points, dtype=np.float64)[check])

@@ -559,7 +559,10 @@ def _cached_face_set(part: Part, deflection: float, axis: str) -> _FaceSet:
     """The part's :class:`_FaceSet` at ``deflection``, meshed once and kept on the part.
 
     The cache is keyed by deflection and axis and checked against the faces' current
-    meshes, so a later :func:`cad_io.triangulate` of the part rebuilds it.
+    meshes, so a later :func:`cad_io.triangulate` of the part rebuilds it. Only face sets
+    of the current meshes are kept: a face set holds every node and triangle of the part
+    (about 0.1 KB a triangle), and the entries of meshes replaced by a finer triangulation
+    would otherwise stay alive with the part.
     """
     cache = part.__dict__.setdefault(_CACHE_ATTR, {})
     key = (float(deflection), axis)
@@ -570,8 +573,11 @@ def _cached_face_set(part: Part, deflection: float, axis: str) -> _FaceSet:
         from .mesh import triangulate
 
         triangulate(part, deflection)
+    ids = tuple(id(f.mesh) for f in part.faces)
+    for k in [k for k, (mesh_ids, _) in cache.items() if mesh_ids != ids]:
+        del cache[k]
     fs = _face_set(transform_part(part, axis), deflection)
-    cache[key] = (tuple(id(f.mesh) for f in part.faces), fs)
+    cache[key] = (ids, fs)
     return fs
 
 

@@ -61,3 +61,34 @@ def test_dense_face_does_not_crowd_out_the_nearest_one():
     pts = np.array([[22.0441, 18.498, 15.4013], [-28.8087, 12.0374, 15.6071]])
     d = distance_to_part(part, pts, deflection=0.002)
     np.testing.assert_allclose(d, _occ_distance(part.shape, pts), atol=1e-6)
+
+
+def test_spread_grows_with_area_not_with_the_longest_edge():
+    # a 100 mm x 1 um sliver (a cylinder meshed at 0.5 um is made of them) used to get
+    # (n+1)(n+2)/2 = 20,301 samples at n = 200; a lattice along and across needs ~2n
+    from cad_io.distance import _spread
+
+    nodes = np.array([[0.0, 0.0, 0.0], [100.0, 0.0, 0.0], [50.0, 0.001, 0.0], [0.0, 10.0, 0.0]])
+    uv = nodes[:, :2].copy()
+    xyz, uv_s, tri = _spread(nodes, uv, np.array([[0, 1, 2]]), 0.5)
+    assert len(xyz) <= 2 * (200 + 1) + 1
+    np.testing.assert_allclose(uv_s, xyz[:, :2])  # uv carried with the same weights
+    # a fat triangle: every point of it within a spacing of a sample
+    xyz, _, tri = _spread(nodes, uv, np.array([[0, 1, 3]]), 0.5)
+    rng = np.random.default_rng(0)
+    w = rng.dirichlet(np.ones(3), 2000)
+    probe = w @ nodes[[0, 1, 3]]
+    gap = np.min(np.linalg.norm(probe[:, None, :] - xyz[None, :, :], axis=2), axis=1)
+    assert gap.max() <= 0.5
+    assert len(xyz) <= 2.5 * (0.5 * 100 * 10) / 0.5**2
+
+
+def test_confirm_with_occ_slack_sends_mesh_distances_near_the_threshold_to_occ():
+    from cad_io.distance import confirm_with_occ
+
+    part = read_step(DATA / "pocket.step")
+    pts = np.array([[0.0, 0.0, 15.004], [0.0, 0.0, 15.004]])
+    # both under-reported at 0.003 < 0.005; only the one flagged with a slack is re-measured
+    d, n_occ, n_left = confirm_with_occ(part, pts, np.array([0.003, 0.003]), above=0.005, slack=[0.0, 0.0025])
+    assert (n_occ, n_left) == (1, 0)
+    np.testing.assert_allclose(d, [0.003, 0.004], atol=1e-9)
