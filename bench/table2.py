@@ -6,9 +6,9 @@ chosen per part, and measures them with :func:`cad_io.commands.report_rows`. Eac
 in a child process under a time limit, so one slow or failing part is recorded (with its
 error message) and the run goes on. Progress goes to stderr; stdout gets one JSON object.
 
-Parts whose top is not +z are rotated into their view frame first (:func:`cad_io.view.
-transform_part`, and the OCP shape with the same rotation so that OCC's distance check
-measures in that frame too); ``zmap refine`` / ``zmap report`` themselves support +z only.
+Parts whose top is not +z are rotated into their view frame first (:func:`cad_io.view.view_part`:
+the NURBS, meshes and the OCP shape, so that OCC's distance check measures in that frame too),
+as ``zmap report --axis`` and ``zmap refine`` (on a z-map converted with ``--axis``) do.
 
     python bench/table2.py [--tol 0.01] [--points 100000] [--shared DIR] [--timeout 300]
                            [--only NAME ...] [--jobs N] [--markdown FILE]
@@ -60,32 +60,12 @@ def _default_plan(path: Path) -> dict:
     return {"grid": 0.5, "note": "no entry in PLAN: default 0.5 mm, +z"}
 
 
-def _rotated(part, axis: str):
-    """The part in the view frame of ``axis``, OCP shape included (for OCC's distance check)."""
-    import dataclasses
-
-    from cad_io.view import transform_part, view_matrix
-
-    if axis == "+z":
-        return part
-    vpart = transform_part(part, axis)
-    shape = part.shape
-    if shape is not None:
-        from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
-        from OCP.gp import gp_Trsf
-
-        R = view_matrix(axis)
-        t = gp_Trsf()
-        t.SetValues(*R[0], 0.0, *R[1], 0.0, *R[2], 0.0)
-        shape = BRepBuilderAPI_Transform(shape, t, True).Shape()
-    return dataclasses.replace(vpart, shape=shape)
-
-
 def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods: tuple) -> dict:
     """Report of one part (called in the child process)."""
     from cad_io.commands import refine_models, report_rows
     from cad_io.sampler import sample
     from cad_io.step import read_step
+    from cad_io.view import view_part
 
     t0 = time.perf_counter()
     part = read_step(path)
@@ -93,7 +73,7 @@ def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods
         raise ValueError("no faces in the file")
     if not any(f.surface is not None for f in part.faces):
         raise ValueError(NO_EXACT)
-    part = _rotated(part, axis)
+    part = view_part(part, axis)
     t_read = time.perf_counter() - t0
     base = sample(part, grid, progress=False) if _takes_progress() else sample(part, grid)
     t_base = time.perf_counter() - t0 - t_read
@@ -126,6 +106,8 @@ def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods
         "facet_points": {k: v.get("facet_points") for k, v in r.items() if k != "base"},
         "build_seconds": {k: v.get("build_seconds") for k, v in r.items() if k != "base"},
         "occ_confirmed": {k: [v["occ_confirmed"], v["above_half_tol_unconfirmed"]] for k, v in r.items()},
+        "deflection": [rep.get("deflection"), rep.get("distance_deflection")],
+        "reference_facet_points": rep.get("reference_facet_points"),
         "points_with_height": r["base"]["points_with_height"],
         "base_seconds": round(t_base, 2),
         "seconds": round(time.perf_counter() - t0, 2),

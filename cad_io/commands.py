@@ -7,6 +7,7 @@ imported inside the command, so ``zmap --help`` and ``zmap accuracy`` never load
 from __future__ import annotations
 
 import math
+import os
 
 import click
 import numpy as np
@@ -31,7 +32,6 @@ _AXES = ("+z", "-z", "+x", "-x", "+y", "-y")
 @click.option("--progress/--no-progress", default=True, show_default=True)
 def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progress) -> None:
     """Convert a STEP part to a master z-map (paper 004 §2.1) and save it."""
-    import os
     import time
     import warnings
 
@@ -92,6 +92,26 @@ class _CountingHeights:
         self.facet += int(np.count_nonzero(m == self._facet))
         self.empty += int(np.count_nonzero(m == 0))
         return z
+
+
+def _view_part_checked(part, axis: str, base, part_path: str):
+    """``part`` in the view frame of ``axis`` (:func:`cad_io.view.view_part`), checked against ``base``.
+
+    The refinement samples the part where the z-map lies: a z-map of another part, or of
+    this one seen along another axis, would find no surface, so a domain that misses the
+    part's extents seen from ``axis`` is an error.
+    """
+    from cad_io.view import view_part
+
+    vpart = view_part(part, axis)
+    px0, py0, _, px1, py1, _ = vpart.bbox
+    x0, y0, x1, y1 = base.bounds
+    if x1 < px0 or x0 > px1 or y1 < py0 or y0 > py1:
+        raise click.BadParameter(
+            f"the z-map's domain x {x0:g} .. {x1:g}, y {y0:g} .. {y1:g} misses {os.path.basename(part_path)} seen "
+            f"from {axis} (x {px0:g} .. {px1:g}, y {py0:g} .. {py1:g}): not the part or axis it was converted from",
+            param_hint="PART.zmap.npz")
+    return vpart
 
 
 def _check_tol(tol: float, base) -> None:
@@ -164,7 +184,6 @@ def refine_models(part, base, tol: float, methods=("ez", "cz"), *, theta_x: floa
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="PART.zpm to write.")
 def refine_cmd(zmap_path, part_path, tol, method, output) -> None:
     """Refine a master z-map by an EZ-map or CZ-maps sampled from the exact part (paper 004 §3)."""
-    import os
 
     from cad_io.step import read_step
     from zmap.errors import StepImportError
@@ -180,9 +199,10 @@ def refine_cmd(zmap_path, part_path, tol, method, output) -> None:
     if not part.faces:
         raise StepImportError(f"{part_path}: no faces in the file; {_NEEDS_PART}")
     axis = base.meta.get("axis", "+z")
-    if axis != "+z":
-        raise click.BadParameter(f"the z-map was sampled along axis {axis!r}; refine supports '+z' only",
+    if axis not in _AXES:
+        raise click.BadParameter(f"the z-map's axis {axis!r} is not one of {', '.join(_AXES)}",
                                  param_hint="PART.zmap.npz")
+    part = _view_part_checked(part, axis, base, part_path)
     model, info = refine_models(part, base, tol, (method,))[method]
     model.meta["source"] = os.path.basename(part_path)
     model.save(output)
@@ -231,7 +251,7 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
     Parameters
     ----------
     part : cad_io.Part
-        The exact surface, in the view frame of ``base`` (see :func:`view_part`).
+        The exact surface, in the view frame of ``base`` (see :func:`cad_io.view.view_part`).
     grid : float
         Base grid interval in mm (used when ``base`` is None).
     tol : float
@@ -340,7 +360,8 @@ def format_report(rep: dict) -> str:
     """Markdown table of :func:`report_rows`."""
     kb = lambda b: f"{b / 1024:,.1f}"  # noqa: E731
     f = lambda v, n=4: "-" if v is None else f"{v:.{n}f}"  # noqa: E731
-    lines = [f"part {rep['part']}: grid {rep['grid']:g} mm, tol {rep['tol']:g} mm, {rep['points']:,} random points; "
+    lines = [f"part {rep['part']}" + (f" seen from {rep['axis']}" if rep.get("axis", "+z") != "+z" else "")
+             + f": grid {rep['grid']:g} mm, tol {rep['tol']:g} mm, {rep['points']:,} random points; "
              f"a plain z-map at {rep['tol']:g} mm ({rep['plain_fine_shape'][0]:,} x {rep['plain_fine_shape'][1]:,}) "
              f"would take {kb(rep['plain_fine_bytes'])} KB",
              "",
@@ -372,14 +393,15 @@ def format_report(rep: dict) -> str:
 @click.option("--seed", default=0, show_default=True, type=int)
 @click.option("--method", "methods", multiple=True, type=click.Choice(["ez", "cz"]),
               help="Refinements to build (repeatable); default both.")
+@click.option("--axis", type=click.Choice(_AXES), default="+z", show_default=True,
+              help="World direction that becomes the map's +z (the part is rotated into that view).")
 @click.option("--deflection", type=float, default=None, metavar="MM",
               help="Mesh deflection of the sampled heights and of the distance index (default tol/2): "
                    "Newton heights and NURBS feet are exact whatever it is; smaller is slower.")
 @click.option("--format", "fmt", type=click.Choice(["markdown", "json"]), default="markdown", show_default=True)
-def report_cmd(part_path, grid, tol, points, seed, methods, deflection, fmt) -> None:
+def report_cmd(part_path, grid, tol, points, seed, methods, axis, deflection, fmt) -> None:
     """Memory and accuracy of the base z-map, the CZ model and the EZ model (paper 004 Table 2)."""
     import json
-    import os
 
     from cad_io.step import read_step
     from zmap.errors import StepImportError
@@ -398,7 +420,10 @@ def report_cmd(part_path, grid, tol, points, seed, methods, deflection, fmt) -> 
     part = read_step(part_path)
     if not part.faces:
         raise StepImportError(f"{part_path}: no faces in the file")
-    rep = report_rows(part, grid, tol, n_points=points, seed=seed, methods=methods or ("ez", "cz"),
+    from cad_io.view import view_part
+
+    rep = report_rows(view_part(part, axis), grid, tol, n_points=points, seed=seed, methods=methods or ("ez", "cz"),
                       deflection=deflection, distance_deflection=deflection)
     rep["part"] = os.path.basename(part_path)
+    rep["axis"] = axis
     click.echo(json.dumps(rep, indent=1) if fmt == "json" else format_report(rep))

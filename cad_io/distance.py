@@ -42,7 +42,7 @@ def _lattice(n: int, m: int) -> np.ndarray:
     rows = []
     for j in range(m + 1):
         t = j / m
-        k = int(math.ceil((1.0 - t) * n - 1e-9))
+        k = math.ceil((1.0 - t) * n - 1e-9)
         s = np.linspace(0.0, 1.0, k + 1) if k > 0 else np.zeros(1)
         rows.append(np.c_[(1.0 - t) * (1.0 - s), (1.0 - t) * s, np.full(len(s), t)])
     return np.concatenate(rows)

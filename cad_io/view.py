@@ -25,7 +25,7 @@ import numpy as np
 
 from .part import FaceMesh, Part
 
-__all__ = ["AXES", "view_matrix", "to_view", "from_view", "transform_part", "check_axis"]
+__all__ = ["AXES", "check_axis", "from_view", "to_view", "transform_part", "view_matrix", "view_part"]
 
 AXES = ("+z", "-z", "+x", "-x", "+y", "-y")
 
@@ -93,3 +93,50 @@ def transform_part(part: Part, axis: str = "+z") -> Part:
         faces.append(dataclasses.replace(f, surface=s, bbox=_bbox(f.bbox, R), mesh=m))
     edges = [dataclasses.replace(e, points=np.asarray(e.points) @ R.T) for e in part.edges]
     return dataclasses.replace(part, faces=faces, edges=edges, warnings=list(part.warnings))
+
+
+def view_part(part: Part, axis: str = "+z") -> Part:
+    """The part in the view frame of ``axis``, its OCP shape rotated too.
+
+    :func:`transform_part` keeps the world-frame OCP shape; this also rotates it, so that
+    what works on the shape in the view frame does so there: a later
+    :func:`cad_io.triangulate` meshes it in the view frame (the nodes match the rotated
+    poles) and OCC's distances (:func:`cad_io.distance.occ_distance`) are measured to the
+    rotated faces. The refinement and report steps, which see a part along +z only, take
+    this part and a z-map sampled along ``axis``. ``+z`` returns ``part`` itself.
+
+    Parameters
+    ----------
+    part : Part
+        As read (world frame).
+    axis : {'+z', '-z', '+x', '-x', '+y', '-y'}
+        World direction that becomes the view's +z.
+
+    Returns
+    -------
+    Part
+        A new part in the view frame; ``part`` is not changed.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> import cad_io
+    >>> part = cad_io.read_step(Path(cad_io.__file__).parents[1] / "data" / "boss.step")
+    >>> [round(float(v), 6) for v in view_part(part, "+y").bbox] == [round(float(v), 6) for v in
+    ...     (part.bbox[0], -part.bbox[5], part.bbox[1], part.bbox[3], -part.bbox[2], part.bbox[4])]
+    True
+    """
+    if check_axis(axis) == "+z":
+        return part
+    vpart = transform_part(part, axis)
+    shape = part.shape
+    if shape is not None:
+        from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
+        from OCP.gp import gp_Trsf
+
+        R = view_matrix(axis)
+        t = gp_Trsf()
+        t.SetValues(*R[0], 0.0, *R[1], 0.0, *R[2], 0.0)
+        # copy=True: the rotated shape gets its own triangulations (meshed in the view frame)
+        shape = BRepBuilderAPI_Transform(shape, t, True).Shape()
+    return dataclasses.replace(vpart, shape=shape)

@@ -74,7 +74,7 @@ def test_spread_grows_with_area_not_with_the_longest_edge():
     assert len(xyz) <= 2 * (200 + 1) + 1
     np.testing.assert_allclose(uv_s, xyz[:, :2])  # uv carried with the same weights
     # a fat triangle: every point of it within a spacing of a sample
-    xyz, _, tri = _spread(nodes, uv, np.array([[0, 1, 3]]), 0.5)
+    xyz, _, _ = _spread(nodes, uv, np.array([[0, 1, 3]]), 0.5)
     rng = np.random.default_rng(0)
     w = rng.dirichlet(np.ones(3), 2000)
     probe = w @ nodes[[0, 1, 3]]

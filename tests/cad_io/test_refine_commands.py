@@ -49,3 +49,77 @@ def test_refine_ez_and_report(boss_zmap, tmp_path, capsys):
     rep = json.loads(capsys.readouterr().out)
     assert set(rep["rows"]) == {"base", "ez"}
     assert rep["plain_fine_bytes"] > rep["rows"]["ez"]["total_bytes"]
+
+
+@pytest.fixture(scope="module")
+def boss_zmap_y(tmp_path_factory):
+    out = tmp_path_factory.mktemp("zy") / "boss_y.zmap.npz"
+    assert main(["convert", str(DATA / "boss.step"), "--grid", "1.0", "--axis", "+y", "-o", str(out),
+                 "--no-progress"]) == 0
+    return out
+
+
+def test_refine_a_zmap_seen_from_plus_y(boss_zmap_y, tmp_path, capsys):
+    out = tmp_path / "boss_y.zpm"
+    assert main(["refine", str(boss_zmap_y), "--part", str(DATA / "boss.step"), "--tol", "0.05",
+                 "--method", "ez", "-o", str(out)]) == 0
+    assert "e-points" in capsys.readouterr().out
+    m = PrecisionModel.load(out)
+    assert m.base.meta["axis"] == "+y" and m.ez.n_points > 0
+
+
+def test_refine_rejects_a_zmap_of_another_part_or_axis(tmp_path, capsys):
+    far = tmp_path / "far.zmap.npz"
+    assert main(["convert", str(DATA / "boss.step"), "--grid", "1.0", "--bounds", "500", "500", "510", "510",
+                 "-o", str(far), "--no-progress"]) == 0
+    assert main(["refine", str(far), "--part", str(DATA / "boss.step"), "--tol", "0.05",
+                 "-o", str(tmp_path / "a.zpm")]) != 0
+    assert "misses boss.step seen from +z" in capsys.readouterr().err
+
+
+def test_refine_rejects_an_unknown_axis_in_the_zmap(boss_zmap, tmp_path, capsys):
+    from zmap.grid import ZMap
+
+    zm = ZMap.load(boss_zmap)
+    zm.meta["axis"] = "up"
+    bad = tmp_path / "bad.zmap.npz"
+    zm.save(bad)
+    assert main(["refine", str(bad), "--part", str(DATA / "boss.step"), "--tol", "0.05",
+                 "-o", str(tmp_path / "a.zpm")]) != 0
+    assert "axis 'up' is not one of" in capsys.readouterr().err
+
+
+def test_report_seen_from_plus_y(capsys):
+    # the part and its OCP shape are rotated together: were OCC measuring in the world frame,
+    # the base's distances would be tens of mm, not within a grid interval
+    assert main(["report", str(DATA / "boss.step"), "--axis", "+y", "--grid", "1.0", "--tol", "0.05",
+                 "--points", "1000", "--method", "ez", "--format", "json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["axis"] == "+y"
+    rows = rep["rows"]
+    assert 0 < rows["base"]["max_dist"] < 1.0
+    assert rows["ez"]["max_dist"] < rows["base"]["max_dist"]
+
+
+def test_report_bad_deflection(capsys):
+    assert main(["report", str(DATA / "boss.step"), "--grid", "1.0", "--tol", "0.05", "--deflection", "-1"]) != 0
+    assert "--deflection" in capsys.readouterr().err
+
+
+def test_report_rows_deflection_and_reference_facet_count():
+    from cad_io.commands import report_rows
+    from cad_io.step import read_step
+
+    part = read_step(DATA / "boss.step")
+    rep = report_rows(part, 1.0, 0.05, n_points=500, methods=("ez",))
+    assert (rep["deflection"], rep["distance_deflection"]) == (0.025, 0.025)  # tol / 2 by default
+    assert rep["reference_facet_points"] == 0 and rep["reference_empty_points"] == 0
+    fine = report_rows(part, 1.0, 0.05, n_points=500, methods=("ez",), deflection=0.005, distance_deflection=0.005)
+    assert fine["deflection"] == 0.005
+    # the exact heights (Newton) and NURBS feet do not depend on the mesh
+    for name in ("base", "ez"):
+        assert fine["rows"][name]["max_dist"] == pytest.approx(rep["rows"][name]["max_dist"], abs=1e-9)
+        assert fine["rows"][name]["max_vertical_flat"] == pytest.approx(rep["rows"][name]["max_vertical_flat"],
+                                                                       abs=1e-9)
+    with pytest.raises(ValueError, match="distance_deflection must be a positive"):
+        report_rows(part, 1.0, 0.05, n_points=10, methods=(), distance_deflection=0.0)

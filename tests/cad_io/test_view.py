@@ -41,3 +41,26 @@ def test_transform_part(axis):
     vn = nodes @ R.T
     assert np.allclose(v.faces[0].bbox, (*vn.min(0), *vn.max(0)))
     assert part.faces[0].surface.poles is poles  # the input is untouched
+
+
+def test_view_part_meshes_and_measures_in_the_view_frame():
+    from pathlib import Path
+
+    from cad_io.distance import occ_distance
+    from cad_io.sampler import TRIM_SLACK_MM, sample, sample_points
+    from cad_io.step import read_step
+    from cad_io.view import view_part
+
+    part = read_step(Path(__file__).resolve().parents[2] / "data" / "boss.step")
+    zm = sample(part, 2.0, axis="+y")
+    vpart = view_part(part, "+y")
+    assert view_part(part, "+z") is part
+    X, Y = zm.grid_points()
+    z = sample_points(vpart, X, Y, deflection=0.01)[0]
+    both = np.isfinite(z) & (zm.layers["method"] == 1)  # exact (Newton) heights on both sides
+    assert both.sum() > 0.5 * zm.z.size
+    # at a trim boundary two meshes may pick different faces within the trim slack (5e-4 mm)
+    np.testing.assert_allclose(z[both], zm.z[both], atol=TRIM_SLACK_MM)
+    assert np.mean(np.abs(z[both] - zm.z[both]) < 1e-9) > 0.95
+    pts = np.c_[X[both], Y[both], z[both]][:20]
+    assert np.max(occ_distance(vpart.shape, pts)) < 1e-6  # the OCP shape turned with the NURBS
