@@ -724,3 +724,8 @@ def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, hq, 
             out[p] = _split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, bk, bt, pts, arc, dx, dy)
         else:
             out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy, nb[c] > 0)
+
+
+#: :func:`ez_kernel` on one thread: for small batches (a cell patch's few points), where
+#: waking the thread pool costs more than the points themselves
+ez_kernel_serial = njit(cache=True)(ez_kernel.py_func)

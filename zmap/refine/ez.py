@@ -43,6 +43,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -52,7 +53,12 @@ from ..grid import ZMap
 
 __all__ = ["NAN_CODE", "EZMap", "build_ez", "edge_count", "encode_heights"]
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: An edge whose e-points all lie within this share of the tolerance of the base's Bezier
+#: curve along it carries nothing the base misses, and is dropped (``build_ez(prune=True)``).
+PRUNE_SHARE = 0.25
+#: Batches smaller than this are evaluated on one thread (no thread-pool wake-up).
+SERIAL_BELOW = 4096
 #: A jump or kink must stand out this many times from its neighbours to count as a break.
 BREAK_RATIO = 4.0
 
@@ -112,6 +118,31 @@ def encode_heights(offsets: np.ndarray, heights: np.ndarray) -> tuple[np.ndarray
     return codes, lo32, step32
 
 
+def cells_around(nx: int, ny: int, ids: np.ndarray) -> np.ndarray:
+    """Cells next to the grid edges ``ids`` and the ring whose Bezier stencil reaches them.
+
+    Returns a bool ndarray of shape (nx-1, ny-1).
+    """
+    nxe = (nx - 1) * ny
+    is_x = ids < nxe
+    a, r = ids[is_x] // ny, ids[is_x] % ny
+    yi, yb = (ids[~is_x] - nxe) // (ny - 1), (ids[~is_x] - nxe) % (ny - 1)
+    # x-edge (a, r): own cells (a, r), (a, r-1); stencil ring (a+-1, r), (a+-1, r-1)
+    # y-edge (yi, yb): own cells (yi, yb), (yi-1, yb); ring (yi, yb+-1), (yi-1, yb+-1)
+    ci = np.concatenate([a, a, a + 1, a + 1, a - 1, a - 1, yi, yi - 1, yi, yi - 1, yi, yi - 1])
+    cj = np.concatenate([r, r - 1, r, r - 1, r, r - 1, yb, yb, yb + 1, yb + 1, yb - 1, yb - 1])
+    ok = (ci >= 0) & (ci <= nx - 2) & (cj >= 0) & (cj <= ny - 2)
+    m = np.zeros((nx - 1) * (ny - 1), dtype=bool)
+    m[ci[ok] * (ny - 1) + cj[ok]] = True
+    return m.reshape(nx - 1, ny - 1)
+
+
+def _empty_patches():
+    from .patch import CellPatches
+
+    return CellPatches.empty()
+
+
 def _n_points(length: float, interval: float) -> int:
     """Interior points that split ``length`` into pieces no longer than ``interval``."""
     return max(math.ceil(length / interval - 1e-9) - 1, 0)
@@ -150,6 +181,13 @@ class EZMap:
         E-points lifted to their higher neighbour: a single sample more than ``tol`` below
         both neighbours is a point on a wall's line that the surface callable answered
         with a lower face (the top-most height there is the wall's top).
+    patches : zmap.refine.patch.CellPatches, optional
+        Finer e-maps over the cells that missed the exact surface when the map was checked
+        (``build_ez(verify=True)``); each answers for its cell.
+    unresolved : int
+        Cells still off the exact surface at a test point after the finest patch level.
+    pruned : int
+        Candidate edges dropped because the base already held them (``build_ez(prune=True)``).
 
     Examples
     --------
@@ -177,11 +215,18 @@ class EZMap:
     step: np.ndarray
     failed: int = 0
     lifted: int = 0
+    patches: Any = None
+    unresolved: int = 0
+    pruned: int = 0
     _cache: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         self.x0, self.y0, self.dx, self.dy = (float(v) for v in (self.x0, self.y0, self.dx, self.dy))
         self.nx, self.ny, self.failed, self.lifted = int(self.nx), int(self.ny), int(self.failed), int(self.lifted)
+        self.unresolved, self.pruned = int(self.unresolved), int(self.pruned)
+        if self.patches is not None and self.patches.n_patches and (
+                self.patches.cells[0] < 0 or self.patches.cells[-1] >= (self.nx - 1) * (self.ny - 1)):
+            raise ValueError("patched cells must be cells of the grid")
         self.interval, self.tol = float(self.interval), float(self.tol)
         if self.nx < 2 or self.ny < 2:
             raise ValueError(f"nx and ny must be >= 2, got nx={self.nx}, ny={self.ny}")
@@ -241,9 +286,20 @@ class EZMap:
 
     @property
     def nbytes(self) -> int:
-        """Bytes of the stored e-map (edge ids, offsets, codes, lo, step); the evaluation
-        cache, rebuilt from them, is :attr:`cache_nbytes`."""
-        return int(self.edge_ids.nbytes + self.offsets.nbytes + self.codes.nbytes + self.lo.nbytes + self.step.nbytes)
+        """Bytes of the stored e-map (edge ids, offsets, codes, lo, step, cell patches); the
+        evaluation cache, rebuilt from them, is :attr:`cache_nbytes`."""
+        return int(self.edge_ids.nbytes + self.offsets.nbytes + self.codes.nbytes + self.lo.nbytes + self.step.nbytes
+                   + self.patch_nbytes)
+
+    @property
+    def patch_nbytes(self) -> int:
+        """Bytes of the cell patches (0 without)."""
+        return int(self.patches.nbytes) if self.patches is not None else 0
+
+    @property
+    def n_patches(self) -> int:
+        """Number of base cells answered by a finer cell patch."""
+        return int(self.patches.n_patches) if self.patches is not None else 0
 
     @property
     def cache_nbytes(self) -> int:
@@ -252,7 +308,8 @@ class EZMap:
 
     def __repr__(self) -> str:
         return (f"EZMap({self.nx}x{self.ny} grid, {self.n_edges} edges ({100 * self.edge_ratio:.1f}%), "
-                f"{self.n_points} points at <= {self.interval:g} mm, {self.nbytes / 1024:.1f} KB)")
+                f"{self.n_points} points at <= {self.interval:g} mm, {self.n_patches} cell patches, "
+                f"{self.nbytes / 1024:.1f} KB)")
 
     # ---- points ---------------------------------------------------------------------------
 
@@ -329,19 +386,12 @@ class EZMap:
         edge curves take their slopes from the side away from a break, so that no cell
         blends base heights across a wall or a sharp edge.
         """
-        nx, ny, nxe = self.nx, self.ny, (self.nx - 1) * self.ny
-        ids = self.edge_ids
-        is_x = ids < nxe
-        a, r = ids[is_x] // ny, ids[is_x] % ny
-        yi, yb = (ids[~is_x] - nxe) // (ny - 1), (ids[~is_x] - nxe) % (ny - 1)
-        # x-edge (a, r): own cells (a, r), (a, r-1); stencil ring (a+-1, r), (a+-1, r-1)
-        # y-edge (yi, yb): own cells (yi, yb), (yi-1, yb); ring (yi, yb+-1), (yi-1, yb+-1)
-        ci = np.concatenate([a, a, a + 1, a + 1, a - 1, a - 1, yi, yi - 1, yi, yi - 1, yi, yi - 1])
-        cj = np.concatenate([r, r - 1, r, r - 1, r, r - 1, yb, yb, yb + 1, yb + 1, yb - 1, yb - 1])
-        ok = (ci >= 0) & (ci <= nx - 2) & (cj >= 0) & (cj <= ny - 2)
-        m = np.zeros((nx - 1) * (ny - 1), dtype=bool)
-        m[ci[ok] * (ny - 1) + cj[ok]] = True
-        return m.reshape(nx - 1, ny - 1)
+        m = cells_around(self.nx, self.ny, self.edge_ids)
+        if self.patches is not None and self.patches.n_patches:
+            m.ravel()[self.patches.cells] = True
+        return m
+
+    # ---- evaluation helpers ------------------------------------------------------------------
 
     def breaks(self, base: ZMap) -> tuple[np.ndarray, np.ndarray]:
         """Break found on each e-edge: ``kind`` (E,) int8 (0 none, 1 jump, 2 kink) and
@@ -349,6 +399,7 @@ class EZMap:
         self._check_base(base)
         a = self._tables(base)
         return a["brk_kind"].copy(), a["brk_t"].copy()
+
 
     def evaluate(self, base: ZMap, x, y) -> np.ndarray:
         """Heights in the cells of :meth:`cell_mask`; NaN elsewhere (use the base there).
@@ -391,9 +442,12 @@ class EZMap:
         out = np.full(xs.shape[0], np.nan)
         if self.n_edges and xs.size:
             a = self._tables(base)
-            _k.ez_kernel(base.z, base.x0, base.y0, base.dx, base.dy, math.cos(base.angle), math.sin(base.angle),
+            kernel = _k.ez_kernel if xs.size >= SERIAL_BELOW else _k.ez_kernel_serial
+            kernel(base.z, base.x0, base.y0, base.dx, base.dy, math.cos(base.angle), math.sin(base.angle),
                          base.origin[0], base.origin[1], xs, ys, self.edge_ids, self.offsets, self._hq(), a["brk_kind"],
                          a["brk_t"], a["ecell_ids"], a["slots"], a["nb"], a["bk"], a["bt"], a["pts"], a["arc"], out)
+        if self.n_patches and xs.size:
+            self.patches.evaluate(base, self.interval, self.tol, xs, ys, out)
         out = out.reshape(shape)
         return out[()] if out.ndim == 0 else out
 
@@ -417,13 +471,14 @@ class EZMap:
         return {
             "version": np.array([FORMAT_VERSION], dtype=np.int64),
             "grid": np.array([self.x0, self.y0, self.dx, self.dy, self.interval, self.tol], dtype=np.float64),
-            "shape": np.array([self.nx, self.ny, self.failed, self.lifted], dtype=np.int64),
+            "shape": np.array([self.nx, self.ny, self.failed, self.lifted, self.unresolved, self.pruned],
+                              dtype=np.int64),
             "edge_ids": self.edge_ids,
             "offsets": self.offsets,
             "codes": self.codes,
             "lo": self.lo,
             "step": self.step,
-        }
+        } | {f"patch_{k}": v for k, v in (self.patches or _empty_patches()).to_arrays().items()}
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> EZMap:
@@ -436,13 +491,34 @@ class EZMap:
             raise ValueError(f"e-map format version {version} is not supported (this zmap reads 1..{FORMAT_VERSION})")
         g = np.asarray(arrays["grid"], dtype=np.float64).ravel()
         s = np.asarray(arrays["shape"], dtype=np.int64).ravel()
+        patches = None
+        if version >= 2:
+            from .patch import CellPatches
+
+            patches = CellPatches.from_arrays({k[len("patch_"):]: v for k, v in arrays.items()
+                                               if k.startswith("patch_")})
+            patches = patches if patches.n_patches else None
         return cls(g[0], g[1], g[2], g[3], int(s[0]), int(s[1]), g[4], g[5], arrays["edge_ids"], arrays["offsets"],
-                   arrays["codes"], arrays["lo"], arrays["step"], failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0)
+                   arrays["codes"], arrays["lo"], arrays["step"], failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0,
+                   patches=patches, unresolved=int(s[4]) if s.size > 4 else 0, pruned=int(s[5]) if s.size > 5 else 0)
 
 
 def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray], *, tol: float,
-             eps_r: float | None = None, se_curves: Sequence[np.ndarray] = (), interval: float | None = None) -> EZMap:
+             eps_r: float | None = None, se_curves: Sequence[np.ndarray] = (), interval: float | None = None,
+             prune: bool = True, verify: bool = True) -> EZMap:
     """Procedure Construct_EZmap: e-points on the steep and SE-crossed edges of ``base``.
+
+    Beyond the paper, two steps that a real die needs (both on by default):
+
+    - ``prune``: a candidate edge whose e-points all lie within ``PRUNE_SHARE * tol`` of the
+      base's cubic Bezier curve along it is dropped (a steep but smooth slope the base
+      already holds; on free-form parts most steep edges are such);
+    - ``verify``: every refined cell, and every cell next to a candidate edge, is checked
+      against ``heights`` at a lattice of test points (:func:`zmap.refine.patch.misfit`:
+      off by more than ``tol`` vertically with no exact height within ``tol`` around it to
+      explain it); a cell that misses gets a finer e-map of its own
+      (:mod:`zmap.refine.patch`), and cells still off after the finest level are counted in
+      ``unresolved``.
 
     Parameters
     ----------
@@ -459,13 +535,16 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
         Sharp-edge curves, world xy (:func:`zmap.features.sharp_edge_curves`).
     interval : float, optional
         Largest spacing of e-points along an edge, mm; default ``tol``.
+    prune, verify : bool
+        Drop the edges the base holds; check the refined cells and patch the misses.
 
     Returns
     -------
     EZMap
         ``failed`` counts the e-points whose height came back NaN, ``lifted`` the single
         e-points more than ``tol`` below both neighbours, lifted to the higher one (a
-        sample on a wall's line answered with a lower face).
+        sample on a wall's line answered with a lower face), ``pruned`` the candidate
+        edges dropped, ``patches`` and ``unresolved`` what the check found.
 
     Raises
     ------
@@ -515,6 +594,7 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
     sy &= zf[:, :-1] | zf[:, 1:]
     nx, ny = base.shape
     edge_ids = np.concatenate([np.flatnonzero(sx.ravel()), (nx - 1) * ny + np.flatnonzero(sy.ravel())]).astype(np.int64)
+    candidates = edge_ids
     n_x, n_y = _n_points(base.dx, interval), _n_points(base.dy, interval)
     counts = np.where(edge_ids < (nx - 1) * ny, n_x, n_y)
     offsets = np.zeros(edge_ids.shape[0] + 1, dtype=np.int64)
@@ -534,6 +614,42 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
         lifted = np.zeros(ez.n_edges, dtype=np.int64)
         z = np.ascontiguousarray(z)
         _k.despike(base.z, ez.edge_ids, ez.offsets, z, tol, lifted)
+        if prune:
+            keep = _edges_off_base(base, ez.offsets, wx, wy, z, PRUNE_SHARE * tol)
+            ez.pruned = int(ez.n_edges - keep.sum())
+            point_keep = np.repeat(keep, np.diff(offsets))
+            edge_ids, z, lifted = edge_ids[keep], z[point_keep], lifted[keep]
+            offsets = np.zeros(edge_ids.shape[0] + 1, dtype=np.int64)
+            np.cumsum(np.diff(ez.offsets)[keep], out=offsets[1:])
+            ez.edge_ids, ez.offsets = edge_ids, offsets
         ez.lifted = int(lifted.sum())
         ez.codes, ez.lo, ez.step = encode_heights(offsets, z)
+    if verify and candidates.size:
+        from .patch import patch_failing
+
+        cells = np.flatnonzero((cells_around(nx, ny, candidates) | ez.cell_mask()).ravel()).astype(np.int64)
+
+        def install(p):
+            ez.patches = p if p.n_patches else None
+            ez._cache = {}
+
+        a = ez._tables(base) if ez.n_edges else None
+        broken = a["ecell_ids"][a["nb"] > 0] if a is not None else None
+        _patches, still = patch_failing(lambda x, y: ez.height(base, x, y), base, heights, tol, interval, cells,
+                                        install, fine_cells=broken)
+        ez.unresolved = int(still.size)
     return ez
+
+
+def _edges_off_base(base: ZMap, offsets: np.ndarray, wx: np.ndarray, wy: np.ndarray, z: np.ndarray,
+                    limit: float) -> np.ndarray:
+    """Edges with an e-point more than ``limit`` off the base's Bezier (or a surface where it has none)."""
+    from ..interpolate import bezier
+
+    zb = np.asarray(bezier(base, wx, wy), dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        off = ~(np.abs(z - zb) <= limit) & ~(np.isnan(z) & np.isnan(zb))
+    E = offsets.shape[0] - 1
+    keep = np.zeros(E, dtype=bool)
+    keep[np.repeat(np.arange(E), np.diff(offsets))[off]] = True
+    return keep

@@ -217,9 +217,15 @@ def test_v_ridge_sharp_edge(only_se):
     if only_se:  # no edge steep: e-points only where the SE curve crosses
         ez = build_ez(base, f, tol=TOL, eps_r=math.inf, se_curves=[line])
         assert ez.edge_ratio < 0.2
-    else:  # slope 1.5 > eps_r: every edge carries e-points, the kinks are found among them
+    else:  # slope 1.5 > eps_r: every edge is a candidate; the planes' edges are pruned (the
+        # base's Bezier holds a plane), the edges the ridge crosses and their neighbours stay
+        full = build_ez(base, f, tol=TOL, se_curves=[line], prune=False, verify=False)
+        assert full.edge_ratio == 1.0
         ez = build_ez(base, f, tol=TOL, se_curves=[line])
-        assert ez.edge_ratio == 1.0
+        assert ez.pruned > 0 and ez.n_edges + ez.pruned == full.n_edges
+        crossed = np.isin(full.edge_ids, build_ez(base, f, tol=TOL, eps_r=math.inf, se_curves=[line],
+                                                  prune=False, verify=False).edge_ids)
+        assert np.isin(full.edge_ids[crossed], ez.edge_ids).all()
     kind, _ = ez.breaks(base)
     assert np.count_nonzero(kind == 2) >= 8
     rng = np.random.default_rng(3)
@@ -236,8 +242,10 @@ def test_plane_reproduced():
         return 0.3 * x - 1.7 * y + 2.0
 
     base = ZMap.from_function(f, (0, 0, 3, 3), 0.5)
-    ez = build_ez(base, f, tol=TOL)
+    # the paper's procedure as it stands: a pruned map would drop every edge of a plane
+    ez = build_ez(base, f, tol=TOL, prune=False, verify=False)
     assert ez.edge_ratio == 1.0  # slope above eps_r everywhere
+    assert build_ez(base, f, tol=TOL).n_edges == 0  # the base's Bezier holds a plane
     kind, _ = ez.breaks(base)
     assert not kind.any()
     rng = np.random.default_rng(1)
@@ -274,7 +282,8 @@ def test_kernel_matches_reference(seed):
         return 0.2 * x + wall(x, y) - 0.5 * np.abs(x - 1.3 - 0.2 * y)
 
     base = ZMap.from_function(f, (0, 0, 4, 4), 0.5)
-    ez = build_ez(base, f, tol=0.02, eps_r=0.6, se_curves=[np.array([[1.3, -1.0], [2.3, 5.0]])])
+    # the reference knows the Coons/split cells, not the cell patches of verify=True
+    ez = build_ez(base, f, tol=0.02, eps_r=0.6, se_curves=[np.array([[1.3, -1.0], [2.3, 5.0]])], verify=False)
     kind, t = ez.breaks(base)
     m = int(np.diff(ez.offsets).max()) + 1
     expect = [ref.detect_break(ref.edge_sequence(ez, base, int(e)), ez.tol, 4 * ez.tol / m, BREAK_RATIO)
@@ -292,7 +301,7 @@ def test_kernel_matches_reference(seed):
 def test_kernel_matches_reference_on_curved_walls():
     f = Boss(2.1, 1.9, 1.3, H=2.0)
     base = ZMap.from_function(f, (0, 0, 4, 4), 0.5)
-    ez = build_ez(base, f, tol=0.02)
+    ez = build_ez(base, f, tol=0.02, verify=False)
     assert (ez._tables(base)["arc"][:, 2] > 0).sum() >= 8  # traces bent into arcs
     rng = np.random.default_rng(4)
     x, y = points_near(rng, f.d, (0, 0, 4, 4), 3000, band=0.3)

@@ -1,0 +1,164 @@
+"""Verified EZ cells (zmap.refine.patch): pruning, cell patches, lattices, storage.
+
+A thin rib (two walls inside one base cell) is the case the paper's Coons patch cannot
+hold; its exact 3D distance is the distance in the cross-section plane (d, z) to the rib's
+outline, so the checks below measure the model against an independent truth.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from zmap import ZMap
+from zmap.model import PrecisionModel
+from zmap.refine.ez import EZMap, build_ez
+from zmap.refine.patch import (CellPatches, build_lattices, failing_cells, lattice_intervals, misfit,
+                               patch_failing)
+
+TOL = 0.01
+
+
+class Rib:
+    """z = H where |n.(x, y) - c| < w/2, else 0: a rib thinner than a grid cell."""
+
+    def __init__(self, angle=0.3, c=2.03, w=0.2, H=5.0):
+        self.n = np.array([math.cos(angle), math.sin(angle)])
+        self.c, self.a, self.H = c, w / 2, H
+
+    def d(self, x, y):
+        return self.n[0] * x + self.n[1] * y - self.c
+
+    def __call__(self, x, y):
+        return np.where(np.abs(self.d(x, y)) < self.a, self.H, 0.0)
+
+    def se_curves(self):
+        """The rib's two top edges as xy polylines across the 4 x 4 domain (sharp edges: a
+        rib thinner than a cell can pass between grid points, only the B-rep's edges find it)."""
+        t = np.array([-self.n[1], self.n[0]])
+        return [np.array([(self.c + s) * self.n - 10 * t, (self.c + s) * self.n + 10 * t]) for s in (-self.a, self.a)]
+
+    def distance(self, x, y, z):
+        """Exact 3D distance from (x, y, z) to the rib's surface (floor, two walls, top)."""
+        e = np.abs(self.d(x, y)) - self.a  # > 0 outside the rib
+        floor = np.where(e >= 0, np.abs(z), np.hypot(e, z))
+        wall = np.hypot(e, z - np.clip(z, 0.0, self.H))
+        top = np.where(e <= 0, np.abs(z - self.H), np.hypot(e, z - self.H))
+        return np.minimum(np.minimum(floor, wall), top)
+
+
+def near_rib(rib, rng, n, band=0.4):
+    x, y = rng.uniform(0, 4, 4 * n), rng.uniform(0, 4, 4 * n)
+    keep = np.abs(rib.d(x, y)) < band
+    return x[keep][:n], y[keep][:n]
+
+
+def test_thin_rib_needs_patches_and_patched_cells_hold_tol():
+    rib = Rib()
+    base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
+    rng = np.random.default_rng(0)
+    x, y = near_rib(rib, rng, 30000)
+    plain = build_ez(base, rib, tol=TOL, se_curves=rib.se_curves(), verify=False)
+    # the premise: two walls in one cell are beyond the paper's split Coons patch
+    assert rib.distance(x, y, plain.height(base, x, y)).max() > 0.1
+    ez = build_ez(base, rib, tol=TOL, se_curves=rib.se_curves())
+    assert ez.n_patches > 0 and ez.unresolved == 0
+    h = ez.height(base, x, y)
+    assert np.isfinite(h).all()
+    assert rib.distance(x, y, h).max() <= TOL
+    # and the patched cells are the ones the rib runs through
+    assert set(failing_cells(lambda a, b: plain.height(base, a, b), base, rib, 0.9 * TOL,
+                             ez.patches.cells)) <= set(ez.patches.cells.tolist())
+
+
+def test_lattice_holds_tol_by_construction():
+    """The last resort alone: every misfit cell as a dense lattice, bilinear, diagonal <= tol."""
+    rib = Rib(angle=1.1, c=2.4, w=0.13)
+    base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
+    ez = build_ez(base, rib, tol=TOL, se_curves=rib.se_curves(), verify=False)
+    cells = np.flatnonzero(ez.cell_mask().ravel())
+
+    def install(p):
+        ez.patches = p if p.n_patches else None
+        ez._cache = {}
+
+    broken = ez._tables(base)["ecell_ids"][ez._tables(base)["nb"] > 0]
+    patches, still = patch_failing(lambda a, b: ez.height(base, a, b), base, rib, TOL, ez.interval, cells, install,
+                                   levels=(), fine_cells=broken)
+    assert still.size == 0 and patches.n_patches > 0 and (patches.level < 0).all()
+    n = lattice_intervals(base, TOL)
+    assert math.hypot(base.dx / n, base.dy / n) <= TOL
+    rng = np.random.default_rng(1)
+    x, y = near_rib(rib, rng, 30000)
+    assert rib.distance(x, y, ez.height(base, x, y)).max() <= TOL
+
+
+def test_pruning_keeps_what_the_base_misses_and_drops_smooth_slopes():
+    def f(x, y):  # a steep smooth slope (0.4 to 0.5, eps_r is 0.04) with a wall
+        return 0.4 * x + 0.1 * np.sin(y) + np.where(y > 0.37 * x + 1.1, 2.0, 0.0)
+
+    base = ZMap.from_function(f, (0, 0, 6, 4), 0.5)
+    full = build_ez(base, f, tol=TOL, prune=False, verify=False)
+    ez = build_ez(base, f, tol=TOL)
+    assert ez.pruned > 0 and ez.n_edges < 0.6 * full.n_edges and ez.nbytes < full.nbytes
+    rng = np.random.default_rng(2)
+    x, y = rng.uniform(0, 6, 40000), rng.uniform(0, 4, 40000)
+    h = ez.height(base, x, y)
+    z = f(x, y)
+    wall = np.abs(y - 0.37 * x - 1.1) / math.hypot(1, 0.37) < TOL
+    assert np.abs(h - z)[~wall].max() <= TOL
+    assert not misfit(h, x, y, z, f, TOL).any()
+
+
+def test_model_round_trip_with_patches_and_lattices(tmp_path):
+    rib = Rib()
+    base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
+    ez = build_ez(base, rib, tol=TOL)
+    # add a lattice patch to a cell without one, so both kinds travel through the file
+    per = ez.patches.unpack()
+    free = next(c for c in range(ez.nx * ez.ny) if c not in per)
+    per.update(build_lattices(base, rib, np.array([free]), 9))
+    ez.patches = CellPatches.pack(per)
+    ez._cache = {}
+    m = PrecisionModel(base, ez=ez, meta={"method": "ez"})
+    back = PrecisionModel.load(m.save(tmp_path / "rib.zpm"))
+    assert back.ez.n_patches == ez.n_patches and back.ez.pruned == ez.pruned
+    for name, a in ez.patches.to_arrays().items():
+        assert np.array_equal(a, getattr(back.ez.patches, name), equal_nan=True), name
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(0, 4, 5000), rng.uniform(0, 4, 5000)
+    assert np.array_equal(m.height(x, y), back.height(x, y), equal_nan=True)
+    assert m.nbytes["ez"] == ez.nbytes > ez.patch_nbytes > 0
+
+
+def test_version_1_e_map_arrays_still_load():
+    rib = Rib()
+    base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
+    ez = build_ez(base, rib, tol=TOL, verify=False)
+    a = {k: v for k, v in ez.to_arrays().items() if not k.startswith("patch_")}
+    a["version"] = np.array([1])
+    a["shape"] = a["shape"][:4]
+    old = EZMap.from_arrays(a)
+    assert old.patches is None and old.n_edges == ez.n_edges and old.pruned == 0
+
+
+def test_misfit_nan_rules():
+    f = lambda x, y: np.where(x < 1.0, np.nan, 2.0)  # noqa: E731  no surface left of x = 1
+    x = np.array([0.5, 0.995, 1.5, 1.5])
+    y = np.zeros(4)
+    h = np.array([2.0, 2.0, np.nan, 2.5])
+    # a height over no surface misses unless a surface is within tol; no height never misses
+    assert misfit(h, x, y, f(x, y), f, TOL).tolist() == [True, False, False, True]
+
+
+def test_bad_patch_arrays():
+    rib = Rib()
+    base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
+    a = build_ez(base, rib, tol=TOL).patches.to_arrays()
+    bad = dict(a, node_off=a["node_off"] + 1)
+    with pytest.raises(ValueError, match="offsets"):
+        CellPatches.from_arrays(bad)
+    with pytest.raises(ValueError, match="increasing"):
+        CellPatches.from_arrays(dict(a, cells=a["cells"][::-1].copy()))

@@ -1,0 +1,456 @@
+"""Verified EZ cells: test each refined cell against the exact surface, refine the misses.
+
+The EZ-map's Coons patches hold a cell whose boundary carries one wall or one sharp edge.
+Real dies also have cells that two walls cross, thin ribs, wall corners, and walls that
+cross one grid edge twice; there the four boundary sequences do not determine the interior.
+So :func:`zmap.refine.ez.build_ez` checks every refined cell at a lattice of test points
+against the exact surface (:func:`misfit`), and gives each cell that misses a *cell
+patch*: a finer z-map of ``m x m`` sub-cells over that one base cell whose every sub-edge
+carries e-points (an EZ-map of its own), first ``m = 4``, then ``m = 8``. A cell still off
+(a wall, a chamfer and a fillet inside one sub-cell) gets the last resort, a dense lattice
+of ``n x n`` intervals whose diagonal is at most ``tol``, interpolated bilinearly: a
+bilinear height lies between the four corner heights, and the top-most surface (walls
+included) passes through that height somewhere between those corners, so the model point
+is within one diagonal, ``tol``, of the surface. Cells still off after that (the sampler
+answered inconsistently) are counted (``EZMap.unresolved``), not hidden.
+
+Storage (:class:`CellPatches`): per patched base cell its level ``m`` (``m > 0``: EZ
+sub-grid; ``m = -n``: dense lattice), for a sub-grid the ``(m+1)^2`` heights of its nodes
+(float64) and its e-points as 16-bit codes with a float32 offset and quantum per sub-edge,
+as the e-map itself stores them; for a lattice its ``(n+1)^2`` heights as 16-bit codes with
+one offset and quantum. All concatenated, CSR offsets per cell. The sub-edge ids are
+implicit (every sub-edge, in the e-map's id order).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import math
+
+import numpy as np
+
+from ..grid import ZMap
+
+__all__ = ["CellPatches", "PATCH_LEVELS", "TEST_POINTS", "misfit", "cell_test_points", "failing_cells"]
+
+#: sub-cells per base interval of a cell patch, tried in turn while a cell still misses
+PATCH_LEVELS = (4, 8)
+#: test points per base interval and axis when a refined cell is checked (a lattice)
+TEST_POINTS = 8
+#: a cell is checked against this share of the tolerance, a margin for the points between
+#: its test points
+CHECK_SHARE = 0.9
+
+Heights = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def misfit(h: np.ndarray, x: np.ndarray, y: np.ndarray, z_exact: np.ndarray, heights: Heights,
+           tol: float) -> np.ndarray:
+    """True where the model point ``(x, y, h)`` misses the exact surface by more than ``tol``.
+
+    A point misses when its height is more than ``tol`` off the exact height and the exact
+    heights around it (eight directions at ``tol`` and at ``tol / 2``) do not bracket it
+    within ``tol``: next to a wall the model may place the wall up to ``tol`` off, which is
+    a 3D distance within ``tol``. A conservative stand-in for the 3D distance (it may flag a
+    point the B-rep is within ``tol`` of, never the reverse where the surface between the
+    probes is continuous). A model height over no surface misses unless one of those
+    neighbours has a surface; no model height (NaN) is never a miss (the base has none there).
+
+    Parameters
+    ----------
+    h, x, y, z_exact : ndarray of shape (n,), float64
+        Model heights, world xy and exact heights (NaN = no surface) of the points.
+    heights : callable
+        ``heights(x, y) -> z`` of the exact surface; called only for the points off vertically.
+    tol : float
+        Tolerance, mm.
+
+    Returns
+    -------
+    ndarray of shape (n,), bool
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> f = lambda x, y: np.where(x > 1.0, 5.0, 0.0)
+    >>> x, y = np.array([0.5, 0.995, 0.5]), np.zeros(3)
+    >>> misfit(np.array([0.0, 2.5, 2.5]), x, y, f(x, y), f, 0.01).tolist()
+    [False, False, True]
+    """
+    with np.errstate(invalid="ignore"):
+        bad = np.isfinite(h) & ~(np.abs(h - z_exact) <= tol)
+    idx = np.flatnonzero(bad)
+    if idx.size:
+        lo = z_exact[idx].copy()
+        hi = z_exact[idx].copy()
+        xi, yi = x[idx], y[idx]
+        ang = np.arange(8) * (np.pi / 4)
+        ox = np.concatenate([tol * np.cos(ang), 0.5 * tol * np.cos(ang)])
+        oy = np.concatenate([tol * np.sin(ang), 0.5 * tol * np.sin(ang)])
+        z2 = np.asarray(heights((xi[:, None] + ox).ravel(), (yi[:, None] + oy).ravel()),
+                        dtype=np.float64).reshape(idx.size, ox.size)
+        with np.errstate(invalid="ignore"):
+            lo = np.fmin(lo, np.nanmin(np.where(np.isnan(z2), np.inf, z2), axis=1))
+            hi = np.fmax(hi, np.nanmax(np.where(np.isnan(z2), -np.inf, z2), axis=1))
+        lo[~np.isfinite(lo)] = np.nan
+        hi[~np.isfinite(hi)] = np.nan
+        with np.errstate(invalid="ignore"):
+            ok = (h[idx] >= lo - tol) & (h[idx] <= hi + tol)
+        bad[idx[ok]] = False
+    return bad
+
+
+def cell_test_points(base: ZMap, cells: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """World xy of an ``n x n`` lattice inside each base cell (cell-centred, ``n*n`` per cell).
+
+    Returns two ndarrays of shape (len(cells) * n * n,), cell-major.
+    """
+    g = (np.arange(n) + 0.5) / n
+    U, V = np.meshgrid(g, g, indexing="ij")
+    ci, cj = cells // (base.ny - 1), cells % (base.ny - 1)
+    lx = base.x0 + (ci[:, None] + U.ravel()[None, :]) * base.dx
+    ly = base.y0 + (cj[:, None] + V.ravel()[None, :]) * base.dy
+    return base.local_to_world(lx.ravel(), ly.ravel())
+
+
+def failing_cells(model_height: Heights, base: ZMap, heights: Heights, tol: float, cells: np.ndarray,
+                  n: int = TEST_POINTS) -> np.ndarray:
+    """The ``cells`` (flat base cell ids) where the model misses the exact surface at a test point.
+
+    Parameters
+    ----------
+    model_height : callable
+        ``model_height(x, y) -> h`` of the model under test, world xy.
+    base : ZMap
+        The base grid whose cells are tested.
+    heights : callable
+        Exact surface ``heights(x, y) -> z``.
+    tol : float
+        Tolerance, mm (:func:`misfit`).
+    cells : ndarray of int64
+        Flat cell ids ``i * (ny - 1) + j`` to test.
+    n : int
+        Test lattice per cell and axis.
+
+    Returns
+    -------
+    ndarray of int64
+        Sorted ids of the cells with at least one miss.
+    """
+    cells = np.asarray(cells, dtype=np.int64)
+    if cells.size == 0:
+        return cells
+    x, y = cell_test_points(base, cells, n)
+    z = np.asarray(heights(x, y), dtype=np.float64)
+    h = np.asarray(model_height(x, y), dtype=np.float64)
+    bad = misfit(h, x, y, z, heights, tol)
+    return np.unique(cells[np.flatnonzero(bad) // (n * n)])
+
+
+@dataclass(eq=False)
+class CellPatches:
+    """Finer EZ-maps over single base cells (see the module docstring).
+
+    Parameters
+    ----------
+    cells : ndarray of shape (K,), int64
+        Sorted flat ids ``i * (ny - 1) + j`` of the patched base cells.
+    level : ndarray of shape (K,), int16
+        Sub-cells per base interval ``m`` of each patch (EZ sub-grid), or ``-n`` for a
+        dense lattice of ``n`` intervals per side.
+    node_off, code_off, edge_off : ndarray of shape (K+1,), int64
+        CSR offsets of each patch's sub-grid heights, e-point codes and sub-edges.
+    nodes : ndarray, float64
+        Sub-grid heights, ``(m+1) x (m+1)`` per EZ patch in C order (NaN = no surface);
+        none for a lattice.
+    codes : ndarray, uint16
+        E-point heights of every sub-edge (e-map coding, see :mod:`zmap.refine.ez`), or
+        the ``(n+1) x (n+1)`` lattice heights in C order.
+    lo, step : ndarray, float32
+        Per sub-edge (one per lattice) offset and quantum of the codes.
+    """
+
+    cells: np.ndarray
+    level: np.ndarray
+    node_off: np.ndarray
+    nodes: np.ndarray
+    code_off: np.ndarray
+    codes: np.ndarray
+    edge_off: np.ndarray
+    lo: np.ndarray
+    step: np.ndarray
+    _maps: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self.cells = np.ascontiguousarray(self.cells, dtype=np.int64)
+        self.level = np.ascontiguousarray(self.level, dtype=np.int16)
+        for name in ("node_off", "code_off", "edge_off"):
+            setattr(self, name, np.ascontiguousarray(getattr(self, name), dtype=np.int64))
+        self.nodes = np.ascontiguousarray(self.nodes, dtype=np.float64)
+        self.codes = np.ascontiguousarray(self.codes, dtype=np.uint16)
+        self.lo = np.ascontiguousarray(self.lo, dtype=np.float32)
+        self.step = np.ascontiguousarray(self.step, dtype=np.float32)
+        K = self.cells.shape[0]
+        if self.level.shape != (K,) or any(getattr(self, n).shape != (K + 1,)
+                                           for n in ("node_off", "code_off", "edge_off")):
+            raise ValueError(f"cell patches: level must have shape ({K},) and the offsets ({K + 1},)")
+        if K and (np.any(np.diff(self.cells) <= 0) or np.any(self.level == 0)):
+            raise ValueError("cell patches: cells must be strictly increasing and levels non-zero")
+        m = self.level.astype(np.int64)
+        ez, n = m > 0, -m
+        if (not np.array_equal(np.diff(self.node_off), np.where(ez, (m + 1) ** 2, 0))
+                or self.node_off[-1] != self.nodes.size
+                or not np.array_equal(np.diff(self.edge_off), np.where(ez, 2 * m * (m + 1), 1))
+                or self.edge_off[-1] != self.lo.size or self.lo.shape != self.step.shape or self.code_off[0] != 0
+                or self.code_off[-1] != self.codes.size or np.any(np.diff(self.code_off) < 0)
+                or not np.array_equal(np.diff(self.code_off)[~ez], (n[~ez] + 1) ** 2)):
+            raise ValueError("cell patches: offsets do not match the levels and array sizes")
+
+    @classmethod
+    def empty(cls) -> CellPatches:
+        z = np.zeros(0)
+        zero = np.zeros(1, dtype=np.int64)
+        return cls(np.zeros(0, np.int64), np.zeros(0, np.int16), zero, z, zero, np.zeros(0, np.uint16), zero,
+                   np.zeros(0, np.float32), np.zeros(0, np.float32))
+
+    @classmethod
+    def pack(cls, per_cell: dict[int, tuple]) -> CellPatches:
+        """Patches from ``{cell: (m, nodes, codes, lo, step)}``."""
+        if not per_cell:
+            return cls.empty()
+        keys = sorted(per_cell)
+        parts = [per_cell[k] for k in keys]
+        off = lambda sizes: np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)  # noqa: E731
+        return cls(np.array(keys, dtype=np.int64), np.array([p[0] for p in parts], dtype=np.int16),
+                   off([p[1].size for p in parts]), np.concatenate([p[1].ravel() for p in parts]),
+                   off([p[2].size for p in parts]), np.concatenate([p[2] for p in parts]),
+                   off([p[3].size for p in parts]), np.concatenate([p[3] for p in parts]),
+                   np.concatenate([p[4] for p in parts]))
+
+    def unpack(self) -> dict[int, tuple]:
+        """Inverse of :meth:`pack`."""
+        return {int(c): (int(self.level[k]),
+                         self.nodes[self.node_off[k]:self.node_off[k + 1]].reshape(max(int(self.level[k]) + 1, 0), -1),
+                         self.codes[self.code_off[k]:self.code_off[k + 1]],
+                         self.lo[self.edge_off[k]:self.edge_off[k + 1]],
+                         self.step[self.edge_off[k]:self.edge_off[k + 1]]) for k, c in enumerate(self.cells)}
+
+    @property
+    def n_patches(self) -> int:
+        return int(self.cells.shape[0])
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes stored (every array)."""
+        return int(sum(a.nbytes for a in (self.cells, self.level, self.node_off, self.nodes, self.code_off,
+                                           self.codes, self.edge_off, self.lo, self.step)))
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        return {"cells": self.cells, "level": self.level, "node_off": self.node_off, "nodes": self.nodes,
+                "code_off": self.code_off, "codes": self.codes, "edge_off": self.edge_off, "lo": self.lo,
+                "step": self.step}
+
+    @classmethod
+    def from_arrays(cls, a: dict[str, np.ndarray]) -> CellPatches:
+        return cls(a["cells"], a["level"], a["node_off"], a["nodes"], a["code_off"], a["codes"], a["edge_off"],
+                   a["lo"], a["step"])
+
+    # ---- evaluation -----------------------------------------------------------------------
+
+    def _patch_maps(self, k: int, base: ZMap, interval: float, tol: float):
+        """The sub-grid ZMap and EZMap of patch ``k`` (built once, cached)."""
+        hit = self._maps.get(k)
+        if hit is not None and hit[0] is base:
+            return hit[1], hit[2]
+        from .ez import EZMap
+
+        m = int(self.level[k])
+        sub = sub_grid(base, int(self.cells[k]), m, self.nodes[self.node_off[k]:self.node_off[k + 1]].reshape(m + 1, m + 1))
+        ids, offsets = all_edges(sub, interval)
+        ez = EZMap(sub.x0, sub.y0, sub.dx, sub.dy, m + 1, m + 1, interval, tol, ids, offsets,
+                   self.codes[self.code_off[k]:self.code_off[k + 1]], self.lo[self.edge_off[k]:self.edge_off[k + 1]],
+                   self.step[self.edge_off[k]:self.edge_off[k + 1]])
+        self._maps[k] = (base, sub, ez)
+        return sub, ez
+
+    def evaluate(self, base: ZMap, interval: float, tol: float, x: np.ndarray, y: np.ndarray,
+                 out: np.ndarray) -> None:
+        """Overwrite ``out`` where a point lies in a patched cell and its patch has a height.
+
+        ``x``, ``y``, ``out``: flat float64 arrays, world xy.
+        """
+        if not self.n_patches or x.size == 0:
+            return
+        lx, ly = base.world_to_local(x, y)
+        i = np.floor((lx - base.x0) / base.dx).astype(np.int64)
+        j = np.floor((ly - base.y0) / base.dy).astype(np.int64)
+        # points on the map's far edges belong to the last cell, as in the kernels
+        i = np.where(i == base.nx - 1, base.nx - 2, i)
+        j = np.where(j == base.ny - 1, base.ny - 2, j)
+        inside = (i >= 0) & (i <= base.nx - 2) & (j >= 0) & (j <= base.ny - 2)
+        cid = np.where(inside, i * (base.ny - 1) + j, -1)
+        pos = np.minimum(np.searchsorted(self.cells, cid), self.n_patches - 1)
+        hit = np.flatnonzero(inside & (self.cells[pos] == cid))
+        if hit.size == 0:
+            return
+        order = hit[np.argsort(pos[hit], kind="stable")]
+        ks, starts = np.unique(pos[order], return_index=True)
+        ends = np.append(starts[1:], order.size)
+        for k, s, e in zip(ks, starts, ends):
+            sel = order[s:e]
+            if self.level[k] < 0:
+                h = self._lattice(int(k), base, lx[sel], ly[sel])
+            else:
+                sub, ez = self._patch_maps(int(k), base, interval, tol)
+                h = np.asarray(ez.evaluate(sub, x[sel], y[sel]), dtype=np.float64)
+            ok = ~np.isnan(h)
+            out[sel[ok]] = h[ok]
+
+    def _lattice(self, k: int, base: ZMap, lx: np.ndarray, ly: np.ndarray) -> np.ndarray:
+        """Bilinear heights of lattice patch ``k`` at local xy (NaN on a missing corner)."""
+        from .ez import NAN_CODE
+
+        n = -int(self.level[k])
+        codes = self.codes[self.code_off[k]:self.code_off[k + 1]].reshape(n + 1, n + 1)
+        z = float(self.lo[self.edge_off[k]]) + float(self.step[self.edge_off[k]]) * codes.astype(np.float64)
+        z[codes == NAN_CODE] = np.nan
+        ci, cj = divmod(int(self.cells[k]), base.ny - 1)
+        u = np.clip((lx - base.x0 - ci * base.dx) / base.dx * n, 0.0, n)
+        v = np.clip((ly - base.y0 - cj * base.dy) / base.dy * n, 0.0, n)
+        i = np.minimum(u.astype(np.int64), n - 1)
+        j = np.minimum(v.astype(np.int64), n - 1)
+        fu, fv = u - i, v - j
+        return ((1 - fu) * ((1 - fv) * z[i, j] + fv * z[i, j + 1])
+                + fu * ((1 - fv) * z[i + 1, j] + fv * z[i + 1, j + 1]))
+
+
+def sub_grid(base: ZMap, cell: int, m: int, z: np.ndarray | None = None) -> ZMap:
+    """The ``m x m`` sub-grid over base cell ``cell`` (base frame); heights ``z`` or zeros."""
+    ci, cj = divmod(int(cell), base.ny - 1)
+    zz = np.zeros((m + 1, m + 1)) if z is None else z
+    return ZMap(base.x0 + ci * base.dx, base.y0 + cj * base.dy, base.dx / m, base.dy / m, zz, base.angle,
+                base.origin)
+
+
+def all_edges(sub: ZMap, interval: float) -> tuple[np.ndarray, np.ndarray]:
+    """Edge ids and CSR offsets of an e-map with points on every edge of ``sub``."""
+    from .ez import _n_points, edge_count
+
+    nx, ny = sub.shape
+    E = edge_count(nx, ny)
+    ids = np.arange(E, dtype=np.int64)
+    counts = np.where(ids < (nx - 1) * ny, _n_points(sub.dx, interval), _n_points(sub.dy, interval))
+    offsets = np.zeros(E + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    return ids, offsets
+
+
+def build_patches(base: ZMap, heights: Heights, cells: np.ndarray, m: int, interval: float,
+                  tol: float) -> dict[int, tuple]:
+    """Patch data ``{cell: (m, nodes, codes, lo, step)}`` of level ``m`` for ``cells``.
+
+    Two calls of ``heights``: the sub-grid nodes of all cells, then their e-points.
+    """
+    from . import _ez_kernels as _k
+    from .ez import EZMap, encode_heights
+
+    cells = [int(c) for c in np.asarray(cells, dtype=np.int64)]
+    if not cells:
+        return {}
+    subs = [sub_grid(base, c, m) for c in cells]
+    g = np.arange(m + 1, dtype=np.float64)
+    GX, GY = np.meshgrid(g, g, indexing="ij")
+    lx = np.concatenate([s.x0 + GX.ravel() * s.dx for s in subs])
+    ly = np.concatenate([s.y0 + GY.ravel() * s.dy for s in subs])
+    zn = np.asarray(heights(*base.local_to_world(lx, ly)), dtype=np.float64).reshape(len(cells), m + 1, m + 1)
+    skel = []
+    px_l, py_l = [], []
+    for s, z in zip(subs, zn):
+        s.z[...] = z
+        ids, offsets = all_edges(s, interval)
+        P = int(offsets[-1])
+        ez = EZMap(s.x0, s.y0, s.dx, s.dy, m + 1, m + 1, interval, tol, ids, offsets, np.zeros(P, np.uint16),
+                   np.zeros(ids.size, np.float32), np.zeros(ids.size, np.float32))
+        px, py = ez.points()
+        skel.append((s, ids, offsets))
+        px_l.append(px)
+        py_l.append(py)
+    ze = np.asarray(heights(*base.local_to_world(np.concatenate(px_l), np.concatenate(py_l))), dtype=np.float64)
+    out = {}
+    at = 0
+    for c, (s, ids, offsets) in zip(cells, skel):
+        P = int(offsets[-1])
+        z = np.ascontiguousarray(ze[at:at + P])
+        at += P
+        lifted = np.zeros(ids.size, dtype=np.int64)
+        _k.despike(s.z, ids, offsets, z, tol, lifted)
+        codes, lo, step = encode_heights(offsets, z)
+        out[c] = (m, s.z.copy(), codes, lo, step)
+    return out
+
+
+def lattice_intervals(base: ZMap, tol: float) -> int:
+    """Intervals per side of a cell's dense lattice whose diagonal is at most ``tol``."""
+    return max(1, math.ceil(math.hypot(base.dx, base.dy) / tol - 1e-9))
+
+
+def build_lattices(base: ZMap, heights: Heights, cells: np.ndarray, n: int) -> dict[int, tuple]:
+    """Dense lattice patch data ``{cell: (-n, nodes, codes, lo, step)}`` (one ``heights`` call)."""
+    from .ez import encode_heights
+
+    cells = [int(c) for c in np.asarray(cells, dtype=np.int64)]
+    if not cells:
+        return {}
+    g = np.arange(n + 1, dtype=np.float64) / n
+    GX, GY = np.meshgrid(g, g, indexing="ij")
+    ci, cj = np.divmod(np.array(cells, dtype=np.int64), base.ny - 1)
+    lx = (base.x0 + (ci[:, None] + GX.ravel()[None, :]) * base.dx).ravel()
+    ly = (base.y0 + (cj[:, None] + GY.ravel()[None, :]) * base.dy).ravel()
+    z = np.asarray(heights(*base.local_to_world(lx, ly)), dtype=np.float64).reshape(len(cells), -1)
+    P = (n + 1) ** 2
+    out = {}
+    for c, zc in zip(cells, z):
+        codes, lo, step = encode_heights(np.array([0, P], dtype=np.int64), zc)
+        out[c] = (-n, np.zeros(0), codes, lo, step)
+    return out
+
+
+def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: float, interval: float,
+                  cells: np.ndarray, set_patches: Callable[[CellPatches], None],
+                  levels: tuple[int, ...] = PATCH_LEVELS, n: int = TEST_POINTS,
+                  fine_cells: np.ndarray | None = None) -> tuple[CellPatches, np.ndarray]:
+    """Test ``cells``, patch the misses level by level; returns the patches and the cells still off.
+
+    ``set_patches`` installs a :class:`CellPatches` in the model that ``model_height``
+    evaluates, so each level is tested as the model will answer. ``fine_cells`` (a subset
+    of ``cells``: those a wall or an edge runs through) are tested on a lattice four times as
+    fine: a Coons cell split along a wall can miss by a sliver next to the wall that an
+    ``n x n`` lattice steps over.
+    """
+    per_cell: dict[int, tuple] = {}
+    tol_check = CHECK_SHARE * tol
+    # a sub-cell must stay well above the e-map interval (two e-points per sub-edge at least)
+    levels = tuple(m for m in levels if min(base.dx, base.dy) / m >= 3.0 * interval)
+    cells = np.asarray(cells, dtype=np.int64)
+    if fine_cells is not None and len(fine_cells):
+        fine = np.isin(cells, fine_cells)
+        bad = np.union1d(failing_cells(model_height, base, heights, tol_check, cells[~fine], n),
+                         failing_cells(model_height, base, heights, tol_check, cells[fine], 4 * n))
+    else:
+        bad = failing_cells(model_height, base, heights, tol_check, cells, n)
+    patches = CellPatches.empty()
+    for m in levels + (0,):
+        if bad.size == 0:
+            break
+        if m:
+            per_cell.update(build_patches(base, heights, bad, m, interval, tol))
+        else:  # the last resort: a lattice whose cells' diagonal is tol
+            per_cell.update(build_lattices(base, heights, bad, lattice_intervals(base, tol)))
+        patches = CellPatches.pack(per_cell)
+        set_patches(patches)
+        # a patch is tested on a finer lattice: its sub-cells are smaller
+        bad = failing_cells(model_height, base, heights, tol_check, bad, max(2 * n, 2 * (m or 8)))
+    return patches, bad
+
