@@ -24,16 +24,15 @@ implicit (every sub-edge, in the e-map's id order).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-
-import math
 
 import numpy as np
 
 from ..grid import ZMap
 
-__all__ = ["CellPatches", "PATCH_LEVELS", "TEST_POINTS", "misfit", "cell_test_points", "failing_cells"]
+__all__ = ["PATCH_LEVELS", "TEST_POINTS", "CellPatches", "cell_test_points", "failing_cells", "misfit"]
 
 #: sub-cells per base interval of a cell patch, tried in turn while a cell still misses
 PATCH_LEVELS = (4, 8)
@@ -222,7 +221,7 @@ class CellPatches:
             return cls.empty()
         keys = sorted(per_cell)
         parts = [per_cell[k] for k in keys]
-        off = lambda sizes: np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)  # noqa: E731
+        off = lambda sizes: np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         return cls(np.array(keys, dtype=np.int64), np.array([p[0] for p in parts], dtype=np.int16),
                    off([p[1].size for p in parts]), np.concatenate([p[1].ravel() for p in parts]),
                    off([p[2].size for p in parts]), np.concatenate([p[2] for p in parts]),

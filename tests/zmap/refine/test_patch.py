@@ -15,8 +15,14 @@ import pytest
 from zmap import ZMap
 from zmap.model import PrecisionModel
 from zmap.refine.ez import EZMap, build_ez
-from zmap.refine.patch import (CellPatches, build_lattices, failing_cells, lattice_intervals, misfit,
-                               patch_failing)
+from zmap.refine.patch import (
+    CellPatches,
+    build_lattices,
+    failing_cells,
+    lattice_intervals,
+    misfit,
+    patch_failing,
+)
 
 TOL = 0.01
 
@@ -145,7 +151,7 @@ def test_version_1_e_map_arrays_still_load():
 
 
 def test_misfit_nan_rules():
-    f = lambda x, y: np.where(x < 1.0, np.nan, 2.0)  # noqa: E731  no surface left of x = 1
+    f = lambda x, y: np.where(x < 1.0, np.nan, 2.0)
     x = np.array([0.5, 0.995, 1.5, 1.5])
     y = np.zeros(4)
     h = np.array([2.0, 2.0, np.nan, 2.5])
