@@ -729,3 +729,34 @@ def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, hq, 
 #: :func:`ez_kernel` on one thread: for small batches (a cell patch's few points), where
 #: waking the thread pool costs more than the points themselves
 ez_kernel_serial = njit(cache=True)(ez_kernel.py_func)
+
+
+@njit(cache=True, parallel=True)
+def patch_kernel(zs, x0s, y0s, dx, dy, cs, sn, ox, oy, xs, ys, ks, edge_ids, offsets, codes, lo, step, brk_kind,
+                 brk_t, ecell_ids, slots, nb, bk, bt, pts, arc, out):
+    """:func:`ez_kernel` over a stack of same-level cell patches: point ``p`` lies in patch
+    ``ks[p]``, whose sub-grid is ``zs[k]`` at ``(x0s[k], y0s[k])`` and whose per-edge and
+    per-cell tables are row ``k`` of the stacked arrays (ids, offsets and slots are shared:
+    every patch of a level has every sub-edge)."""
+    for p in prange(xs.shape[0]):
+        k = ks[p]
+        z = zs[k]
+        nx, ny = z.shape
+        i, j, u, v = _locate(xs[p], ys[p], x0s[k], y0s[k], dx, dy, cs, sn, ox, oy, nx, ny)
+        if i < 0:
+            out[p] = np.nan
+            continue
+        c = _find(ecell_ids, i * (ny - 1) + j)
+        if c < 0 or math.isnan(z[i, j]) or math.isnan(z[i + 1, j]) or math.isnan(z[i, j + 1]) or math.isnan(z[i + 1, j + 1]):
+            out[p] = np.nan
+            continue
+        hq = (codes[k], lo[k], step[k])
+        if nb[k, c] == 2 and (pts[k, c, 0, 0] != pts[k, c, 2, 0] or pts[k, c, 0, 1] != pts[k, c, 2, 1]):
+            out[p] = _split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind[k], brk_t[k], bk[k], bt[k], pts[k],
+                            arc[k], dx, dy)
+        else:
+            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind[k], brk_t[k], dx, dy, nb[k, c] > 0)
+
+
+#: :func:`patch_kernel` on one thread, for small batches
+patch_kernel_serial = njit(cache=True)(patch_kernel.py_func)

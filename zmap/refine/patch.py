@@ -259,10 +259,7 @@ class CellPatches:
     # ---- evaluation -----------------------------------------------------------------------
 
     def _patch_maps(self, k: int, base: ZMap, interval: float, tol: float):
-        """The sub-grid ZMap and EZMap of patch ``k`` (built once, cached)."""
-        hit = self._maps.get(k)
-        if hit is not None and hit[0] is base:
-            return hit[1], hit[2]
+        """The sub-grid ZMap and EZMap of EZ patch ``k``."""
         from .ez import EZMap
 
         m = int(self.level[k])
@@ -271,8 +268,35 @@ class CellPatches:
         ez = EZMap(sub.x0, sub.y0, sub.dx, sub.dy, m + 1, m + 1, interval, tol, ids, offsets,
                    self.codes[self.code_off[k]:self.code_off[k + 1]], self.lo[self.edge_off[k]:self.edge_off[k + 1]],
                    self.step[self.edge_off[k]:self.edge_off[k + 1]])
-        self._maps[k] = (base, sub, ez)
         return sub, ez
+
+    def _stacks(self, base: ZMap, interval: float, tol: float) -> dict[int, dict]:
+        """Per EZ level, the patches' sub-grids and evaluation tables stacked (built once).
+
+        Every patch of a level has the same sub-edges, points and cells, so one kernel
+        call evaluates them all (:func:`zmap.refine._ez_kernels.patch_kernel`).
+        """
+        key = (id(base), base.z.ctypes.data, interval, tol)
+        if self._maps.get("key") == key:
+            return self._maps["stacks"]
+        stacks = {}
+        for m in np.unique(self.level[self.level > 0]):
+            index = np.flatnonzero(self.level == m)
+            maps = [self._patch_maps(int(k), base, interval, tol) for k in index]
+            tabs = [ez._tables(sub) for sub, ez in maps]
+            sub0, ez0 = maps[0]
+            st = {name: np.ascontiguousarray(np.stack([t[name] for t in tabs]))
+                  for name in ("brk_kind", "brk_t", "nb", "bk", "bt", "pts", "arc")}
+            st.update(index=index, zs=np.ascontiguousarray(np.stack([sub.z for sub, _ in maps])),
+                      x0s=np.array([sub.x0 for sub, _ in maps]), y0s=np.array([sub.y0 for sub, _ in maps]),
+                      dx=sub0.dx, dy=sub0.dy, edge_ids=ez0.edge_ids, offsets=ez0.offsets,
+                      ecell_ids=tabs[0]["ecell_ids"], slots=tabs[0]["slots"],
+                      codes=np.ascontiguousarray(np.stack([ez.codes for _, ez in maps])),
+                      lo=np.ascontiguousarray(np.stack([ez.lo for _, ez in maps])),
+                      step=np.ascontiguousarray(np.stack([ez.step for _, ez in maps])))
+            stacks[int(m)] = st
+        self._maps = {"key": key, "stacks": stacks}
+        return stacks
 
     def evaluate(self, base: ZMap, interval: float, tol: float, x: np.ndarray, y: np.ndarray,
                  out: np.ndarray) -> None:
@@ -280,6 +304,9 @@ class CellPatches:
 
         ``x``, ``y``, ``out``: flat float64 arrays, world xy.
         """
+        from . import _ez_kernels as _k
+        from .ez import SERIAL_BELOW
+
         if not self.n_patches or x.size == 0:
             return
         lx, ly = base.world_to_local(x, y)
@@ -294,35 +321,51 @@ class CellPatches:
         hit = np.flatnonzero(inside & (self.cells[pos] == cid))
         if hit.size == 0:
             return
-        order = hit[np.argsort(pos[hit], kind="stable")]
-        ks, starts = np.unique(pos[order], return_index=True)
-        ends = np.append(starts[1:], order.size)
-        for k, s, e in zip(ks, starts, ends):
-            sel = order[s:e]
-            if self.level[k] < 0:
-                h = self._lattice(int(k), base, lx[sel], ly[sel])
-            else:
-                sub, ez = self._patch_maps(int(k), base, interval, tol)
-                h = np.asarray(ez.evaluate(sub, x[sel], y[sel]), dtype=np.float64)
-            ok = ~np.isnan(h)
-            out[sel[ok]] = h[ok]
+        k = pos[hit]
+        level = self.level[k]
+        h = np.full(hit.size, np.nan)
+        lat = level < 0
+        if lat.any():
+            h[lat] = self._lattice(k[lat], base, lx[hit[lat]], ly[hit[lat]])
+        if not lat.all():
+            c, s_ = math.cos(base.angle), math.sin(base.angle)
+            for m, st in self._stacks(base, interval, tol).items():
+                sel = np.flatnonzero(level == m)
+                if sel.size == 0:
+                    continue
+                ks = np.searchsorted(st["index"], k[sel])
+                hs = np.empty(sel.size)
+                kernel = _k.patch_kernel if sel.size >= SERIAL_BELOW else _k.patch_kernel_serial
+                kernel(st["zs"], st["x0s"], st["y0s"], st["dx"], st["dy"], c, s_, base.origin[0], base.origin[1],
+                       np.ascontiguousarray(x[hit[sel]]), np.ascontiguousarray(y[hit[sel]]), ks, st["edge_ids"],
+                       st["offsets"], st["codes"], st["lo"], st["step"], st["brk_kind"], st["brk_t"], st["ecell_ids"],
+                       st["slots"], st["nb"], st["bk"], st["bt"], st["pts"], st["arc"], hs)
+                h[sel] = hs
+        ok = ~np.isnan(h)
+        out[hit[ok]] = h[ok]
 
-    def _lattice(self, k: int, base: ZMap, lx: np.ndarray, ly: np.ndarray) -> np.ndarray:
-        """Bilinear heights of lattice patch ``k`` at local xy (NaN on a missing corner)."""
+    def _lattice(self, k: np.ndarray, base: ZMap, lx: np.ndarray, ly: np.ndarray) -> np.ndarray:
+        """Bilinear heights in lattice patches ``k`` (one per point) at local xy; NaN on a
+        missing corner."""
         from .ez import NAN_CODE
 
-        n = -int(self.level[k])
-        codes = self.codes[self.code_off[k]:self.code_off[k + 1]].reshape(n + 1, n + 1)
-        z = float(self.lo[self.edge_off[k]]) + float(self.step[self.edge_off[k]]) * codes.astype(np.float64)
-        z[codes == NAN_CODE] = np.nan
-        ci, cj = divmod(int(self.cells[k]), base.ny - 1)
+        n = -self.level[k].astype(np.int64)
+        ci, cj = np.divmod(self.cells[k], base.ny - 1)
         u = np.clip((lx - base.x0 - ci * base.dx) / base.dx * n, 0.0, n)
         v = np.clip((ly - base.y0 - cj * base.dy) / base.dy * n, 0.0, n)
         i = np.minimum(u.astype(np.int64), n - 1)
         j = np.minimum(v.astype(np.int64), n - 1)
         fu, fv = u - i, v - j
-        return ((1 - fu) * ((1 - fv) * z[i, j] + fv * z[i, j + 1])
-                + fu * ((1 - fv) * z[i + 1, j] + fv * z[i + 1, j + 1]))
+        at = self.code_off[k] + i * (n + 1) + j
+        lo = self.lo[self.edge_off[k]].astype(np.float64)
+        st = self.step[self.edge_off[k]].astype(np.float64)
+
+        def z(q):
+            cq = self.codes[q]
+            return np.where(cq == NAN_CODE, np.nan, lo + st * cq.astype(np.float64))
+
+        return ((1 - fu) * ((1 - fv) * z(at) + fv * z(at + 1))
+                + fu * ((1 - fv) * z(at + n + 1) + fv * z(at + n + 2)))
 
 
 def sub_grid(base: ZMap, cell: int, m: int, z: np.ndarray | None = None) -> ZMap:

@@ -168,3 +168,19 @@ def test_bad_patch_arrays():
         CellPatches.from_arrays(bad)
     with pytest.raises(ValueError, match="increasing"):
         CellPatches.from_arrays(dict(a, cells=a["cells"][::-1].copy()))
+
+
+def test_stacked_kernel_matches_each_patch_on_its_own():
+    rib = Rib(angle=0.8, c=2.6, w=0.17)
+    base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
+    ez = build_ez(base, rib, tol=TOL, se_curves=rib.se_curves())
+    p = ez.patches
+    assert (p.level > 0).sum() >= 2
+    rng = np.random.default_rng(5)
+    for k in np.flatnonzero(p.level > 0):
+        sub, one = p._patch_maps(int(k), base, ez.interval, ez.tol)
+        x, y = rng.uniform(sub.x0, sub.x0 + base.dx, 500), rng.uniform(sub.y0, sub.y0 + base.dy, 500)
+        alone = one.evaluate(sub, x, y)
+        out = np.full(x.size, np.nan)
+        p.evaluate(base, ez.interval, ez.tol, x, y, out)
+        assert np.array_equal(alone, out, equal_nan=True)
