@@ -52,7 +52,8 @@ def default_eps_r(tol: float, dx: float, dy: float) -> float:
 
     Every step that the base z-map cannot hold within ``tol`` in 3D therefore makes its
     edge steep; edges below ``eps_r`` carry no feature the base misses by more than ``tol``
-    (smooth steep slopes above it are flagged too and cost memory, never accuracy).
+    (smooth steep slopes above it are flagged too; :func:`zmap.refine.ez.build_ez` drops
+    those whose e-points the base's Bezier already holds).
 
     Parameters
     ----------
