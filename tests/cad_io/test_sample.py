@@ -302,3 +302,19 @@ def test_geomdl_part():
     X, Y = zm.grid_points()
     assert zm.shape == (21, 21) and (zm.layers["method"] == 1).all()
     assert np.abs(zm.z - X * Y / 20).max() < 1e-12  # the hyperbolic paraboloid z = xy/20
+
+
+def test_no_facet_heights_from_a_vertical_b_spline_wall(shared_data):
+    """featuretype.STEP face 78 is an extruded (vertical) B-spline wall: Newton is singular
+    on it and its mesh has 1.2 mm chord triangles with |n_z| = 0.06. Their facet heights
+    (18.3-19.4 mm) once stood up to 80 um out on the floor (15.875 mm); the floor must
+    answer there, as OCC's ray cast says."""
+    from cad_io.sampler import sample_points
+
+    part = read_step(shared_data / "step" / "featuretype.STEP")
+    x = np.linspace(52.86, 52.99, 27)  # the wall is at x ~ 52.850 on this line
+    y = np.full(x.shape, -7.5214)
+    z, _face, method = sample_points(part, x, y, deflection=0.005)
+    ray = RayCaster(part.shape)(x, y)[0]
+    assert np.abs(z - ray).max() <= 1e-6
+    assert (method == 1).all()
