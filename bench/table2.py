@@ -60,8 +60,9 @@ def _default_plan(path: Path) -> dict:
     return {"grid": 0.5, "note": "no entry in PLAN: default 0.5 mm, +z"}
 
 
-def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods: tuple) -> dict:
-    """Report of one part (called in the child process)."""
+def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods: tuple,
+            deflection: float | None = None) -> dict:
+    """Report of one part (called in the child process); ``deflection`` None: tol/2 (report_rows')."""
     from cad_io.commands import refine_models, report_rows
     from cad_io.sampler import sample
     from cad_io.step import read_step
@@ -78,10 +79,11 @@ def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods
     base = sample(part, grid, progress=False) if _takes_progress() else sample(part, grid)
     t_base = time.perf_counter() - t0 - t_read
     print(f"  base {base.nx} x {base.ny} in {t_base:.1f} s", file=sys.stderr, flush=True)
-    models = refine_models(part, base, tol, methods)
+    models = refine_models(part, base, tol, methods, deflection=deflection)
     for m, (_, info) in models.items():
         print(f"  {m}: {info['seconds']:.1f} s, {info['sampled']:,} points sampled", file=sys.stderr, flush=True)
-    rep = report_rows(part, grid, tol, n_points=points, models=models, base=base)
+    rep = report_rows(part, grid, tol, n_points=points, models=models, base=base, deflection=deflection,
+                      distance_deflection=deflection)
     x0, y0, x1, y1 = base.bounds
     r = rep["rows"]
     kb = lambda b: round(b / 1024, 1)
@@ -136,6 +138,8 @@ def _child(path: Path, plan: dict, tol: float, points: int, timeout: float) -> d
     cmd = [sys.executable, str(Path(__file__).resolve()), "--one", str(path), "--grid", str(plan["grid"]),
            "--axis", plan.get("axis", "+z"), "--methods", ",".join(plan.get("methods", ("ez", "cz"))),
            "--tol", str(tol), "--points", str(plan.get("points", points))]
+    if plan.get("deflection") is not None:
+        cmd += ["--deflection", str(plan["deflection"])]
     t0 = time.perf_counter()
     try:
         p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=None, text=True, timeout=timeout, cwd=ROOT, check=False)
@@ -233,11 +237,12 @@ def main() -> None:
     ap.add_argument("--grid", type=float, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--axis", default="+z", help=argparse.SUPPRESS)
     ap.add_argument("--methods", default="ez,cz", help=argparse.SUPPRESS)
+    ap.add_argument("--deflection", type=float, default=None, help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.one is not None:
         t0 = time.perf_counter()
         try:
-            res = run_one(a.one, a.grid, a.tol, a.points, a.axis, tuple(a.methods.split(",")))
+            res = run_one(a.one, a.grid, a.tol, a.points, a.axis, tuple(a.methods.split(",")), a.deflection)
         except Exception as err:  # noqa: BLE001 (recorded in the table, the run goes on)
             import traceback
 

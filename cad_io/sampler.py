@@ -552,6 +552,8 @@ def _ids(ids: list[int], limit: int = 20) -> str:
 
 #: default mesh deflection (mm) of :func:`sample_points`: starts and facet fallback heights
 POINTS_DEFLECTION = 0.01
+#: scattered points solved per pass of :func:`sample_points` (bounds its working memory)
+POINTS_CHUNK = 1_000_000
 _CACHE_ATTR = "_sampler_cache"
 
 
@@ -663,27 +665,32 @@ def sample_points(part: Part, x, y, *, deflection: float | None = None, method: 
     mflat = np.zeros(n, dtype=np.int8)
     good = np.flatnonzero(np.isfinite(px) & np.isfinite(py))
     fs = _cached_face_set(part, deflection, axis)
-    if good.size and fs.tris is not None:
-        gx = np.ascontiguousarray(px[good])
-        gy = np.ascontiguousarray(py[good])
+    if fs.tris is None:
+        return zflat.reshape(shape), fflat.reshape(shape), mflat.reshape(shape)
+    mode = _MODE[method]
+    # points in chunks: the bins and working arrays take ~100 bytes a point, and an EZ-map
+    # asks for all its e-points at once (bm2_ec_t4-A: 8 GB in one call before chunking)
+    for c0 in range(0, good.size, POINTS_CHUNK):
+        sel = good[c0:c0 + POINTS_CHUNK]
+        gx = np.ascontiguousarray(px[sel])
+        gy = np.ascontiguousarray(py[sel])
         bins = _bins(gx, gy, fs)
         counts = np.zeros(len(fs.tris), dtype=np.int64)
         K.count_pairs_xy(fs.nodes, fs.tris, fs.tri_margin, gx, gy, *bins, counts)
-        mode = _MODE[method]
 
-        def fill(t, offsets, gidx, tri_p, w):
+        def fill(t, offsets, gidx, tri_p, w, gx=gx, gy=gy, bins=bins):
             K.fill_pairs_xy(fs.nodes, fs.tris, fs.tri_margin, t, offsets, gx, gy, *bins, gidx, tri_p, w)
 
-        def solve(gidx, tri_p, w, zc, st):
+        def solve(gidx, tri_p, w, zc, st, gx=gx, gy=gy):
             K.solve_pairs_xy(gidx, tri_p, w, *fs.solve_args(), gx, gy, mode, NEWTON_TOL, NEWTON_MAX_ITER, zc, st)
 
-        zg = np.full(good.size, np.nan)
-        fg = np.full(good.size, -1, dtype=np.int32)
-        mg = np.zeros(good.size, dtype=np.int8)
+        zg = np.full(sel.size, np.nan)
+        fg = np.full(sel.size, -1, dtype=np.int32)
+        mg = np.zeros(sel.size, dtype=np.int8)
         _run_pairs(fs, counts, fill, solve, zg, fg, mg)
-        zflat[good] = zg
-        fflat[good] = fg
-        mflat[good] = mg
+        zflat[sel] = zg
+        fflat[sel] = fg
+        mflat[sel] = mg
     return zflat.reshape(shape), fflat.reshape(shape), mflat.reshape(shape)
 
 
