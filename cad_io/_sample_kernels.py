@@ -217,8 +217,9 @@ def _edge_test(u, v, ua, va, ub, vb, eps2):
 def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, tol, max_iter, out):
     """Damped Newton for x(u, v) = xg, y(u, v) = yg on face ``k`` from (u, v).
 
-    Returns ``(converged, u, v, at_edge)``; ``out[0]`` holds the point at the last (u, v)
-    (``at_edge``: stopped on the domain boundary, i.e. the answer lies outside the face).
+    Returns ``(converged, u, v, at_edge, singular)``; ``out[0]`` holds the point at the
+    last (u, v) (``at_edge``: stopped on the domain boundary, i.e. the answer lies outside
+    the face; ``singular``: stopped on a rank-deficient xy Jacobian, a vertical face).
     """
     u = min(max(u, u0), u1)
     v = min(max(v, v0), v1)
@@ -228,7 +229,7 @@ def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, t
     r = math.sqrt(fx * fx + fy * fy)
     for it in range(max_iter):
         if r <= tol:
-            return True, u, v, False
+            return True, u, v, False, False
         sux = out[1, 0]
         suy = out[1, 1]
         svx = out[2, 0]
@@ -237,7 +238,8 @@ def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, t
         nsu = out[1, 0] ** 2 + out[1, 1] ** 2 + out[1, 2] ** 2
         nsv = out[2, 0] ** 2 + out[2, 1] ** 2 + out[2, 2] ** 2
         if not (abs(det) > 1e-10 * math.sqrt(nsu * nsv)):
-            break  # singular: vertical wall or fold
+            # singular: vertical wall or fold
+            return r <= tol, u, v, r > tol and (u == u0 or u == u1 or v == v0 or v == v1), True
         du = -(svy * fx - svx * fy) / det
         dv = -(-suy * fx + sux * fy) / det
         lam = 1.0
@@ -262,12 +264,28 @@ def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, t
         if not improved:
             break
     if r <= tol:
-        return True, u, v, False
-    return False, u, v, (u == u0 or u == u1 or v == v0 or v == v1)
+        return True, u, v, False, False
+    return False, u, v, (u == u0 or u == u1 or v == v0 or v == v1), False
 
 
 #: |n_z| below which a mesh triangle is a wall for the facet fallback (steeper than ~75 deg)
 _WALL_NZ = 0.25
+
+
+@njit(cache=True, inline="always")
+def _tri_nz(nodes, a, b, c):
+    """|n_z| of triangle (a, b, c): 1 flat, 0 vertical (0 for a degenerate triangle)."""
+    ux = nodes[b, 0] - nodes[a, 0]
+    uy = nodes[b, 1] - nodes[a, 1]
+    uz = nodes[b, 2] - nodes[a, 2]
+    vx = nodes[c, 0] - nodes[a, 0]
+    vy = nodes[c, 1] - nodes[a, 1]
+    vz = nodes[c, 2] - nodes[a, 2]
+    nx = uy * vz - uz * vy
+    ny = uz * vx - ux * vz
+    nz = ux * vy - uy * vx
+    nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+    return abs(nz) / nn if nn > 0.0 else 0.0
 
 
 @njit(cache=True, inline="always")
@@ -279,19 +297,13 @@ def _wall_triangle(nodes, a, b, c):
     uncertain by the mesh's xy error over |n_z|, and BRepMesh does not always hold the
     deflection there: on featuretype's extruded B-spline wall (face 78) 1.2 mm chord
     triangles with |n_z| = 0.063 answered 18.3-19.4 mm up to 80 um off the wall, where the
-    floor is at 15.875 mm and OCC's ray cast sees the floor. Newton answers on a steep face
-    that is not vertical; the faces beside a wall give its top-most heights.
+    floor is at 15.875 mm and OCC's ray cast sees the floor. So where Newton stopped on a
+    singular Jacobian and the triangle is this steep, the face is a wall there and gives no
+    height (the faces beside it give the top-most heights). Where Newton fails on a steep
+    face for another reason the facet still answers: on cornetta's 86 degree faces 32 and
+    99 leaving it out let the floor 40 mm below answer.
     """
-    ux = nodes[b, 0] - nodes[a, 0]
-    uy = nodes[b, 1] - nodes[a, 1]
-    uz = nodes[b, 2] - nodes[a, 2]
-    vx = nodes[c, 0] - nodes[a, 0]
-    vy = nodes[c, 1] - nodes[a, 1]
-    vz = nodes[c, 2] - nodes[a, 2]
-    nx = uy * vz - uz * vy
-    ny = uz * vx - ux * vz
-    nz = ux * vy - uy * vx
-    return abs(nz) < _WALL_NZ * math.sqrt(nx * nx + ny * ny + nz * nz)
+    return _tri_nz(nodes, a, b, c) < _WALL_NZ
 
 
 @njit(cache=True, inline="always")
@@ -329,6 +341,7 @@ def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mod
     # start from the barycentric (u, v); where that fails (near poles and seams of
     # the parametrisation the blend of the nodes' (u, v) is poor) from each node
     ok = False
+    singular = False
     n_edge = 0
     n_try = 0
     u = 0.0
@@ -341,8 +354,8 @@ def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mod
             nd = tris[t, attempt - 1]
             us = uv[nd, 0]
             vs = uv[nd, 1]
-        ok, u, v, at_edge = _newton(deg, ncp, koff, poff, knots, cpw, k, us, vs, xg, yg,
-                                    u0, u1, v0, v1, tol, max_iter, out)
+        ok, u, v, at_edge, singular = _newton(deg, ncp, koff, poff, knots, cpw, k, us, vs, xg, yg,
+                                              u0, u1, v0, v1, tol, max_iter, out)
         n_try += 1
         if ok:
             break
@@ -372,7 +385,7 @@ def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mod
     if ok:
         z[p] = out[0, 2]
         status[p] = 1
-    elif mode == 0 and not edge and min(w0, min(w1, w2)) >= -1e-12 and not _wall_triangle(nodes, a, b, c):
+    elif mode == 0 and not edge and min(w0, min(w1, w2)) >= -1e-12 and not (singular and _wall_triangle(nodes, a, b, c)):
         # facet fallback (not for a point paired from outside its triangle by the boundary
         # margin, nor on a wall: see _wall_triangle); on a boundary triangle only where its
         # start is in the face
