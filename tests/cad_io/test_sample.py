@@ -318,3 +318,17 @@ def test_no_facet_heights_from_a_vertical_b_spline_wall(shared_data):
     ray = RayCaster(part.shape)(x, y)[0]
     assert np.abs(z - ray).max() <= 1e-6
     assert (method == 1).all()
+
+
+def test_steep_face_keeps_its_exact_heights(shared_data):
+    """bug27693_cornetta face 32 is 86 degrees steep: the facet height there is off by the
+    mesh's xy error times the slope (0.1-0.2 mm), so the exact Newton height must not be
+    rejected for differing from it (the layer check measures across the triangle there)."""
+    from cad_io.sampler import sample_points
+
+    part = read_step(shared_data / "step" / "bug27693_cornetta-step.stp")
+    x = 103.9427660053974 + np.linspace(-0.2, 0.2, 9)
+    y = np.full(x.shape, -28.874535546916093)
+    z, face, method = sample_points(part, x, y, deflection=0.005)
+    assert (method == 1).all()
+    assert np.abs(z - RayCaster(part.shape)(x, y)[0]).max() <= 1e-6
