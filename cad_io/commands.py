@@ -209,8 +209,12 @@ def refine_cmd(zmap_path, part_path, tol, method, output) -> None:
     nb = model.nbytes
     click.echo(f"wrote    {output}")
     if method == "ez":
-        click.echo(f"ez       {model.ez.n_edges:,} edges ({100 * model.ez.edge_ratio:.2f} %), "
-                   f"{model.ez.n_points:,} e-points at <= {model.ez.interval:g} mm")
+        ez = model.ez
+        click.echo(f"ez       {ez.n_edges:,} edges ({100 * ez.edge_ratio:.2f} %), "
+                   f"{ez.n_points:,} e-points at <= {ez.interval:g} mm; {ez.pruned:,} candidate edges dropped "
+                   f"(the base holds them)")
+        click.echo(f"check    {ez.n_patches:,} cells patched ({ez.patch_nbytes / 1024:.1f} KB), "
+                   f"{ez.unresolved:,} still off the exact surface at a test point")
     else:
         click.echo(f"cz       {len(model.cz)} CZ-maps, {sum(c.z.size for c in model.cz):,} points")
     click.echo(f"memory   base {nb['base'] / 1024:.1f} KB, {method} {nb[method] / 1024:.1f} KB, "
@@ -287,7 +291,11 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
         z-map at the e-map interval, computed) and ``rows``: for ``base``, ``ez``, ``cz`` the
         memory in bytes (``zmap``, ``extra``, ``total``), the e-map ratio, the largest
         vertical deviation where the surface is not steep, the largest 3D distance to the
-        B-rep everywhere, and (CZ) inside the CZ domains.
+        B-rep everywhere, and (CZ) inside the CZ domains; ``max_dist_topmost`` and
+        ``p999_dist_topmost`` measure to the top-most surface instead (:func:`_skirt_bound`):
+        the B-rep's faces plus the vertical skirts where the top-most height jumps without a
+        wall (an overhang, a hole through to a face far below). A z-map holds that surface,
+        not the faces under an overhang; on a height field (a die) the two agree.
 
     Examples
     --------
@@ -332,12 +340,19 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
         d[ok], n_occ, n_unchecked = confirm_with_occ(part, pts, dist, above=tol / 2, slack=np.where(exact, 0.0, ddefl))
         flat = ok & np.isfinite(zex) & ~steep
         nb = model.nbytes
+        dtop = d.copy()
+        far = np.flatnonzero(np.nan_to_num(d, nan=-1.0) > tol / 2)
+        if far.size:
+            dtop[far] = np.minimum(d[far], _skirt_bound(part, xs[far], ys[far], h[far], zex[far], defl, tol,
+                                                        base.dx))
         row = {"zmap_bytes": nb["base"], "extra_bytes": nb["cz"] + nb["ez"], "total_bytes": nb["total"],
                "emap_ratio": float(model.ez.edge_ratio) if model.ez is not None else None,
                "n_cz": len(model.cz),
                "max_vertical_flat": float(np.max(np.abs(h[flat] - zex[flat]), initial=0.0)),
                "max_dist": float(np.nanmax(d)) if ok.any() else None,
                "p999_dist": float(np.nanpercentile(d, 99.9)) if ok.any() else None,
+               "max_dist_topmost": float(np.nanmax(dtop)) if ok.any() else None,
+               "p999_dist_topmost": float(np.nanpercentile(dtop, 99.9)) if ok.any() else None,
                "points_with_height": int(ok.sum()), "points_flat": int(flat.sum()),
                "occ_confirmed": n_occ, "above_half_tol_unconfirmed": n_unchecked,
                "mesh_distance_points": int(np.count_nonzero(~exact))}
@@ -345,6 +360,8 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
             inside = model.source(xs, ys) == 2
             row["cz_points"] = int(inside.sum())
             row["max_dist_in_cz"] = float(np.nanmax(d[inside])) if inside.any() else None
+        if model.ez is not None:
+            row.update(ez_patches=model.ez.n_patches, ez_unresolved=model.ez.unresolved, ez_pruned=model.ez.pruned)
         if info:
             row["facet_points"] = info["facet"]
             row["build_seconds"] = info["seconds"]
@@ -354,6 +371,40 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
             "reference_facet_points": int(np.count_nonzero(how == FACET)),
             "reference_empty_points": int(np.count_nonzero(how == 0)),
             "plain_fine_bytes": nx_f * ny_f * 8, "plain_fine_shape": [nx_f, ny_f], "rows": rows}
+
+
+#: radii (in tol) and directions of the probes of :func:`_skirt_bound`
+_SKIRT_RADII = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0, 10.0, 20.0, 50.0)
+_SKIRT_DIRECTIONS = 16
+
+
+def _skirt_bound(part, x, y, h, z0, deflection: float, tol: float, grid: float) -> np.ndarray:
+    """Upper bound of the distance from (x, y, h) to the top-most surface, skirts included.
+
+    The top-most height along a segment from (x, y) to a probe at radius ``r`` passes every
+    height between its ends (on a face, or on the vertical skirt where it jumps); so where
+    the exact heights at (x, y) and at a probe bracket ``h`` the surface point at height
+    ``h`` lies within ``r`` horizontally of the point. Radii up to a grid interval;
+    ``inf`` where none brackets.
+    """
+    from cad_io.sampler import sample_points
+
+    out = np.full(x.shape, np.inf)
+    ang = np.arange(_SKIRT_DIRECTIONS) * (2 * math.pi / _SKIRT_DIRECTIONS)
+    left = np.arange(x.size)
+    for r in (f * tol for f in _SKIRT_RADII):
+        if r > grid or left.size == 0:
+            break
+        px = (x[left, None] + r * np.cos(ang)).ravel()
+        py = (y[left, None] + r * np.sin(ang)).ravel()
+        zp = sample_points(part, px, py, deflection=deflection)[0].reshape(left.size, -1)
+        lo = np.minimum(zp, z0[left, None])
+        hi = np.maximum(zp, z0[left, None])
+        with np.errstate(invalid="ignore"):
+            hit = ((lo <= h[left, None]) & (h[left, None] <= hi)).any(axis=1)
+        out[left[hit]] = r
+        left = left[~hit]
+    return out
 
 
 def format_report(rep: dict) -> str:
@@ -366,18 +417,24 @@ def format_report(rep: dict) -> str:
              f"would take {kb(rep['plain_fine_bytes'])} KB",
              "",
              "| model | z-map KB | e-map / CZ KB | total KB | e-map ratio % | CZ-maps | max vertical dev (not steep) mm "
-             "| max 3D dist mm | 99.9% 3D dist mm | max 3D dist in CZ mm |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "| max 3D dist mm | 99.9% 3D dist mm | max 3D dist in CZ mm | max dist to top-most surface mm |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for name, r in rep["rows"].items():
         ratio = "-" if r["emap_ratio"] is None else f"{100 * r['emap_ratio']:.2f}"
         lines.append(f"| {name} | {kb(r['zmap_bytes'])} | {kb(r['extra_bytes'])} | {kb(r['total_bytes'])} | {ratio} "
                      f"| {r['n_cz']} | {f(r['max_vertical_flat'])} | {f(r['max_dist'])} | {f(r['p999_dist'])} "
-                     f"| {f(r.get('max_dist_in_cz'))} |")
+                     f"| {f(r.get('max_dist_in_cz'))} | {f(r.get('max_dist_topmost'))} |")
     lines.append("")
     lines.append("3D distances: exact NURBS projection (cad_io.distance); every distance above tol/2, largest "
                  "first, measured again by OCC BRepExtrema: " + ", ".join(
                      f"{name} {r['occ_confirmed']} (left {r['above_half_tol_unconfirmed']})"
-                     for name, r in rep["rows"].items()))
+                     for name, r in rep["rows"].items()) + ". Top-most surface: the B-rep's faces plus the vertical "
+                 "skirts where the top-most height jumps without a wall (overhangs, holes through to a face below); "
+                 "a z-map holds that surface.")
+    ez = rep["rows"].get("ez")
+    if ez is not None and "ez_patches" in ez:
+        lines.append(f"EZ: {ez['ez_pruned']:,} candidate edges dropped (the base holds them), "
+                     f"{ez['ez_patches']:,} cells patched after the cell check, {ez['ez_unresolved']:,} still off.")
     if "deflection" in rep:
         lines.append(f"Mesh deflection {rep['deflection']:g} mm (heights), {rep['distance_deflection']:g} mm "
                      f"(distances); reference heights from facets where the Jacobian inversion failed: "
