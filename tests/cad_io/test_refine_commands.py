@@ -123,3 +123,35 @@ def test_report_rows_deflection_and_reference_facet_count():
                                                                        abs=1e-9)
     with pytest.raises(ValueError, match="distance_deflection must be a positive"):
         report_rows(part, 1.0, 0.05, n_points=10, methods=(), distance_deflection=0.0)
+
+
+def test_skirt_bound_under_an_overhang(tmp_path):
+    """A mushroom (a 30 mm cap on a 10 mm stem over a base plate) seen from +z: the top-most
+    height jumps from the cap (22 mm) to the base (2 mm) with no wall below the cap's rim.
+    A point on that jump is 8 mm from the B-rep but on the top-most surface's skirt."""
+    cq = pytest.importorskip("cadquery")
+    import numpy as np
+
+    from cad_io.commands import _skirt_bound
+    from cad_io.distance import distance_to_part
+    from cad_io.sampler import sample_points
+    from cad_io.step import read_step
+
+    shape = (cq.Workplane("XY").box(40, 40, 2, centered=(True, True, False))
+             .union(cq.Workplane("XY").workplane(offset=2).box(10, 10, 18, centered=(True, True, False)))
+             .union(cq.Workplane("XY").workplane(offset=20).box(30, 30, 2, centered=(True, True, False))))
+    path = tmp_path / "mushroom.step"
+    cq.exporters.export(shape, str(path))
+    part = read_step(path)
+    tol = 0.01
+    x = np.array([15.001, 15.003, 17.0, 0.0])  # just off the cap's rim (x = 15), on the base, on the cap
+    y = np.zeros(4)
+    h = np.array([10.0, 21.0, 2.004, 22.0])
+    z0 = sample_points(part, x, y, deflection=tol / 2)[0]
+    assert np.allclose(z0, [2.0, 2.0, 2.0, 22.0])
+    d = distance_to_part(part, np.c_[x, y, h], deflection=tol / 2)
+    assert d[0] > 7.9 and abs(d[1] - 0.003) < 1e-6
+    b = _skirt_bound(part, x, y, h, z0, tol / 2, tol, 0.5)
+    assert b[0] <= 0.0025 and b[1] <= 0.005  # the cap's edge bracket the heights within r
+    assert b[2] == np.inf  # 4 um over the base plate, nothing to bracket: the B-rep distance stands
+    assert b[3] <= 0.0025  # on the cap: any probe brackets (equal heights)
