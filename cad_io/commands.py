@@ -385,13 +385,15 @@ def _skirt_bound(part, x, y, h, z0, deflection: float, tol: float, grid: float) 
     height between its ends (on a face, or on the vertical skirt where it jumps); so where
     the exact heights at (x, y) and at a probe bracket ``h`` the surface point at height
     ``h`` lies within ``r`` horizontally of the point. Radii up to a grid interval;
-    ``inf`` where none brackets.
+    ``inf`` where none brackets, and for points within ``tol`` of the exact height ``z0``
+    (they belong on the B-rep's face there; the sampler's height would bracket them itself).
     """
     from cad_io.sampler import sample_points
 
     out = np.full(x.shape, np.inf)
     ang = np.arange(_SKIRT_DIRECTIONS) * (2 * math.pi / _SKIRT_DIRECTIONS)
-    left = np.arange(x.size)
+    with np.errstate(invalid="ignore"):
+        left = np.flatnonzero(~(np.abs(h - z0) <= tol))
     for r in (f * tol for f in _SKIRT_RADII):
         if r > grid or left.size == 0:
             break
