@@ -213,7 +213,8 @@ def refine_cmd(zmap_path, part_path, tol, method, output) -> None:
         click.echo(f"ez       {ez.n_edges:,} edges ({100 * ez.edge_ratio:.2f} %), "
                    f"{ez.n_points:,} e-points at <= {ez.interval:g} mm; {ez.pruned:,} candidate edges dropped "
                    f"(the base holds them)")
-        click.echo(f"check    {ez.n_patches:,} cells patched ({ez.patch_nbytes / 1024:.1f} KB), "
+        click.echo(f"check    {ez.n_patches:,} cells patched ({ez.n_lattices:,} by a lattice, "
+                   f"{ez.patch_nbytes / 1024:.1f} KB), "
                    f"{ez.unresolved:,} still off the exact surface at a test point")
     else:
         click.echo(f"cz       {len(model.cz)} CZ-maps, {sum(c.z.size for c in model.cz):,} points")
@@ -361,7 +362,8 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
             row["cz_points"] = int(inside.sum())
             row["max_dist_in_cz"] = float(np.nanmax(d[inside])) if inside.any() else None
         if model.ez is not None:
-            row.update(ez_patches=model.ez.n_patches, ez_unresolved=model.ez.unresolved, ez_pruned=model.ez.pruned)
+            row.update(ez_patches=model.ez.n_patches, ez_lattices=model.ez.n_lattices, ez_unresolved=model.ez.unresolved,
+                       ez_pruned=model.ez.pruned)
         if info:
             row["facet_points"] = info["facet"]
             row["build_seconds"] = info["seconds"]
@@ -436,7 +438,8 @@ def format_report(rep: dict) -> str:
     ez = rep["rows"].get("ez")
     if ez is not None and "ez_patches" in ez:
         lines.append(f"EZ: {ez['ez_pruned']:,} candidate edges dropped (the base holds them), "
-                     f"{ez['ez_patches']:,} cells patched after the cell check, {ez['ez_unresolved']:,} still off.")
+                     f"{ez['ez_patches']:,} cells patched after the cell check ({ez['ez_lattices']:,} of them "
+                     f"by a lattice), {ez['ez_unresolved']:,} still off.")
     if "deflection" in rep:
         lines.append(f"Mesh deflection {rep['deflection']:g} mm (heights), {rep['distance_deflection']:g} mm "
                      f"(distances); reference heights from facets where the Jacobian inversion failed: "

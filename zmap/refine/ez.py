@@ -310,6 +310,11 @@ class EZMap:
         return int(self.patches.n_patches) if self.patches is not None else 0
 
     @property
+    def n_lattices(self) -> int:
+        """Number of patched cells answered by a dense lattice (the last resort)."""
+        return int(np.count_nonzero(self.patches.level < 0)) if self.patches is not None else 0
+
+    @property
     def cache_nbytes(self) -> int:
         """Bytes of the per-cell evaluation tables currently cached (0 before evaluate)."""
         return int(sum(a.nbytes for a in self._cache.get("arrays", {}).values()))

@@ -11,8 +11,9 @@ carries e-points (an EZ-map of its own), first ``m = 4``, then ``m = 8``. A cell
 of ``n x n`` intervals whose diagonal is at most ``tol``, interpolated bilinearly: a
 bilinear height lies between the four corner heights, and the top-most surface (walls
 included) passes through that height somewhere between those corners, so the model point
-is within one diagonal, ``tol``, of the surface. Cells still off after that (the sampler
-answered inconsistently) are counted (``EZMap.unresolved``), not hidden.
+is within one diagonal, ``tol``, of the surface (as far as the sampler's heights are
+exact), so lattice cells are not re-tested. ``EZMap.unresolved`` counts cells left off
+when the lattice is not among the levels asked for (:func:`patch_failing`).
 
 Storage (:class:`CellPatches`): per patched base cell its level ``m`` (``m > 0``: EZ
 sub-grid; ``m = -n``: dense lattice), for a sub-grid the ``(m+1)^2`` heights of its nodes
@@ -50,11 +51,11 @@ def misfit(h: np.ndarray, x: np.ndarray, y: np.ndarray, z_exact: np.ndarray, hei
     """True where the model point ``(x, y, h)`` misses the exact surface by more than ``tol``.
 
     A point misses when its height is more than ``tol`` off the exact height and the exact
-    heights around it (eight directions at ``tol`` and at ``tol / 2``) do not bracket it
-    within ``tol``: next to a wall the model may place the wall up to ``tol`` off, which is
-    a 3D distance within ``tol``. A conservative stand-in for the 3D distance (it may flag a
-    point the B-rep is within ``tol`` of, never the reverse where the surface between the
-    probes is continuous). A model height over no surface misses unless one of those
+    heights around it (eight directions at ``tol/4``, ``tol/2`` and ``3 tol/4``) do not
+    bracket it within ``tol/2``: where they do, the top-most surface passes within
+    ``tol/2`` of the point's height within ``3 tol/4`` horizontally (on a face, or on a wall
+    the model places off by that much), a 3D distance within ``0.9 tol``. A conservative
+    stand-in for the 3D distance as far as the probes see. A model height over no surface misses unless one of those
     neighbours has a surface; no model height (NaN) is never a miss (the base has none there).
 
     Parameters
@@ -86,8 +87,8 @@ def misfit(h: np.ndarray, x: np.ndarray, y: np.ndarray, z_exact: np.ndarray, hei
         hi = z_exact[idx].copy()
         xi, yi = x[idx], y[idx]
         ang = np.arange(8) * (np.pi / 4)
-        ox = np.concatenate([tol * np.cos(ang), 0.5 * tol * np.cos(ang)])
-        oy = np.concatenate([tol * np.sin(ang), 0.5 * tol * np.sin(ang)])
+        ox = np.concatenate([f * tol * np.cos(ang) for f in (0.25, 0.5, 0.75)])
+        oy = np.concatenate([f * tol * np.sin(ang) for f in (0.25, 0.5, 0.75)])
         z2 = np.asarray(heights((xi[:, None] + ox).ravel(), (yi[:, None] + oy).ravel()),
                         dtype=np.float64).reshape(idx.size, ox.size)
         with np.errstate(invalid="ignore"):
@@ -96,7 +97,7 @@ def misfit(h: np.ndarray, x: np.ndarray, y: np.ndarray, z_exact: np.ndarray, hei
         lo[~np.isfinite(lo)] = np.nan
         hi[~np.isfinite(hi)] = np.nan
         with np.errstate(invalid="ignore"):
-            ok = (h[idx] >= lo - tol) & (h[idx] <= hi + tol)
+            ok = (h[idx] >= lo - 0.5 * tol) & (h[idx] <= hi + 0.5 * tol)
         bad[idx[ok]] = False
     return bad
 
@@ -462,7 +463,7 @@ def build_lattices(base: ZMap, heights: Heights, cells: np.ndarray, n: int) -> d
 def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: float, interval: float,
                   cells: np.ndarray, set_patches: Callable[[CellPatches], None],
                   levels: tuple[int, ...] = PATCH_LEVELS, n: int = TEST_POINTS,
-                  fine_cells: np.ndarray | None = None) -> tuple[CellPatches, np.ndarray]:
+                  fine_cells: np.ndarray | None = None, lattice: bool = True) -> tuple[CellPatches, np.ndarray]:
     """Test ``cells``, patch the misses level by level; returns the patches and the cells still off.
 
     ``set_patches`` installs a :class:`CellPatches` in the model that ``model_height``
@@ -483,7 +484,7 @@ def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: floa
     else:
         bad = failing_cells(model_height, base, heights, tol_check, cells, n)
     patches = CellPatches.empty()
-    for m in levels + (0,):
+    for m in levels + ((0,) if lattice else ()):
         if bad.size == 0:
             break
         if m:
@@ -492,6 +493,10 @@ def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: floa
             per_cell.update(build_lattices(base, heights, bad, lattice_intervals(base, tol)))
         patches = CellPatches.pack(per_cell)
         set_patches(patches)
+        if not m:
+            # within tol by construction (module docstring); the probes of misfit reach
+            # 0.75 tol, so a re-test would flag points up to tol from a wall
+            return patches, np.zeros(0, dtype=np.int64)
         # a patch is tested on a finer lattice: its sub-cells are smaller
         bad = failing_cells(model_height, base, heights, tol_check, bad, max(2 * n, 2 * (m or 8)))
     return patches, bad
