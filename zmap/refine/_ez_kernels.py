@@ -499,8 +499,8 @@ def _trace(c, ecell_ids, out_nb, out_bk, out_pts, out_arc, corner, nx, ny, dx, d
         d2y = qy[1] - p2y
         cross = d1x * d2y - d1y * d2x
         turn = math.atan2(abs(cross), d1x * d2x + d1y * d2y)
-        if turn <= CORNER_TURN:
-            return False
+        if turn <= CORNER_TURN or cross == 0.0:
+            return False  # no corner, or the two traces run back along one line (trj8)
         a = ((p2x - p1x) * d2y - (p2y - p1y) * d2x) / cross
         cx = p1x + a * d1x
         cy = p1y + a * d1y
