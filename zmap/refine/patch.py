@@ -6,7 +6,7 @@ cross one grid edge twice; there the four boundary sequences do not determine th
 So :func:`zmap.refine.ez.build_ez` checks every refined cell at a lattice of test points
 against the exact surface (:func:`misfit`), and gives each cell that misses a *cell
 patch*: a finer z-map of ``m x m`` sub-cells over that one base cell whose every sub-edge
-carries e-points (an EZ-map of its own), first ``m = 4``, then ``m = 8``. A cell still off
+carries e-points (an EZ-map of its own), sub-cells of 12.5 tol, then 6.25 tol (``m = 4``, then ``m = 8`` at grid 0.5, tol 0.01). A cell still off
 (a wall, a chamfer and a fillet inside one sub-cell) gets the last resort, a dense lattice
 of ``n x n`` intervals whose diagonal is at most ``tol``, interpolated bilinearly: a
 bilinear height lies between the four corner heights, and the top-most surface (walls
@@ -33,10 +33,19 @@ import numpy as np
 
 from ..grid import ZMap
 
-__all__ = ["PATCH_LEVELS", "TEST_POINTS", "CellPatches", "cell_test_points", "failing_cells", "misfit"]
+__all__ = ["PATCH_SUBCELLS", "TEST_POINTS", "patch_levels", "CellPatches", "cell_test_points", "failing_cells", "misfit"]
 
-#: sub-cells per base interval of a cell patch, tried in turn while a cell still misses
-PATCH_LEVELS = (4, 8)
+#: sub-cell sizes of the cell patches, in tolerances, tried in turn while a cell still
+#: misses (grid 0.5 mm, tol 0.01 mm: 4 then 8 sub-cells per interval; grid 2 mm: 16, 32)
+PATCH_SUBCELLS = (12.5, 6.25)
+
+
+def patch_levels(base: ZMap, tol: float, interval: float) -> tuple[int, ...]:
+    """Sub-cells per base interval of each patch level (:data:`PATCH_SUBCELLS`), keeping a
+    sub-cell at least three e-map intervals long."""
+    h = min(base.dx, base.dy)
+    levels = sorted({max(2, math.ceil(h / (f * tol) - 1e-9)) for f in PATCH_SUBCELLS})
+    return tuple(m for m in levels if h / m >= 3.0 * interval)
 #: test points per base interval and axis when a refined cell is checked (a lattice)
 TEST_POINTS = 8
 #: a cell is checked against this share of the tolerance, a margin for the points between
@@ -462,7 +471,7 @@ def build_lattices(base: ZMap, heights: Heights, cells: np.ndarray, n: int) -> d
 
 def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: float, interval: float,
                   cells: np.ndarray, set_patches: Callable[[CellPatches], None],
-                  levels: tuple[int, ...] = PATCH_LEVELS, n: int = TEST_POINTS,
+                  levels: tuple[int, ...] | None = None, n: int = TEST_POINTS,
                   fine_cells: np.ndarray | None = None, lattice: bool = True) -> tuple[CellPatches, np.ndarray]:
     """Test ``cells``, patch the misses level by level; returns the patches and the cells still off.
 
@@ -474,8 +483,8 @@ def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: floa
     """
     per_cell: dict[int, tuple] = {}
     tol_check = CHECK_SHARE * tol
-    # a sub-cell must stay well above the e-map interval (two e-points per sub-edge at least)
-    levels = tuple(m for m in levels if min(base.dx, base.dy) / m >= 3.0 * interval)
+    levels = patch_levels(base, tol, interval) if levels is None else tuple(
+        m for m in levels if min(base.dx, base.dy) / m >= 3.0 * interval)
     cells = np.asarray(cells, dtype=np.int64)
     if fine_cells is not None and len(fine_cells):
         fine = np.isin(cells, fine_cells)
