@@ -6,7 +6,8 @@ cross one grid edge twice; there the four boundary sequences do not determine th
 So :func:`zmap.refine.ez.build_ez` checks every refined cell at a lattice of test points
 against the exact surface (:func:`misfit`), and gives each cell that misses a *cell
 patch*: a finer z-map of ``m x m`` sub-cells over that one base cell whose every sub-edge
-carries e-points (an EZ-map of its own), sub-cells of 12.5 tol, then 6.25 tol (``m = 4``, then ``m = 8`` at grid 0.5, tol 0.01). A cell still off
+carries e-points (an EZ-map of its own), ``m = 4``, 8, ... down to sub-cells of 6.25 tol
+(4 and 8 at grid 0.5 mm and tol 0.01 mm). A cell still off
 (a wall, a chamfer and a fillet inside one sub-cell) gets the last resort, a dense lattice
 of ``n x n`` intervals whose diagonal is at most ``tol``, interpolated bilinearly: a
 bilinear height lies between the four corner heights, and the top-most surface (walls
@@ -35,16 +36,20 @@ from ..grid import ZMap
 
 __all__ = ["PATCH_SUBCELLS", "TEST_POINTS", "patch_levels", "CellPatches", "cell_test_points", "failing_cells", "misfit"]
 
-#: sub-cell sizes of the cell patches, in tolerances, tried in turn while a cell still
-#: misses (grid 0.5 mm, tol 0.01 mm: 4 then 8 sub-cells per interval; grid 2 mm: 16, 32)
-PATCH_SUBCELLS = (12.5, 6.25)
+#: finest sub-cell of the cell patches, in tolerances: the levels are 4, 8, 16, ... sub-cells
+#: per base interval down to it (grid 0.5 mm, tol 0.01 mm: 4, 8; grid 2 mm: 4, 8, 16, 32),
+#: cheapest first (a level-m patch costs about 4 (m+1) h / tol bytes of codes)
+PATCH_SUBCELLS = (6.25,)
 
 
 def patch_levels(base: ZMap, tol: float, interval: float) -> tuple[int, ...]:
     """Sub-cells per base interval of each patch level (:data:`PATCH_SUBCELLS`), keeping a
     sub-cell at least three e-map intervals long."""
     h = min(base.dx, base.dy)
-    levels = sorted({max(2, math.ceil(h / (f * tol) - 1e-9)) for f in PATCH_SUBCELLS})
+    finest = h / (PATCH_SUBCELLS[-1] * tol)
+    levels = [4]
+    while 2 * levels[-1] <= finest * (1 + 1e-9):
+        levels.append(2 * levels[-1])
     return tuple(m for m in levels if h / m >= 3.0 * interval)
 #: test points per base interval and axis when a refined cell is checked (a lattice)
 TEST_POINTS = 8
