@@ -484,7 +484,8 @@ def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: floa
     evaluates, so each level is tested as the model will answer. ``fine_cells`` (a subset
     of ``cells``: those a wall or an edge runs through) are tested on a lattice four times as
     fine: a Coons cell split along a wall can miss by a sliver next to the wall that an
-    ``n x n`` lattice steps over.
+    ``n x n`` lattice steps over. ``levels`` (default :func:`patch_levels`) are the EZ patch
+    levels tried in turn; ``lattice`` adds the dense lattice as the last resort.
     """
     per_cell: dict[int, tuple] = {}
     tol_check = CHECK_SHARE * tol
