@@ -34,7 +34,7 @@ import numpy as np
 
 from ..grid import ZMap
 
-__all__ = ["PATCH_SUBCELLS", "TEST_POINTS", "patch_levels", "CellPatches", "cell_test_points", "failing_cells", "misfit"]
+__all__ = ["PATCH_SUBCELLS", "TEST_POINTS", "CellPatches", "cell_test_points", "failing_cells", "misfit", "patch_levels"]
 
 #: finest sub-cell of the cell patches, in tolerances: the levels are 4, 8, 16, ... sub-cells
 #: per base interval down to it (grid 0.5 mm, tol 0.01 mm: 4, 8; grid 2 mm: 4, 8, 16, 32),
@@ -116,17 +116,24 @@ def misfit(h: np.ndarray, x: np.ndarray, y: np.ndarray, z_exact: np.ndarray, hei
     return bad
 
 
+def cell_points(base: ZMap, cells: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World xy of the lattice ``g x g`` (fractions of an interval) in each base cell.
+
+    Returns two ndarrays of shape (len(cells) * len(g)**2,), cell-major, C order within a cell.
+    """
+    U, V = np.meshgrid(g, g, indexing="ij")
+    ci, cj = np.divmod(np.asarray(cells, dtype=np.int64), base.ny - 1)
+    lx = base.x0 + (ci[:, None] + U.ravel()[None, :]) * base.dx
+    ly = base.y0 + (cj[:, None] + V.ravel()[None, :]) * base.dy
+    return base.local_to_world(lx.ravel(), ly.ravel())
+
+
 def cell_test_points(base: ZMap, cells: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """World xy of an ``n x n`` lattice inside each base cell (cell-centred, ``n*n`` per cell).
 
     Returns two ndarrays of shape (len(cells) * n * n,), cell-major.
     """
-    g = (np.arange(n) + 0.5) / n
-    U, V = np.meshgrid(g, g, indexing="ij")
-    ci, cj = cells // (base.ny - 1), cells % (base.ny - 1)
-    lx = base.x0 + (ci[:, None] + U.ravel()[None, :]) * base.dx
-    ly = base.y0 + (cj[:, None] + V.ravel()[None, :]) * base.dy
-    return base.local_to_world(lx.ravel(), ly.ravel())
+    return cell_points(base, cells, (np.arange(n) + 0.5) / n)
 
 
 def failing_cells(model_height: Heights, base: ZMap, heights: Heights, tol: float, cells: np.ndarray,
@@ -460,12 +467,8 @@ def build_lattices(base: ZMap, heights: Heights, cells: np.ndarray, n: int) -> d
     cells = [int(c) for c in np.asarray(cells, dtype=np.int64)]
     if not cells:
         return {}
-    g = np.arange(n + 1, dtype=np.float64) / n
-    GX, GY = np.meshgrid(g, g, indexing="ij")
-    ci, cj = np.divmod(np.array(cells, dtype=np.int64), base.ny - 1)
-    lx = (base.x0 + (ci[:, None] + GX.ravel()[None, :]) * base.dx).ravel()
-    ly = (base.y0 + (cj[:, None] + GY.ravel()[None, :]) * base.dy).ravel()
-    z = np.asarray(heights(*base.local_to_world(lx, ly)), dtype=np.float64).reshape(len(cells), -1)
+    wx, wy = cell_points(base, np.array(cells, dtype=np.int64), np.arange(n + 1, dtype=np.float64) / n)
+    z = np.asarray(heights(wx, wy), dtype=np.float64).reshape(len(cells), -1)
     P = (n + 1) ** 2
     out = {}
     for c, zc in zip(cells, z):
@@ -513,6 +516,6 @@ def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: floa
             # 0.75 tol, so a re-test would flag points up to tol from a wall
             return patches, np.zeros(0, dtype=np.int64)
         # a patch is tested on a finer lattice: its sub-cells are smaller
-        bad = failing_cells(model_height, base, heights, tol_check, bad, max(2 * n, 2 * (m or 8)))
+        bad = failing_cells(model_height, base, heights, tol_check, bad, max(2 * n, 2 * m))
     return patches, bad
 
