@@ -706,29 +706,24 @@ def _hit(z, i, j, X, Y, lam, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, ed
             math.hypot(ex - X, ey - Y))
 
 
-@njit(cache=True, inline="always")
-def _ez_point(z, x, y, x0, y0, dx, dy, cs, sn, ox, oy, edge_ids, offsets, hq, brk_kind, brk_t, ecell_ids, slots,
-              nb, bk, bt, pts, arc):
-    """EZ height at world (x, y) on one map; NaN outside its e-cells or on a missing corner."""
-    nx, ny = z.shape
-    i, j, u, v = _locate(x, y, x0, y0, dx, dy, cs, sn, ox, oy, nx, ny)
-    if i < 0:
-        return np.nan
-    c = _find(ecell_ids, i * (ny - 1) + j)
-    if c < 0 or math.isnan(z[i, j]) or math.isnan(z[i + 1, j]) or math.isnan(z[i, j + 1]) or math.isnan(z[i + 1, j + 1]):
-        return np.nan
-    if nb[c] == 2 and (pts[c, 0, 0] != pts[c, 2, 0] or pts[c, 0, 1] != pts[c, 2, 1]):
-        return _split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, bk, bt, pts, arc, dx, dy)
-    return _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy, nb[c] > 0)
-
-
 @njit(cache=True, parallel=True)
 def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, hq, brk_kind, brk_t,
               ecell_ids, slots, nb, bk, bt, pts, arc, out):
     """EZ hq at every query point; NaN outside e-cells (the caller uses the base)."""
+    nx, ny = z.shape
     for p in prange(xs.shape[0]):
-        out[p] = _ez_point(z, xs[p], ys[p], x0, y0, dx, dy, cs, sn, ox, oy, edge_ids, offsets, hq, brk_kind, brk_t,
-                           ecell_ids, slots, nb, bk, bt, pts, arc)
+        i, j, u, v = _locate(xs[p], ys[p], x0, y0, dx, dy, cs, sn, ox, oy, nx, ny)
+        if i < 0:
+            out[p] = np.nan
+            continue
+        c = _find(ecell_ids, i * (ny - 1) + j)
+        if c < 0 or math.isnan(z[i, j]) or math.isnan(z[i + 1, j]) or math.isnan(z[i, j + 1]) or math.isnan(z[i + 1, j + 1]):
+            out[p] = np.nan
+            continue
+        if nb[c] == 2 and (pts[c, 0, 0] != pts[c, 2, 0] or pts[c, 0, 1] != pts[c, 2, 1]):
+            out[p] = _split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, bk, bt, pts, arc, dx, dy)
+        else:
+            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy, nb[c] > 0)
 
 
 #: :func:`ez_kernel` on one thread: for small batches (a cell patch's few points), where
@@ -745,9 +740,22 @@ def patch_kernel(zs, x0s, y0s, dx, dy, cs, sn, ox, oy, xs, ys, ks, edge_ids, off
     every patch of a level has every sub-edge)."""
     for p in prange(xs.shape[0]):
         k = ks[p]
-        out[p] = _ez_point(zs[k], xs[p], ys[p], x0s[k], y0s[k], dx, dy, cs, sn, ox, oy, edge_ids, offsets,
-                           (codes[k], lo[k], step[k]), brk_kind[k], brk_t[k], ecell_ids, slots, nb[k], bk[k], bt[k],
-                           pts[k], arc[k])
+        z = zs[k]
+        nx, ny = z.shape
+        i, j, u, v = _locate(xs[p], ys[p], x0s[k], y0s[k], dx, dy, cs, sn, ox, oy, nx, ny)
+        if i < 0:
+            out[p] = np.nan
+            continue
+        c = _find(ecell_ids, i * (ny - 1) + j)
+        if c < 0 or math.isnan(z[i, j]) or math.isnan(z[i + 1, j]) or math.isnan(z[i, j + 1]) or math.isnan(z[i + 1, j + 1]):
+            out[p] = np.nan
+            continue
+        hq = (codes[k], lo[k], step[k])
+        if nb[k, c] == 2 and (pts[k, c, 0, 0] != pts[k, c, 2, 0] or pts[k, c, 0, 1] != pts[k, c, 2, 1]):
+            out[p] = _split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind[k], brk_t[k], bk[k], bt[k], pts[k],
+                            arc[k], dx, dy)
+        else:
+            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind[k], brk_t[k], dx, dy, nb[k, c] > 0)
 
 
 #: :func:`patch_kernel` on one thread, for small batches
