@@ -3,7 +3,7 @@
 ``python bench/convert.py [--points 1000] [--rays 3000] [--real NAME]``
 
 For the bundled free-form die face (``data/freeform_die.step``) on a ``points`` x
-``points`` grid over its bounding box, and for one real part from ../shared/data/step on a
+``points`` grid over its bounding box, and for one real part from data/step on a
 grid of the same interval count along its longer side:
 
 - ``jacobian_pps``: grid points per second of ``sample(method="jacobian")``,
@@ -87,12 +87,12 @@ def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=1000, help="grid points along the longer side")
     ap.add_argument("--rays", type=int, default=3000, help="ray-cast reference points")
-    ap.add_argument("--real", default="bug27693_cornetta-step.stp", help="file in ../shared/data/step")
+    ap.add_argument("--real", default="bug27693_cornetta-step.stp", help="file in data/step")
     args = ap.parse_args(argv)
 
     import numba
 
-    from cad_io.demo import DATA, shared_step_dir
+    from cad_io.demo import DATA, STEP_DIR
     from cad_io.sampler import sample
     from cad_io.step import read_step
 
@@ -106,7 +106,7 @@ def main(argv: list[str] | None = None) -> dict:
     die = _bench_part(DATA / "freeform_die.step", args.points, args.rays)
     result.update({k: die[k] for k in ("jacobian_pps", "facet_pps", "occ_raycast_pps")})
     result["die"] = die
-    real = shared_step_dir() / args.real
+    real = STEP_DIR / args.real
     if real.exists():
         result["real"] = _bench_part(real, args.points, args.rays)
     result["targets"] = {"jacobian_pps>=300000": result["jacobian_pps"] >= 300_000,

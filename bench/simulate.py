@@ -2,7 +2,7 @@
 
 The bench program (bench/make_mould_program.py): a 107x72x33 mm stock, a 3 mm ball cutter,
 rays at 0.26 mm, about 17,000 moves mostly 0.5 mm long. Real workloads: flower_mold.nc and
-cameo.nc from ../shared/data/gcode with the stock and tools of their .camotics projects.
+cameo.nc from data/gcode with the stock and tools of their .camotics projects.
 
 For each history kind the program is simulated (JIT warmed up first) several times,
 interleaved, and the best time is kept (``seconds`` of the run: cutting with in-kernel
@@ -41,7 +41,7 @@ from zmap.sim.tools import load_camotics_project, parse_tool_spec  # noqa: E402
 PITCH = 0.26
 FRACTIONS = (0.1, 0.25, 0.5, 0.75, 1.0)
 KINDS = ("none", "ztrace", "ttrace", "treap")
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "gcode"
+DATA = Path(__file__).resolve().parents[1] / "data" / "gcode"
 
 
 def _best_ms(f, repeat: int = 5) -> float:

@@ -1,6 +1,6 @@
 """Table 2 analogue (paper 004 §4): EZ/CZ refinements of the bundled samples and the real parts.
 
-For data/pocket.step, data/boss.step and every STEP file in ../shared/data/step, builds the
+For data/pocket.step, data/boss.step and every STEP file in data/step, builds the
 base z-map, the EZ model and (where practical) the CZ model at ``--tol`` and a base grid
 chosen per part, and measures them with :func:`cad_io.commands.report_rows`. Each part runs
 in a child process under a time limit, so one slow or failing part is recorded (with its
@@ -10,7 +10,7 @@ Parts whose top is not +z are rotated into their view frame first (:func:`cad_io
 the NURBS, meshes and the OCP shape, so that OCC's distance check measures in that frame too),
 as ``zmap report --axis`` and ``zmap refine`` (on a z-map converted with ``--axis``) do.
 
-    python bench/table2.py [--tol 0.01] [--points 100000] [--shared DIR] [--timeout 300]
+    python bench/table2.py [--tol 0.01] [--points 100000] [--parts DIR] [--timeout 300]
                            [--only NAME ...] [--jobs N] [--markdown FILE]
 """
 
@@ -25,7 +25,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data"
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "step"
+PARTS = DATA / "step"
 
 NO_EXACT = "no exact surface: refinement needs the NURBS B-rep"
 
@@ -130,10 +130,10 @@ def _takes_progress() -> bool:
     return "progress" in inspect.signature(sample).parameters
 
 
-def _parts(shared: Path, only: list[str] | None) -> list[Path]:
+def _parts(parts_dir: Path, only: list[str] | None) -> list[Path]:
     paths = [DATA / "pocket.step", DATA / "boss.step"]
-    if shared.is_dir():
-        paths += sorted(p for p in shared.iterdir() if p.suffix.lower() in (".stp", ".step"))
+    if parts_dir.is_dir():
+        paths += sorted(p for p in parts_dir.iterdir() if p.suffix.lower() in (".stp", ".step"))
     if only:
         paths = [p for p in paths if any(o in p.name for o in only)]
     return paths
@@ -239,7 +239,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tol", type=float, default=0.01)
     ap.add_argument("--points", type=int, default=100_000)
-    ap.add_argument("--shared", type=Path, default=SHARED, help="folder of the real parts (STEP)")
+    ap.add_argument("--parts", type=Path, default=PARTS, help="folder of the real parts (STEP)")
     ap.add_argument("--timeout", type=float, default=300.0, help="seconds per part (child process)")
     ap.add_argument("--only", nargs="*", default=None, help="substrings of the part file names to run")
     ap.add_argument("--markdown", type=Path, default=None, help="also write the table as markdown here")
@@ -263,9 +263,9 @@ def main() -> None:
                    "seconds": round(time.perf_counter() - t0, 1)}
         print(json.dumps(res))
         return
-    res = {"tol": a.tol, "points": a.points, "timeout_s": a.timeout, "shared": str(a.shared),
+    res = {"tol": a.tol, "points": a.points, "timeout_s": a.timeout, "parts": str(a.parts),
            "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"), "parts": {}}
-    paths = _parts(a.shared, a.only)
+    paths = _parts(a.parts, a.only)
     for path in paths:  # table order, filled in as the parts finish
         res["parts"][path.name] = {"error": "not run (interrupted)"}
 

@@ -1,26 +1,21 @@
 """Demo step of the STEP converter (run by ``make demo`` through :mod:`zmap.demo`).
 
 Converts the bundled free-form die face and the filleted pocket, and one real third-party
-part (``bug27693_cornetta-step.stp`` from ../shared/data/step, when present) at a coarse
+part (``data/step/bug27693_cornetta-step.stp``) at a coarse
 grid, and writes each master z-map with a shaded picture.
 """
 
 from __future__ import annotations
 
-import os
 import time
 from pathlib import Path
 
-__all__ = ["run_demo", "DATA", "shared_step_dir"]
+__all__ = ["run_demo", "DATA", "STEP_DIR"]
 
 #: the bundled samples (``data/`` of the repository)
 DATA = Path(__file__).resolve().parents[1] / "data"
-
-
-def shared_step_dir() -> Path:
-    """``$ZMAP_SHARED_DATA/step`` or ``../shared/data/step`` beside the repository."""
-    root = os.environ.get("ZMAP_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data")
-    return Path(root) / "step"
+#: the real third-party parts bundled with the repository (``data/step``, see ``data/SOURCES.md``)
+STEP_DIR = DATA / "step"
 
 
 def run_demo(out_dir: str | Path) -> list[Path]:
@@ -43,9 +38,7 @@ def run_demo(out_dir: str | Path) -> list[Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     jobs = [(DATA / "freeform_die.step", 0.5, "+z"), (DATA / "pocket.step", 0.5, "+z")]
-    real = shared_step_dir() / "bug27693_cornetta-step.stp"
-    if real.exists():
-        jobs.append((real, 1.0, "+z"))
+    jobs.append((STEP_DIR / "bug27693_cornetta-step.stp", 1.0, "+z"))
     written: list[Path] = []
     for path, grid, axis in jobs:
         t = time.perf_counter()

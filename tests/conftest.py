@@ -1,20 +1,19 @@
-"""Shared fixtures: where the real third-party sample data lives."""
+"""Shared fixtures: where the bundled sample data lives (``data/`` in the repository)."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
-#: ../shared/data beside the repository (CI clones main with shared/ beside it);
-#: ZMAP_SHARED_DATA overrides it.
-SHARED_DATA = Path(os.environ.get("ZMAP_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+#: The repository's ``data/`` folder: small made samples at its top, real third-party parts in
+#: ``step/`` and programs in ``gcode/`` (origins and licences in ``data/SOURCES.md``).
+DATA = Path(__file__).resolve().parents[1] / "data"
+STEP_DATA = DATA / "step"
+GCODE_DATA = DATA / "gcode"
 
 
 @pytest.fixture(scope="session")
-def shared_data() -> Path:
-    """The folder with ``step/`` and ``gcode/``; a missing folder fails the test loudly."""
-    if not (SHARED_DATA / "gcode").is_dir():
-        pytest.fail(f"sample data not found at {SHARED_DATA}; set ZMAP_SHARED_DATA")
-    return SHARED_DATA
+def sample_data() -> Path:
+    """The repository's ``data/`` folder, with ``step/`` and ``gcode/`` beside the made samples."""
+    return DATA

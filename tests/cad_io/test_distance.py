@@ -35,8 +35,8 @@ def test_matches_occ(name):
 
 
 @pytest.mark.slow
-def test_real_part_matches_occ(shared_data):
-    part = read_step(shared_data / "step" / "featuretype.STEP")
+def test_real_part_matches_occ(sample_data):
+    part = read_step(sample_data / "step" / "featuretype.STEP")
     pts = _near_surface(part, 100, 2)
     d = distance_to_part(part, pts, deflection=0.005)
     ref = _occ_distance(part.shape, pts)

@@ -89,8 +89,8 @@ def test_box_mesh_is_closed_and_outward(tmp_path):
     assert abs(vol - 4 * 6 * 8) < 1e-9  # outward triangles enclose +volume
 
 
-def test_tessellated_only_faces(shared_data):
-    part = read_step(shared_data / "step" / "nist_ftc_08_asme1_ap242-2.stp")
+def test_tessellated_only_faces(sample_data):
+    part = read_step(sample_data / "step" / "nist_ftc_08_asme1_ap242-2.stp")
     triangulate(part, 0.1)
     assert all(f.mesh is not None and f.mesh.uv is None for f in part.faces)
     assert sum(len(f.mesh.triangles) for f in part.faces) == 3377
@@ -99,11 +99,11 @@ def test_tessellated_only_faces(shared_data):
         assert np.all(f.mesh.nodes >= b[:3] - 1e-6) and np.all(f.mesh.nodes <= b[3:] + 1e-6)
 
 
-def test_real_part_uv_within_file_tolerance(shared_data):
+def test_real_part_uv_within_file_tolerance(sample_data):
     from OCP.BRep import BRep_Tool
     from OCP.TopAbs import TopAbs_EDGE, TopAbs_VERTEX
 
-    part = read_step(shared_data / "step" / "featuretype.STEP")
+    part = read_step(sample_data / "step" / "featuretype.STEP")
     triangulate(part, 0.05)
     for f in part.faces:
         tol = max(BRep_Tool.MaxTolerance_s(f.topo, TopAbs_VERTEX),

@@ -192,16 +192,16 @@ def _occ_deviation(part, n_per_face: int, seed: int) -> float:
 
 
 @pytest.mark.parametrize("name", FAST_PARTS)
-def test_agrees_with_occ_on_real_parts(shared_data, name):
-    part = _part(str(shared_data / "step" / name))
+def test_agrees_with_occ_on_real_parts(sample_data, name):
+    part = _part(str(sample_data / "step" / name))
     assert _occ_deviation(part, 4, seed=7) < 1e-9
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", [n for n in ALL_PARTS if n not in FAST_PARTS
                                   and not n.startswith("nist_ftc")])
-def test_agrees_with_occ_on_all_parts(shared_data, name):
-    part = _part(str(shared_data / "step" / name))
+def test_agrees_with_occ_on_all_parts(sample_data, name):
+    part = _part(str(sample_data / "step" / name))
     assert _occ_deviation(part, 4, seed=8) < 1e-9
 
 

@@ -239,8 +239,8 @@ REAL_AXES = {"nist_ctc_02_asme1_ap242-1.stp": "+y"}
 
 
 @pytest.mark.slow
-def test_real_parts_convert_and_agree(shared_data):
-    files = sorted((shared_data / "step").glob("*.st*p")) + sorted((shared_data / "step").glob("*.STEP"))
+def test_real_parts_convert_and_agree(sample_data):
+    files = sorted((sample_data / "step").glob("*.st*p")) + sorted((sample_data / "step").glob("*.STEP"))
     assert files
     for path in files:
         part = read_step(path)
@@ -304,14 +304,14 @@ def test_geomdl_part():
     assert np.abs(zm.z - X * Y / 20).max() < 1e-12  # the hyperbolic paraboloid z = xy/20
 
 
-def test_no_facet_heights_from_a_vertical_b_spline_wall(shared_data):
+def test_no_facet_heights_from_a_vertical_b_spline_wall(sample_data):
     """featuretype.STEP face 78 is an extruded (vertical) B-spline wall: Newton is singular
     on it and its mesh has 1.2 mm chord triangles with |n_z| = 0.06. Their facet heights
     (18.3-19.4 mm) once stood up to 80 um out on the floor (15.875 mm); the floor must
     answer there, as OCC's ray cast says."""
     from cad_io.sampler import sample_points
 
-    part = read_step(shared_data / "step" / "featuretype.STEP")
+    part = read_step(sample_data / "step" / "featuretype.STEP")
     x = np.linspace(52.86, 52.99, 27)  # the wall is at x ~ 52.850 on this line
     y = np.full(x.shape, -7.5214)
     z, _face, method = sample_points(part, x, y, deflection=0.005)
@@ -320,13 +320,13 @@ def test_no_facet_heights_from_a_vertical_b_spline_wall(shared_data):
     assert (method == 1).all()
 
 
-def test_steep_face_keeps_its_exact_heights(shared_data):
+def test_steep_face_keeps_its_exact_heights(sample_data):
     """bug27693_cornetta face 32 is 86 degrees steep: the facet height there is off by the
     mesh's xy error times the slope (0.1-0.2 mm), so the exact Newton height must not be
     rejected for differing from it (the layer check measures across the triangle there)."""
     from cad_io.sampler import sample_points
 
-    part = read_step(shared_data / "step" / "bug27693_cornetta-step.stp")
+    part = read_step(sample_data / "step" / "bug27693_cornetta-step.stp")
     x = 103.9427660053974 + np.linspace(-0.2, 0.2, 9)
     y = np.full(x.shape, -28.874535546916093)
     z, face, method = sample_points(part, x, y, deflection=0.005)

@@ -173,19 +173,19 @@ def test_open_faces_have_boundary_edges(tmp_path):
 
 
 @pytest.mark.parametrize("name", FAST_PARTS)
-def test_real_parts_load(shared_data, name):
-    _check_real_part(shared_data, name)
+def test_real_parts_load(sample_data, name):
+    _check_real_part(sample_data, name)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", SLOW_PARTS)
-def test_real_parts_load_slow(shared_data, name):
-    _check_real_part(shared_data, name)
+def test_real_parts_load_slow(sample_data, name):
+    _check_real_part(sample_data, name)
 
 
-def _check_real_part(shared_data, name):
+def _check_real_part(sample_data, name):
     t = time.perf_counter()
-    part = _cached(str(shared_data / "step" / name))
+    part = _cached(str(sample_data / "step" / name))
     assert time.perf_counter() - t < 60
     assert len(part.faces) == N_FACES[name]
     assert [f.index for f in part.faces] == list(range(len(part.faces)))

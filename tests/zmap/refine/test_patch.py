@@ -187,7 +187,7 @@ def test_stacked_kernel_matches_each_patch_on_its_own():
 
 
 @pytest.mark.slow
-def test_real_part_ez_holds_tol_in_3d(shared_data):
+def test_real_part_ez_holds_tol_in_3d(sample_data):
     """featuretype.STEP (a machined block: pockets, holes, chamfers), grid 0.5, tol 0.01: the
     checked EZ model stays within tol of the B-rep at random points where the paper's EZ
     alone (verify=False) does not, and within 3x the base's memory."""
@@ -197,7 +197,7 @@ def test_real_part_ez_holds_tol_in_3d(shared_data):
     from cad_io.sampler import height_function
     from zmap.features import sharp_edge_curves
 
-    part = cad_io.read_step(shared_data / "step" / "featuretype.STEP")
+    part = cad_io.read_step(sample_data / "step" / "featuretype.STEP")
     base = cad_io.sample(part, 0.5)
     model, info = refine_models(part, base, TOL, ("ez",))["ez"]
     ez = model.ez

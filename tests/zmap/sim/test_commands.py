@@ -125,8 +125,8 @@ def test_run_demo_end_to_end(tmp_path):
 
 
 @pytest.mark.slow
-def test_real_program_with_camotics_project(tmp_path, shared_data):
-    gdir = shared_data / "gcode"
+def test_real_program_with_camotics_project(tmp_path, sample_data):
+    gdir = sample_data / "gcode"
     out = tmp_path / "flower.zsim"
     assert main(["simulate", str(gdir / "flower_mold.nc"), "--camotics", str(gdir / "flower_mold.camotics"),
                  "-o", str(out), "--no-progress"]) == 0

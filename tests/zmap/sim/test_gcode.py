@@ -15,10 +15,7 @@ from zmap.errors import GCodeError
 from zmap.sim.gcode import MOVE_DTYPE, Program, arc_sweep, parse
 from zmap.sim.tools import Cutter
 
-DATA = Path(__file__).resolve().parents[4] / "shared" / "data" / "gcode"
-if not DATA.is_dir():  # pragma: no cover - layout fallback
-    DATA = Path("/work/shared/data/gcode")
-needs_data = pytest.mark.skipif(not DATA.is_dir(), reason="shared G-code samples not present")
+from tests.conftest import GCODE_DATA as DATA
 
 # Every sample program: None if it parses, else (line, column, word, keyword of the problem).
 REAL = {
@@ -33,19 +30,16 @@ REAL = {
     "m98m99-05-loops.ngc": (6, 1, "#1", "parameters"),
     "mmount.ngc": (24, 1, "#100", "parameters"),
     "rgh.ngc": None,
-    "stellabee1.ngc": None,
     "tort.ngc": None,
 }
 
 
 # ---------------------------------------------------------------- real programs ----------
-@needs_data
 def test_every_sample_is_listed():
     found = {p.name for p in DATA.iterdir() if p.suffix in (".nc", ".ngc", ".gcode")}
     assert found == set(REAL)
 
 
-@needs_data
 @pytest.mark.parametrize("name", sorted(REAL))
 def test_real_programs_strict(name):
     path = DATA / name
@@ -66,7 +60,6 @@ def test_real_programs_strict(name):
         assert str(e).startswith(f"{path}:{line}:{col}: {word}: ")
 
 
-@needs_data
 @pytest.mark.parametrize("name", sorted(REAL))
 def test_real_programs_lenient(name):
     prog = parse(DATA / name, lenient=True)
@@ -82,7 +75,6 @@ def test_real_programs_lenient(name):
         assert all(re.match(r".+:\d+:\d+: \S+: ", w) for w in prog.warnings)
 
 
-@needs_data
 def test_real_program_facts():
     flower = parse(DATA / "flower_mold.nc")
     assert flower.units_input == "inch"
@@ -96,11 +88,10 @@ def test_real_program_facts():
     assert (cameo.moves["tool"] == 1).all()
     bot = parse(DATA / "botomata_bottom.nc")
     assert [tc.tool for tc in bot.tool_changes] == [1, 1, 2, 3]
-    stella = parse(DATA / "stellabee1.ngc")
-    assert set(np.unique(stella.moves["plane"][stella.moves["kind"] >= 2])) == {18}
+    planes = parse(DATA / "g17-g18-g19.gcode")
+    assert set(np.unique(planes.moves["plane"][planes.moves["kind"] >= 2])) == {17, 18, 19}
 
 
-@needs_data
 @pytest.mark.parametrize("name", ["flower_mold.nc", "cameo.nc", "rgh.ngc", "tort.ngc"])
 def test_fast_path_equals_full_interpreter(name, monkeypatch):
     import zmap.sim.gcode as gcode
@@ -141,7 +132,6 @@ def _my_moves(prog: Program) -> list[tuple[str, tuple[str, ...]]]:
     return out
 
 
-@needs_data
 def test_linuxcnc_expected_g17_g99_g81():
     expected = _canon_moves(DATA / "g17-g99-g81.expected")
     mine = _my_moves(parse(DATA / "g17-g99-g81.ngc"))
@@ -149,7 +139,6 @@ def test_linuxcnc_expected_g17_g99_g81():
     assert mine == expected
 
 
-@needs_data
 @pytest.mark.parametrize("name,word", [("cam-nisley_cam", "#1000"), ("m98m99-05-loops", "#1")])
 def test_linuxcnc_expected_unsupported(name, word):
     # these use O-words / # parameters / G42: the reader stops with the first of them

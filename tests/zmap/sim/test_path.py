@@ -13,8 +13,7 @@ from hypothesis import strategies as st
 from zmap.sim.gcode import parse
 from zmap.sim.path import Positions, arc_chords, dda, positions
 
-DATA = Path("/work/shared/data/gcode")
-needs_data = pytest.mark.skipif(not DATA.is_dir(), reason="shared samples not present")
+from tests.conftest import GCODE_DATA as DATA
 
 
 def _dda_reference(a, b, pitch):
@@ -150,7 +149,6 @@ def test_from_xyz_and_validation():
         positions([1, 2, 3])
 
 
-@needs_data
 def test_real_program_counts_match_reference():
     prog = parse(DATA / "flower_mold.nc")
     pos = positions(prog, pitch=0.26)
@@ -159,7 +157,7 @@ def test_real_program_counts_match_reference():
     want = sum(max(1, math.ceil(v / 0.26 - 1e-9)) for v in linf if v > 0)
     assert len(pos) == want
     np.testing.assert_array_equal(pos.xyz[-1], m["end"][-1])
-    stella = parse(DATA / "stellabee1.ngc")
-    sp = positions(stella, pitch=0.26)
-    assert len(sp) > stella.n_moves
+    gates = parse(DATA / "Gates_combined_R12.nc")
+    sp = positions(gates, pitch=0.26)
+    assert len(sp) > gates.n_moves
     assert np.isfinite(sp.xyz).all()

@@ -16,10 +16,7 @@ from zmap.sim._tool_kernels import _envelope, _envelope_many
 from zmap.sim.tools import Cutter, load_camotics_project, load_tool_table, parse_tool_spec
 
 REPO = Path(__file__).resolve().parents[3]
-DATA = REPO.parent / "shared" / "data" / "gcode"
-if not DATA.is_dir():  # pragma: no cover
-    DATA = Path("/work/shared/data/gcode")
-needs_data = pytest.mark.skipif(not DATA.is_dir(), reason="shared samples not present")
+from tests.conftest import GCODE_DATA as DATA
 
 
 def test_envelopes_exact():
@@ -127,7 +124,6 @@ def test_load_tool_table_sample_and_errors(tmp_path):
         load_tool_table(tmp_path / "missing.toml")
 
 
-@needs_data
 @pytest.mark.parametrize("name", ["flower_mold", "cameo", "botomata_bottom"])
 def test_camotics_projects(name):
     path = DATA / f"{name}.camotics"
