@@ -25,16 +25,18 @@ Examples
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, NamedTuple
+from typing import Any, Callable, Mapping, NamedTuple
 
 import numpy as np
 
 from ..errors import GCodeError
+from .ngc import NgcError, OWord, Parameters, compact, program_structure, scan_line
 
 __all__ = [
     "parse",
@@ -84,17 +86,29 @@ _G83_RAPID_DELTA_MM = 0.010 * MM_PER_INCH  # LinuxCNC G83_RAPID_DELTA, 0.010 in
 _TOKEN = re.compile(r"([A-Z])[ \t]*([-+]?(?:\d+\.?\d*|\.\d+))|(\S)")
 _COMMENT = re.compile(r"\([^)]*\)|;.*")
 _LINE_END = re.compile(r"\r*\n|\r")
-_JUNK_WORD = re.compile(r"#<[^>]*>|#\d*|O<[^>]*>\w*|\S[^\s()]*")
+_OWORD_HEAD = re.compile(
+    r"(?:N\d+(?:\.\d*)?)?O(?:<([^>]*)>|(\d+))(ENDSUB|ENDWHILE|ENDREPEAT|ENDIF|ELSEIF|ELSE|SUB|"
+    r"CALL|DO|WHILE|IF|BREAK|CONTINUE|RETURN|REPEAT)?")
+_M99 = re.compile(r"M0*99(?![\d.])")
+#: default limits of one parse: blocks executed (loops and calls counted) and moves made
+MAX_BLOCKS = 5_000_000
+MAX_MOVES = 20_000_000
+#: the work envelope: no machine coordinate, offset or arc centre beyond this (mm)
+MAX_COORD_MM = 1.0e6
+#: largest tool number (T, H, D words): the moves' tool column is int32
+MAX_TOOL = 2**31 - 1
+#: largest number of turns of one arc (P word of G2/G3)
+MAX_TURNS = 10_000
 
 # G codes (x10) and their modal groups.
 _G_GROUP = {
-    0: 1, 10: 1, 20: 1, 30: 1, 800: 1, 810: 1, 820: 1, 830: 1,
+    0: 1, 10: 1, 20: 1, 30: 1, 331: 1, 800: 1, 810: 1, 820: 1, 830: 1,
     170: 2, 180: 2, 190: 2,
     900: 3, 910: 3,
     901: 4, 911: 4,
     940: 5,
     200: 6, 210: 6,
-    400: 7,
+    400: 7, 410: 7, 420: 7, 411: 7, 421: 7,
     430: 8, 490: 8,
     980: 10, 990: 10,
     540: 12, 550: 12, 560: 12, 570: 12, 580: 12, 590: 12, 591: 12, 592: 12, 593: 12,
@@ -102,14 +116,9 @@ _G_GROUP = {
     40: 0, 100: 0, 530: 0,
 }
 _G_UNSUPPORTED = {
-    410: "cutter radius compensation (G41) is not supported",
-    420: "cutter radius compensation (G42) is not supported",
-    411: "dynamic cutter compensation (G41.1) is not supported",
-    421: "dynamic cutter compensation (G42.1) is not supported",
     431: "dynamic tool length offset (G43.1) is not supported",
     432: "additional tool length offset (G43.2) is not supported",
     330: "spindle-synchronised motion (G33) is not supported",
-    331: "rigid tapping (G33.1) is not supported",
     930: "inverse-time feed (G93) is not supported",
     950: "feed per revolution (G95) is not supported",
     920: "G92 offsets are not supported",
@@ -135,11 +144,9 @@ _G_UNSUPPORTED = {
     384: "probing (G38.x) is not supported",
     385: "probing (G38.x) is not supported",
 }
-_M_GROUP = {0: 4, 1: 4, 2: 4, 30: 4, 3: 7, 4: 7, 5: 7, 6: 6, 7: 8, 8: 8, 9: 8}
-_M_UNSUPPORTED = {
-    98: "subprogram calls (M98) are not supported",
-    99: "subprogram returns (M99) are not supported",
-}
+# group 10 is ours: M98/M99 (Fanuc-style subprogram call and return, as LinuxCNC runs them)
+_M_GROUP = {0: 4, 1: 4, 2: 4, 30: 4, 3: 7, 4: 7, 5: 7, 6: 6, 7: 8, 8: 8, 9: 8, 98: 10, 99: 10}
+_M_UNSUPPORTED: dict[int, str] = {}
 _AXES_EXTRA = "ABCUVW"
 _WORD_LETTERS = set("FSTHPQRLIJKXYZD")
 
@@ -328,35 +335,66 @@ class _Interp:
         self.cycle_z = math.nan
         self.cycle_q = math.nan
         self.ended = False
+        self.tlo = 0.0  # active tool length offset (G43), mm
+        self.speed = 0.0  # spindle speed (S), rev/min
+        self.cycle_il = math.nan  # initial level of the canned cycles in a row (LinuxCNC)
+        self.comp = None  # CutterComp while G41/G42 is on
+        self.call: tuple[int, int] | None = None  # M98 P L of the block just run
+        self.max_moves = MAX_MOVES
+        self.m99 = False
+        self.params = Parameters()
+        self._install_system_parameters()
+
+    def _install_system_parameters(self) -> None:
+        """Read-only parameters that report the machine state (in program units)."""
+        def prog(i: int) -> Callable[[], float]:
+            return lambda: (self.pos[i] - self.offsets[self.cs][i]) / self.scale()
+
+        sysp = self.params.system
+        for i, name in enumerate("XYZ"):
+            sysp[5420 + i] = sysp["_" + name] = prog(i)
+        sysp[5400] = sysp["_CURRENT_TOOL"] = lambda: float(self.tool)
+        sysp["_SELECTED_TOOL"] = lambda: float(self.selected_tool)
+        sysp[5220] = lambda: float(self.cs + 1)
+        sysp["_COORD_SYSTEM"] = lambda: float(540 + 10 * self.cs if self.cs < 6 else 590 + self.cs - 5)
+        sysp["_METRIC"] = lambda: float(self.units == "mm")
+        sysp["_IMPERIAL"] = lambda: float(self.units == "inch")
+        sysp["_ABSOLUTE"] = lambda: float(self.absolute)
+        sysp["_INCREMENTAL"] = lambda: float(not self.absolute)
+        sysp["_FEED"] = lambda: 0.0 if math.isnan(self.feed) else self.feed / self.scale()
+        sysp[5410] = lambda: self.tool_diameter(self.tool) / self.scale()
+        for cs in range(9):  # #5221-#5229 G54 ... #5381-#5389 G59.3 (X Y Z of each)
+            for i in range(3):
+                sysp[5221 + 20 * cs + i] = (lambda cs=cs, i=i: self.offsets[cs][i] / self.scale())
+
+    def scale(self) -> float:
+        """mm per program unit."""
+        return MM_PER_INCH if self.units == "inch" else 1.0
+
+    def tool_entry(self, number: int) -> Any:
+        return None if self.tool_table is None else self.tool_table.get(number)
+
+    def tool_diameter(self, number: int) -> float:
+        """Diameter of a tool in the table, mm (0 if unknown)."""
+        return float(getattr(self.tool_entry(number), "diameter", 0.0))
 
     # -- state snapshot for lenient mode ---------------------------------------------------
     def snapshot(self) -> tuple:
-        return (
-            len(self.rows), list(self.pos), self.plane, self.units, self.units_seen,
-            self.absolute, self.ijk_absolute, self.motion, self.retract_r,
-            [list(o) for o in self.offsets], self.cs, self.feed, self.selected_tool,
-            self.tool, len(self.tool_changes), self.cycle_r, self.cycle_z, self.cycle_q,
-            self.ended,
-        )
+        state = {k: copy.deepcopy(v) for k, v in self.__dict__.items()
+                 if k not in ("rows", "tool_changes", "tool_table", "params")}
+        return len(self.rows), len(self.tool_changes), state, self.params.snapshot()
 
-    def restore(self, s: tuple) -> None:
-        (n, self.pos, self.plane, self.units, self.units_seen, self.absolute,
-         self.ijk_absolute, self.motion, self.retract_r, self.offsets, self.cs, self.feed,
-         self.selected_tool, self.tool, nt, self.cycle_r, self.cycle_z, self.cycle_q,
-         self.ended) = s
+    def restore(self, snap: tuple) -> None:
+        n, nt, state, params = snap
+        self.__dict__.update(state)
+        self.params.restore(params)
         del self.rows[n:]
         del self.tool_changes[nt:]
 
 
-def _err(file: str, line: int, text: str, k: int | None, word: str, problem: str) -> GCodeError:
-    """A GCodeError at the k-th token of ``text`` (column 1-based; 1 if unknown)."""
-    col = 1
-    if k is not None:
-        for i, mt in enumerate(_TOKEN.finditer(text)):
-            if i == k:
-                col = mt.start() + 1
-                break
-    return GCodeError(file, line, col, word, problem)
+def _err(file: str, line: int, col: int | None, word: str, problem: str) -> GCodeError:
+    """A GCodeError at a 1-based column (1 if unknown)."""
+    return GCodeError(file, line, col or 1, word, problem)
 
 
 def parse(
@@ -366,6 +404,8 @@ def parse(
     tool_table: Mapping[int, Any] | str | os.PathLike | None = None,
     filename: str | None = None,
     block_delete: bool = True,
+    max_blocks: int = MAX_BLOCKS,
+    max_moves: int = MAX_MOVES,
 ) -> Program:
     """Read a 3-axis milling program into moves in millimetres.
 
@@ -386,6 +426,10 @@ def parse(
     block_delete : bool, keyword-only
         True (default): lines starting with ``/`` are skipped, as with the block-delete
         switch on. False: the ``/`` is ignored and the block runs.
+    max_blocks, max_moves : int, keyword-only
+        Limits of one parse: blocks executed (each pass through a loop or a subroutine
+        counts) and moves made. A program beyond either stops with GCodeError at the block
+        that crossed it, before memory runs out (an endless ``while`` loop, ``L1000000000``).
 
     Returns
     -------
@@ -429,54 +473,10 @@ def parse(
 
     st = _Interp(fname, table)
     warnings: list[str] = []
-    percent_open = False
-    seen_block = False
-    tok_findall = _TOKEN.findall
-    comment_sub = _COMMENT.sub
-
-    for lineno, raw in enumerate(lines, 1):
-        if not raw or raw.isspace():
-            continue
-        s = raw
-        if "(" in s or ";" in s or ")" in s:
-            s = comment_sub(lambda mt: " " * len(mt.group()), s)
-            if "(" in s or ")" in s:
-                col = s.find("(") if "(" in s else s.find(")")
-                e = GCodeError(fname, lineno, col + 1, s[col], "unbalanced comment parenthesis")
-                if lenient:
-                    warnings.append(str(e))
-                    continue
-                raise e
-        s = s.upper()
-        stripped = s.strip()
-        if not stripped:
-            continue
-        if stripped == "%":
-            if not seen_block and not percent_open:
-                percent_open = True
-                continue
-            if percent_open:
-                break  # the closing tape mark ends the program
-            continue
-        seen_block = True
-        if stripped[0] == "/":
-            if block_delete:
-                continue
-            s = s.replace("/", " ", 1)
-        toks = tok_findall(s)
-        if _fast_block(st, toks, lineno):
-            continue
-        if lenient:
-            snap = st.snapshot()
-            try:
-                _block(st, toks, s, lineno)
-            except GCodeError as e:
-                st.restore(snap)
-                warnings.append(str(e))
-        else:
-            _block(st, toks, s, lineno)
-        if st.ended:
-            break
+    src = _Source.from_lines(lines, fname, block_delete, lenient, warnings)
+    _Runner(st, src, lenient, warnings, max_blocks, max_moves).run()
+    if st.comp is not None:
+        st.comp.flush()
 
     rows = st.rows
     moves = np.empty(len(rows), dtype=MOVE_DTYPE)
@@ -504,6 +504,328 @@ def parse(
     )
 
 
+
+
+@dataclass
+class _Source:
+    """One program file prepared for the runner: cleaned lines and paired O-words."""
+
+    name: str
+    lines: list  # per line: upper-cased comment-free text, a GCodeError to raise, or None
+    special: list[bool]  # the line needs the LinuxCNC scanner (#, [ or O in it)
+    owords: dict[int, OWord]
+    structure: Any
+
+    @classmethod
+    def from_lines(cls, lines: list[str], fname: str, block_delete: bool, lenient: bool,
+                   warnings: list[str]) -> "_Source":
+        out: list = [None] * len(lines)
+        special = [False] * len(lines)
+        percent_open = False
+        seen_block = False
+        comment_sub = _COMMENT.sub
+        for idx, raw in enumerate(lines):
+            if not raw or raw.isspace():
+                continue
+            s = raw
+            if "(" in s or ";" in s or ")" in s:
+                s = comment_sub(lambda mt: " " * len(mt.group()), s)
+                if "(" in s or ")" in s:
+                    col = s.find("(") if "(" in s else s.find(")")
+                    out[idx] = GCodeError(fname, idx + 1, col + 1, s[col],
+                                          "unbalanced comment parenthesis")
+                    continue
+            s = s.upper()
+            stripped = s.strip()
+            if not stripped:
+                continue
+            if stripped == "%":
+                if not seen_block and not percent_open:
+                    percent_open = True
+                    continue
+                if percent_open:
+                    del out[idx:], special[idx:]  # the closing tape mark ends the program
+                    break
+                continue
+            seen_block = True
+            if stripped[0] == "/":
+                if block_delete:
+                    continue
+                s = s.replace("/", " ", 1)
+            out[idx] = s
+            special[idx] = "#" in s or "[" in s or "O" in s
+        src = cls(fname, out, special, {}, None)
+        src._pair_owords(lenient, warnings)
+        return src
+
+    def _pair_owords(self, lenient: bool, warnings: list[str]) -> None:
+        m99: list[int] = []
+        for idx, s in enumerate(self.lines):
+            if not isinstance(s, str):
+                continue
+            if "O" in s:
+                c, cols = compact(s)
+                m = _OWORD_HEAD.match(c)
+                if m:
+                    label = f"<{m.group(1)}>" if m.group(1) is not None else str(int(m.group(2)))
+                    self.owords[idx] = OWord(label, m.group(3) or "", (), cols[0])
+            if "M" in s and "99" in s and _M99.search(compact(s)[0]):
+                m99.append(idx)
+        while True:
+            try:
+                self.structure = program_structure(self.owords, m99)
+                return
+            except NgcError as e:
+                ow = self.owords[e.pos]
+                err = GCodeError(self.name, e.pos + 1, ow.col, e.word, e.problem)
+                if not lenient:
+                    raise err from None
+                warnings.append(str(err))
+                del self.owords[e.pos]
+                self.lines[e.pos] = None
+
+
+@dataclass
+class _Frame:
+    """A subroutine call in progress: where to return, and what kind of call."""
+
+    source: _Source
+    return_idx: int
+    kind: str  # "sub" (O-word call: own #1-#30 and locals) or "m98" (shares parameters)
+    start: int  # index of the sub or program header line
+    remaining: int = 1  # M98 L repeats still to run
+    label: str = ""
+
+
+class _Runner:
+    """Runs a program's lines through the interpreter, with O-word control flow and calls."""
+
+    def __init__(self, st: _Interp, main: _Source, lenient: bool, warnings: list[str],
+                 max_blocks: int, max_moves: int):
+        self.st = st
+        self.main = main
+        self.lenient = lenient
+        self.warnings = warnings
+        self.max_blocks = max_blocks
+        self.max_moves = max_moves
+        st.max_moves = max_moves
+        self.files: dict[str, _Source] = {}
+
+    def run(self) -> None:
+        st = self.st
+        src, i = self.main, 0
+        frames: list[_Frame] = []
+        repeats: dict[tuple[int, int], int] = {}
+        jumped = False
+        executed = 0
+        while not st.ended:
+            if i >= len(src.lines):
+                if frames:
+                    f = frames[-1]
+                    raise GCodeError(src.name, len(src.lines), 1, f"O{f.label}",
+                                     "subroutine runs off the end of the file")
+                return
+            item = src.lines[i]
+            if item is None:
+                i += 1
+                continue
+            executed += 1
+            if executed > self.max_blocks:
+                raise GCodeError(src.name, i + 1, 1, "block",
+                                 f"more than {self.max_blocks} blocks executed (an endless "
+                                 f"loop?); parse(max_blocks=...) allows more")
+            st.file = src.name
+            was_jumped, jumped = jumped, False
+            snap = st.snapshot() if self.lenient else None
+            try:
+                if isinstance(item, GCodeError):
+                    raise item
+                ow = src.owords.get(i)
+                if ow is not None:
+                    src, i, jumped = self._oword(src, i, ow, frames, repeats, was_jumped)
+                    continue
+                self._line(src, i, item)
+                if len(st.rows) > self.max_moves:
+                    raise GCodeError(src.name, i + 1, 1, "block",
+                                     f"the program makes more than {self.max_moves} moves; "
+                                     f"parse(max_moves=...) allows more")
+            except GCodeError as e:
+                if not self.lenient:
+                    raise
+                st.restore(snap)
+                self.warnings.append(str(e))
+                st.call, st.m99 = None, False
+                i += 1
+                continue
+            i += 1
+            if st.call is not None:
+                p, count = st.call
+                st.call = None
+                if count > 0:
+                    tsrc, tidx = self._find(src, f"P{p}", i)
+                    frames.append(_Frame(src, i, "m98", tidx, count, str(p)))
+                    src, i = tsrc, tidx + 1
+            elif st.m99:
+                st.m99 = False
+                if not frames or frames[-1].kind != "m98":
+                    st.ended = True  # M99 in the main program ends it, as LinuxCNC by default
+                    continue
+                f = frames[-1]
+                f.remaining -= 1
+                if f.remaining > 0:
+                    i = f.start + 1
+                else:
+                    frames.pop()
+                    src, i = f.source, f.return_idx
+
+    def _line(self, src: _Source, i: int, s: str) -> None:
+        st = self.st
+        lineno = i + 1
+        if src.special[i]:
+            try:
+                line = scan_line(s, st.params)
+            except NgcError as e:
+                raise GCodeError(src.name, lineno, e.pos, e.word, e.problem) from None
+            if line.oword is not None:
+                ow = line.oword
+                raise GCodeError(src.name, lineno, ow.col, f"O{ow.label}",
+                                 "an O-word must start the line")
+            for key, v in line.assigns:
+                st.params.set(key, v)
+            if line.words:
+                _block(st, line.words, s, lineno)
+            return
+        toks = _TOKEN.findall(s)
+        if _fast_block(st, toks, lineno):
+            return
+        _block(st, _plain_words(src.name, lineno, s), s, lineno)
+
+    def _find(self, src: _Source, label: str, i: int) -> tuple[_Source, int]:
+        """The source and line index of subroutine ``label`` (this file, the main file, or
+        ``<name>.ngc`` beside the main file)."""
+        for cand in (src, self.main):
+            idx = cand.structure.subs.get(label)
+            if idx is not None:
+                return cand, idx
+        if label.startswith("<"):
+            name = label[1:-1].lower()
+            if name in self.files:
+                cand = self.files[name]
+            else:
+                cand = None
+                base = Path(self.main.name).parent
+                for fname in (f"{name}.ngc", f"{name}.NGC", f"{label[1:-1]}.ngc"):
+                    path = base / fname
+                    if self.main.name != "<string>" and path.is_file():
+                        text = path.read_text(encoding="utf-8", errors="replace")
+                        lines = _LINE_END.split(text.lstrip("\ufeff"))
+                        cand = _Source.from_lines(lines, str(path), True, self.lenient,
+                                                  self.warnings)
+                        break
+                self.files[name] = cand
+            if cand is not None and label in cand.structure.subs:
+                return cand, cand.structure.subs[label]
+        shown = f"O{label}" if not label.startswith("P") else f"program O{label[1:]}"
+        raise GCodeError(src.name, i, 1, shown, f"{shown} is not defined"
+                         + (" in the file or beside it" if label.startswith("<") else ""))
+
+    def _oword(self, src: _Source, i: int, ow: OWord, frames: list[_Frame],
+               repeats: dict[tuple[int, int], int], jumped: bool) -> tuple[_Source, int, bool]:
+        """Run one O-word statement; return where to go on (source, index, jumped)."""
+        st = self.st
+        S = src.structure
+        kw = ow.keyword
+        if kw == "SUB" or i in S.fanuc:  # a definition met in the flow is skipped
+            return src, S.end[i] + 1, False
+        try:
+            line = scan_line(src.lines[i], st.params)
+        except NgcError as e:
+            raise GCodeError(src.name, i + 1, e.pos, e.word, e.problem) from None
+        args = line.oword.args if line.oword is not None else ()
+        word = f"O{ow.label}"
+
+        def cond() -> bool:
+            if not args:
+                raise GCodeError(src.name, i + 1, ow.col, word,
+                                 f"{kw.lower()} needs a condition in [brackets]")
+            return args[0] != 0.0
+
+        if kw == "CALL":
+            tsrc, tidx = self._find(src, ow.label, i + 1)
+            if len(frames) >= 100:
+                raise GCodeError(src.name, i + 1, ow.col, word, "subroutine calls nested "
+                                                                "more than 100 deep")
+            frames.append(_Frame(src, i + 1, "sub", tidx, 1, ow.label))
+            st.params.push(args)
+            return tsrc, tidx + 1, False
+        if kw in ("ENDSUB", "RETURN"):
+            if not frames or frames[-1].kind != "sub":
+                raise GCodeError(src.name, i + 1, ow.col, word,
+                                 f"{kw.lower()} without a call in progress")
+            f = frames.pop()
+            st.params.pop()
+            st.params.set("<_VALUE_RETURNED>", 1.0 if args else 0.0)
+            if args:
+                st.params.set("<_VALUE>", args[0])
+            return f.source, f.return_idx, False
+        if kw == "WHILE":
+            if i in S.start:  # the while that closes a do-loop
+                return src, (S.start[i] + 1 if cond() else i + 1), False
+            return src, (i + 1 if cond() else S.end[i] + 1), False
+        if kw == "ENDWHILE":
+            return src, S.start[i], False
+        if kw == "DO":
+            return src, i + 1, False
+        if kw == "REPEAT":
+            if not args:
+                raise GCodeError(src.name, i + 1, ow.col, word, "repeat needs a count in "
+                                                                "[brackets]")
+            n = round(args[0])
+            repeats[(id(src), i)] = n
+            return src, (i + 1 if n > 0 else S.end[i] + 1), False
+        if kw == "ENDREPEAT":
+            s0 = S.start[i]
+            left = repeats.get((id(src), s0), 1) - 1
+            repeats[(id(src), s0)] = left
+            return src, (s0 + 1 if left > 0 else i + 1), False
+        if kw == "IF":
+            return (src, i + 1, False) if cond() else (src, S.end[i], True)
+        if kw == "ELSEIF":
+            if not jumped:
+                return src, S.endif[i] + 1, False
+            return (src, i + 1, False) if cond() else (src, S.end[i], True)
+        if kw == "ELSE":
+            return src, (i + 1 if jumped else S.endif[i] + 1), False
+        if kw == "ENDIF":
+            return src, i + 1, False
+        if kw in ("BREAK", "CONTINUE"):
+            loop = S.loop[i]
+            lkw = src.owords[loop].keyword
+            if kw == "BREAK":
+                return src, S.end[loop] + 1, False
+            return src, (loop if lkw == "WHILE" else S.end[loop]), False
+        raise GCodeError(src.name, i + 1, ow.col, word,
+                         f"O-word {kw.lower() or 'program number'} cannot be run here")
+
+
+def _plain_words(fname: str, lineno: int, s: str) -> list[tuple[str, float, int]]:
+    """Words of a line with plain numbers only: (letter, value, column)."""
+    out = []
+    for mt in _TOKEN.finditer(s):
+        letter, num, junk = mt.groups()
+        col = mt.start() + 1
+        if junk:
+            problem = (f"word {junk} has no number" if junk.isalpha()
+                       else f"unexpected character {junk!r}")
+            raise GCodeError(fname, lineno, col, junk, problem)
+        v = float(num)
+        if not math.isfinite(v) or abs(v) > 1e100:
+            raise GCodeError(fname, lineno, col, f"{letter}{num[:20]}" + ("..." if len(num) > 20 else ""),
+                             "number out of range")
+        out.append((letter, v, col))
+    return out
+
+
 _FAST_LETTERS = frozenset("XYZFN")
 
 
@@ -512,6 +834,8 @@ def _fast_block(st: _Interp, toks: list, lineno: int) -> bool:
 
     Returns False, having changed nothing, for anything else (the full interpreter runs).
     """
+    if st.comp is not None:
+        return False
     motion = st.motion
     vals: dict[str, float] = {}
     for letter, num, junk in toks:
@@ -533,6 +857,9 @@ def _fast_block(st: _Interp, toks: list, lineno: int) -> bool:
     if motion != 0 and motion != 10:
         return False
     vals.pop("G", None)
+    for v in vals.values():
+        if not abs(v) <= 1e100:  # huge or not finite: the full interpreter says why
+            return False
     f = MM_PER_INCH if st.units == "inch" else 1.0
     feed = st.feed
     if "F" in vals:
@@ -543,6 +870,7 @@ def _fast_block(st: _Interp, toks: list, lineno: int) -> bool:
     if not vals:
         st.feed = feed
         st.motion = motion
+        st.cycle_il = math.nan
         return True
     if motion == 10 and not feed > 0:
         return False
@@ -556,6 +884,8 @@ def _fast_block(st: _Interp, toks: list, lineno: int) -> bool:
         x = pos[0] + vals["X"] * f if "X" in vals else pos[0]
         y = pos[1] + vals["Y"] * f if "Y" in vals else pos[1]
         z = pos[2] + vals["Z"] * f if "Z" in vals else pos[2]
+    if not (abs(x) <= MAX_COORD_MM and abs(y) <= MAX_COORD_MM and abs(z) <= MAX_COORD_MM):
+        return False
     nan = math.nan
     if motion == 0:
         st.rows.append((0, x, y, z, nan, nan, nan, st.plane, 0, nan, st.tool, lineno, nan))
@@ -564,49 +894,47 @@ def _fast_block(st: _Interp, toks: list, lineno: int) -> bool:
     st.pos = [x, y, z]
     st.feed = feed
     st.motion = motion
+    st.cycle_il = math.nan
     return True
 
 
 def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
-    """Interpret one block (tokens of one line) in LinuxCNC's order of execution."""
+    """Interpret one block (words of one line) in LinuxCNC's order of execution.
+
+    ``toks`` is a list of ``(letter, value, column)``: values in program units, already read
+    from numbers, parameters or expressions.
+    """
     file = st.file
     gcodes: list[tuple[int, int]] = []
     mcodes: list[tuple[int, int]] = []
     words: dict[str, float] = {}
     widx: dict[str, int] = {}
-    for k, (letter, num, junk) in enumerate(toks):
-        if junk:
-            _junk_error(st, s, lineno, k, junk)
+    for letter, v, k in toks:
         if letter == "G":
-            v = float(num)
-            code = round(v * 10)
+            code = round(v * 10) if abs(v) < 1e4 else -1
             if abs(v * 10 - code) > 1e-6 or code not in _G_GROUP:
-                problem = _G_UNSUPPORTED.get(code, f"G{num} is not a supported G code")
-                raise _err(file, lineno, s, k, f"G{num}", problem)
+                problem = _G_UNSUPPORTED.get(code, f"G{_fmt(v)} is not a supported G code")
+                raise _err(file, lineno, k, f"G{_fmt(v)}", problem)
             gcodes.append((code, k))
         elif letter == "M":
-            v = float(num)
-            code = int(v)
+            code = int(v) if abs(v) < 1e4 else -1
             if code != v or code not in _M_GROUP:
-                problem = _M_UNSUPPORTED.get(code, f"M{num} is not a supported M code")
-                raise _err(file, lineno, s, k, f"M{num}", problem)
+                problem = _M_UNSUPPORTED.get(code, f"M{_fmt(v)} is not a supported M code")
+                raise _err(file, lineno, k, f"M{_fmt(v)}", problem)
             mcodes.append((code, k))
         elif letter == "N":
             continue
         elif letter in _WORD_LETTERS:
             if letter in words:
-                raise _err(file, lineno, s, k, f"{letter}{num}",
+                raise _err(file, lineno, k, f"{letter}{_fmt(v)}",
                            f"{letter} word appears twice in the block")
-            words[letter] = float(num)
+            words[letter] = v
             widx[letter] = k
-        elif letter == "O":
-            raise _err(file, lineno, s, k, f"O{num}",
-                       "O-word subroutines and control flow are not supported")
         elif letter in _AXES_EXTRA:
-            raise _err(file, lineno, s, k, f"{letter}{num}",
+            raise _err(file, lineno, k, f"{letter}{_fmt(v)}",
                        f"axis {letter} is not supported (3-axis XYZ only)")
         else:
-            raise _err(file, lineno, s, k, f"{letter}{num}", f"word {letter} is not supported")
+            raise _err(file, lineno, k, f"{letter}{_fmt(v)}", f"word {letter} is not supported")
 
     # Modal groups: at most one code per group (G80 may join a motion code: it runs first).
     groups: dict[int, int] = {}
@@ -619,7 +947,7 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
             if 1 in groups:
                 continue
         if grp in groups and not (grp == 1 and groups[grp] == 800):
-            raise _err(file, lineno, s, k, _gname(code),
+            raise _err(file, lineno, k, _gname(code),
                        f"{_gname(groups[grp])} and {_gname(code)} are in the same modal group")
         groups[grp] = code
         gk[code] = k
@@ -627,16 +955,16 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
     for code, k in mcodes:
         grp = _M_GROUP[code]
         if grp in mgroups and {mgroups[grp], code} != {7, 8}:  # mist and flood may combine
-            raise _err(file, lineno, s, k, f"M{code}",
+            raise _err(file, lineno, k, f"M{code}",
                        f"M{mgroups[grp]} and M{code} are in the same modal group")
         mgroups[grp] = code
 
     def werr(letter: str, problem: str) -> GCodeError:
         v = words[letter]
-        return _err(file, lineno, s, widx[letter], f"{letter}{_fmt(v)}", problem)
+        return _err(file, lineno, widx[letter], f"{letter}{_fmt(v)}", problem)
 
     def gerr(code: int, problem: str) -> GCodeError:
-        return _err(file, lineno, s, gk.get(code), _gname(code), problem)
+        return _err(file, lineno, gk.get(code), _gname(code), problem)
 
     used = set()
     # -- units first of all (values of this block are read in the new units) --------------
@@ -652,16 +980,18 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
             raise werr("F", "feed rate must not be negative")
         feed = words["F"] * f
         used.add("F")
+    speed = st.speed
     if "S" in words:
         if words["S"] < 0:
             raise werr("S", "spindle speed must not be negative")
+        speed = words["S"]
         used.add("S")
     # 5. tool select, 6. tool change
     selected = st.selected_tool
     if "T" in words:
         t = words["T"]
-        if t < 0 or t != int(t):
-            raise werr("T", "tool number must be a non-negative integer")
+        if t < 0 or t != int(t) or t > MAX_TOOL:
+            raise werr("T", f"tool number must be an integer 0..{MAX_TOOL}")
         selected = int(t)
         used.add("T")
         if st.tool_table is not None and selected != 0 and selected not in st.tool_table:
@@ -670,8 +1000,27 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
     tool = st.tool
     tool_changed = False
     if mgroups.get(6) == 6:
+        if st.comp is not None:
+            raise _err(file, lineno, None, "M6", "tool change with cutter compensation on "
+                                                 "(G40 first)")
         tool = selected
         tool_changed = True
+    # M98 P L: call subprogram O<P> L times (the runner does it after the block); M99 returns
+    call = None
+    if mgroups.get(10) == 98:
+        if "P" not in words:
+            raise _err(file, lineno, None, "M98", "M98 needs a P word (the program number)")
+        pv = words["P"]
+        if pv < 0 or pv != int(pv) or pv > 99_999_999:
+            raise werr("P", "M98 P must be a program number 0..99999999")
+        count = 1
+        if "L" in words:
+            lv = words["L"]
+            if lv < 0 or lv != int(lv) or lv > st.max_moves:
+                raise werr("L", f"M98 L (repeats) must be an integer 0..{st.max_moves}")
+            count = int(lv)
+        call = (int(pv), count)
+        used.update(("P", "L"))
     # 10. dwell
     nonmodal = groups.get(0)
     if nonmodal == 40:
@@ -682,12 +1031,64 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
         used.add("P")
     # 11. plane, 12. units (done), 14. tool length
     plane = groups.get(2, st.plane * 10) // 10
+    tlo = st.tlo
     if groups.get(8) == 430:
+        h = tool
         if "H" in words:
-            h = words["H"]
-            if h < 0 or h != int(h):
-                raise werr("H", "H must be a non-negative integer")
+            hv = words["H"]
+            if hv < 0 or hv != int(hv) or hv > MAX_TOOL:
+                raise werr("H", f"H must be an integer 0..{MAX_TOOL}")
+            h = int(hv)
             used.add("H")
+        entry = st.tool_entry(h)
+        if entry is None and st.tool_table is not None and h != 0:
+            w = "H" if "H" in words else None
+            problem = f"tool {h} (G43 H) is not in the tool table"
+            raise werr("H", problem) if w else gerr(430, problem)
+        tlo = float(getattr(entry, "length_offset", 0.0))
+    elif groups.get(8) == 490:
+        tlo = 0.0
+    # 13. cutter radius compensation (G40, G41, G42, G41.1, G42.1)
+    comp = st.comp
+    comp_code = groups.get(7)
+    comp_pos = None
+    if comp_code is not None or comp is not None:
+        from .cutter_comp import CompError, CutterComp  # here: it imports arc_sweep from us
+    if comp_code in (410, 420, 411, 421):
+        if comp is not None:
+            raise gerr(comp_code, "cutter compensation is already on (G40 first)")
+        if plane != 17:
+            raise gerr(comp_code, f"cutter compensation in the G{plane} plane is not supported "
+                                  "(G17 only)")
+        if comp_code in (410, 420):
+            d = tool
+            if "D" in words:
+                dv = words["D"]
+                if dv < 0 or dv != int(dv) or dv > MAX_TOOL:
+                    raise werr("D", f"D (tool number) must be an integer 0..{MAX_TOOL}")
+                d = int(dv)
+            if st.tool_table is not None and d != 0 and st.tool_entry(d) is None:
+                problem = f"tool {d} is not in the tool table"
+                raise werr("D", problem) if "D" in words else gerr(comp_code, problem)
+            radius = st.tool_diameter(d) / 2.0
+        else:
+            if "D" not in words:
+                raise gerr(comp_code, f"{_gname(comp_code)} needs a D word (the diameter)")
+            if words["D"] < 0:
+                raise werr("D", "D (diameter) must not be negative")
+            radius = words["D"] * f / 2.0
+        used.add("D")
+        pos0 = list(st.pos)
+        pos0[2] -= tlo - st.tlo
+        comp = CutterComp("left" if comp_code in (410, 411) else "right", radius, tuple(pos0),
+                          st.rows.append)
+    elif comp_code == 400 and comp is not None:
+        try:
+            comp.flush()
+        except CompError as e:
+            raise gerr(400, str(e)) from None
+        comp_pos = list(comp.position)
+        comp = None
     # 15. coordinate system
     cs = st.cs
     if 12 in groups:
@@ -720,6 +1121,9 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
         offsets = [list(o) for o in offsets]
         for i, w in enumerate(_XYZ):
             if w in words:
+                if abs(words[w] * f) > MAX_COORD_MM:
+                    raise werr(w, f"offset beyond the work envelope (|{w}| <= "
+                                  f"{MAX_COORD_MM:g} mm)")
                 offsets[idx][i] = words[w] * f
         used.update(("L", "P", "X", "Y", "Z"))
         any_axis = False  # consumed by G10
@@ -730,7 +1134,8 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
         motion = 800
     if 1 in groups and groups[1] != 800:
         motion = groups[1]
-    pos = st.pos
+    pos = list(comp_pos) if comp_pos is not None else list(st.pos)
+    pos[2] -= tlo - st.tlo  # G43/G49 move the tip's programmed Z, not the machine
     rows = st.rows
     n_before = len(rows)
     new_pos = pos
@@ -749,28 +1154,54 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
             raise werr(w, "axis word with no active motion mode (G80 in effect)")
         if nonmodal == 40:
             raise gerr(40, "axis words cannot be used with G4")
-        if motion in (0, 10, 20, 30):
+        if motion in (0, 10, 20, 30, 331):
             end = list(pos)
             for i in range(3):
                 w = _XYZ[i]
                 if w in words:
                     end[i] = words[w] * f + off[i] if absolute else pos[i] + words[w] * f
             feed_v = math.nan if motion == 0 else feed
-            if motion != 0 and not (feed_v > 0):
-                raise _err(file, lineno, s, gk.get(motion), _gname(motion),
+            if motion not in (0, 331) and not (feed_v > 0):
+                raise _err(file, lineno, gk.get(motion), _gname(motion),
                            "feed move with no feed rate (F word) set")
-            if motion in (0, 10):
-                rows.append((0 if motion == 0 else 1, end[0], end[1], end[2],
-                             math.nan, math.nan, math.nan, plane, 0, feed_v, tool, lineno,
-                             math.nan))
+            _check_envelope(end, words, werr, gerr, motion)
+            if motion == 331:
+                if comp is not None:
+                    raise gerr(331, "rigid tapping with cutter compensation on")
+                new_pos = _rigid_tap(st, words, werr, gerr, pos, end, f, speed, feed, tool,
+                                     plane, lineno, used)
             else:
-                _arc(st, words, widx, gk, s, lineno, motion, plane, pos, end, f, off,
-                     ijk_absolute, units, feed_v, tool, used)
-            new_pos = end
+                if motion == 0 or motion == 10:
+                    row = (0 if motion == 0 else 1, end[0], end[1], end[2],
+                           math.nan, math.nan, math.nan, plane, 0, feed_v, tool, lineno, math.nan)
+                else:
+                    row = _arc(st, words, widx, gk, s, lineno, motion, plane, pos, end, f, off,
+                               ijk_absolute, units, feed_v, tool, used)
+                    _check_envelope(row[4:7], words, werr, gerr, motion)
+                if comp is None:
+                    rows.append(row)
+                else:
+                    if g53:
+                        raise gerr(530, "G53 with cutter compensation on")
+                    if plane != 17:
+                        raise gerr(motion, f"G{plane} plane with cutter compensation on "
+                                           "(G17 only)")
+                    try:
+                        if motion in (0, 10):
+                            comp.straight(row[0], tuple(end), feed_v, tool, lineno)
+                        else:
+                            comp.arc(motion == 30, tuple(end), (row[4], row[5]), row[8], feed_v,
+                                     tool, lineno)
+                    except CompError as e:
+                        raise _err(file, lineno, gk.get(motion), _gname(motion), str(e)) from None
+                new_pos = end
         else:
+            if comp is not None:
+                raise gerr(motion, f"canned cycle {_gname(motion)} with cutter compensation on")
             new_pos, cycle_r, cycle_z, cycle_q = _cycle(
                 st, words, widx, gk, s, lineno, motion, plane, pos, f, off, absolute,
                 retract_r, feed, tool, cycle_r, cycle_z, cycle_q, used)
+            _check_envelope(new_pos, words, werr, gerr, motion)
         used.update(("X", "Y", "Z"))
     elif explicit_motion and motion in (20, 30) and any(w in words for w in "IJKR"):
         raise gerr(motion, f"{_gname(motion)} needs at least one axis word")
@@ -800,8 +1231,46 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
     st.offsets = offsets
     st.motion = motion
     st.cycle_r, st.cycle_z, st.cycle_q = cycle_r, cycle_z, cycle_q
+    st.tlo = tlo
+    st.speed = speed
+    st.comp = comp
+    if motion not in (810, 820, 830):
+        st.cycle_il = math.nan
+    st.call = call
+    st.m99 = mgroups.get(10) == 99
     if ended:
         st.ended = True
+
+
+def _check_envelope(point, words: dict, werr, gerr, motion: int) -> None:
+    """Refuse a position or centre outside the work envelope (|coordinate| <= MAX_COORD_MM)."""
+    for i, v in enumerate(point):
+        if abs(v) > MAX_COORD_MM:  # NaN (a line's centre) compares False
+            problem = (f"{_XYZ[i]} = {v:.6g} mm is outside the work envelope "
+                       f"(|coordinate| <= {MAX_COORD_MM:g} mm)")
+            w = _XYZ[i] if _XYZ[i] in words else next((w for w in _XYZ if w in words), None)
+            raise werr(w, problem) if w else gerr(motion, problem)
+
+
+def _rigid_tap(st, words, werr, gerr, pos, end, f, speed, feed, tool, plane, lineno, used):
+    """G33.1: feed to the hole bottom synchronised with the spindle, then back to the start.
+
+    The feed is the pitch ``K`` times the spindle speed (the F word when S is not set).
+    """
+    if plane != 17:
+        raise gerr(331, "rigid tapping is supported in the G17 plane only")
+    if "K" not in words:
+        raise gerr(331, "G33.1 needs a K word (the thread pitch)")
+    if not words["K"] > 0:
+        raise werr("K", "K (the thread pitch) must be positive")
+    used.add("K")
+    tap_feed = words["K"] * f * speed if speed > 0 else feed
+    if not tap_feed > 0:
+        raise gerr(331, "G33.1 with no spindle speed (S) and no feed rate (F) set")
+    nan = math.nan
+    st.rows.append((1, end[0], end[1], end[2], nan, nan, nan, plane, 0, tap_feed, tool, lineno, nan))
+    st.rows.append((1, pos[0], pos[1], pos[2], nan, nan, nan, plane, 0, tap_feed, tool, lineno, nan))
+    return list(pos)
 
 
 def _arc(st, words, widx, gk, s, lineno, motion, plane, pos, end, f, off, ijk_absolute,
@@ -811,7 +1280,7 @@ def _arc(st, words, widx, gk, s, lineno, motion, plane, pos, end, f, off, ijk_ab
     ccw = motion == 30
 
     def werr(letter: str, problem: str) -> GCodeError:
-        return _err(file, lineno, s, widx[letter], f"{letter}{_fmt(words[letter])}", problem)
+        return _err(file, lineno, widx[letter], f"{letter}{_fmt(words[letter])}", problem)
 
     name = _gname(motion)
     bad = _IJK[n]
@@ -820,8 +1289,9 @@ def _arc(st, words, widx, gk, s, lineno, motion, plane, pos, end, f, off, ijk_ab
     turns = 0
     if "P" in words:
         p = words["P"]
-        if p != int(p) or p < 1:
-            raise werr("P", f"P (number of turns) must be a positive integer, got {_fmt(p)}")
+        if p != int(p) or p < 1 or p > MAX_TURNS:
+            raise werr("P", f"P (number of turns) must be an integer 1..{MAX_TURNS}, "
+                            f"got {_fmt(p)}")
         turns = int(p) - 1
         used.add("P")
     tol = max(_ARC_ABS_TOL_MM[units], 0.0)
@@ -854,7 +1324,7 @@ def _arc(st, words, widx, gk, s, lineno, motion, plane, pos, end, f, off, ijk_ab
         cb = mid_b + offset * math.sin(theta)
     else:
         if ia not in words and ib not in words:
-            raise _err(file, lineno, s, gk.get(motion), name,
+            raise _err(file, lineno, gk.get(motion), name,
                        f"{name} in the G{plane} plane needs {ia}/{ib} or R words")
         vi = words.get(ia, 0.0) * f
         vj = words.get(ib, 0.0) * f
@@ -876,8 +1346,8 @@ def _arc(st, words, widx, gk, s, lineno, motion, plane, pos, end, f, off, ijk_ab
     sweep = arc_sweep(a0, b0, a1, b1, ca, cb, ccw, turns)
     c = [0.0, 0.0, 0.0]
     c[a], c[b], c[n] = ca, cb, pos[n]
-    st.rows.append((2 if motion == 20 else 3, end[0], end[1], end[2], c[0], c[1], c[2],
-                    plane, turns, feed, tool, lineno, sweep))
+    return (2 if motion == 20 else 3, end[0], end[1], end[2], c[0], c[1], c[2],
+            plane, turns, feed, tool, lineno, sweep)
 
 
 def _cycle(st, words, widx, gk, s, lineno, motion, plane, pos, f, off, absolute, retract_r,
@@ -889,10 +1359,10 @@ def _cycle(st, words, widx, gk, s, lineno, motion, plane, pos, f, off, absolute,
     wn = _XYZ[n]
 
     def werr(letter: str, problem: str) -> GCodeError:
-        return _err(file, lineno, s, widx[letter], f"{letter}{_fmt(words[letter])}", problem)
+        return _err(file, lineno, widx[letter], f"{letter}{_fmt(words[letter])}", problem)
 
     def gerr(problem: str) -> GCodeError:
-        return _err(file, lineno, s, gk.get(motion), name, problem)
+        return _err(file, lineno, gk.get(motion), name, problem)
 
     if "R" in words:
         cycle_r = words["R"] * f
@@ -926,7 +1396,9 @@ def _cycle(st, words, widx, gk, s, lineno, motion, plane, pos, f, off, absolute,
         if not cycle_q > 0:
             raise werr("Q", "Q (peck depth) must be positive") if "Q" in words else gerr(
                 "Q (peck depth) must be positive")
-    old_cc = pos[n]
+    # LinuxCNC's initial level: the Z where the first block of this run of cycles began
+    old_cc = pos[n] if math.isnan(st.cycle_il) else st.cycle_il
+    st.cycle_il = old_cc
     if absolute:
         aa = words[_XYZ[a]] * f + off[a] if _XYZ[a] in words else pos[a]
         bb = words[_XYZ[b]] * f + off[b] if _XYZ[b] in words else pos[b]
@@ -945,6 +1417,14 @@ def _cycle(st, words, widx, gk, s, lineno, motion, plane, pos, f, off, absolute,
         raise werr(w, problem) if w else gerr(problem)
     rows = st.rows
     pl = plane
+    pecks = 1 if motion != 830 else max(1.0, math.ceil((r - cc) / cycle_q))
+    estimate = repeats * (3.0 + 3.0 * pecks)
+    if len(rows) + estimate > st.max_moves:
+        w = "Q" if motion == 830 and pecks > repeats and "Q" in words else (
+            "L" if "L" in words else None)
+        problem = (f"{name} would make {estimate:.3g} moves (limit {st.max_moves}; "
+                   f"parse(max_moves=...) allows more)")
+        raise werr(w, problem) if w else gerr(problem)
 
     def pt(u: float, v: float, w: float) -> tuple[float, float, float]:
         p = [0.0, 0.0, 0.0]
@@ -988,33 +1468,6 @@ def _cycle(st, words, widx, gk, s, lineno, motion, plane, pos, f, off, absolute,
         old_cc = clear_cc
         cur = list(pt(aa, bb, clear_cc))
     return cur, cycle_r, cycle_z, cycle_q
-
-
-def _junk_error(st: _Interp, s: str, lineno: int, k: int, junk: str) -> None:
-    col = 1
-    for i, mt in enumerate(_TOKEN.finditer(s)):
-        if i == k:
-            col = mt.start() + 1
-            break
-    if junk.isalpha():
-        nxt = col
-        while nxt < len(s) and s[nxt] in " \t":
-            nxt += 1
-        if nxt < len(s) and s[nxt] in "#[":
-            col, junk = nxt + 1, s[nxt]
-    mw = _JUNK_WORD.match(s, col - 1)
-    word = mw.group() if mw else junk
-    if junk == "#":
-        problem = "# parameters are not supported"
-    elif junk == "[":
-        problem = "[expressions] are not supported"
-    elif junk == "O":
-        problem = "O-word subroutines and control flow are not supported"
-    elif junk.isalpha():
-        problem = f"word {junk} has no number"
-    else:
-        problem = f"unexpected character {junk!r}"
-    raise GCodeError(st.file, lineno, col, word, problem)
 
 
 def _gname(code: int) -> str:

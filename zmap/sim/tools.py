@@ -6,8 +6,10 @@ the tip. Its lower envelope ``h(r)`` is the height of the bottom above the tip a
 distance ``r``; along a vertical ray at offset ``(dx, dy)`` from the axis the cutter occupies
 ``[tip_z + h(r), tip_z + length]``.
 
-Tool tables: :func:`load_tool_table` reads TOML (``[tool.N]`` tables), and
-:func:`load_camotics_project` reads the tools and stock of a CAMotics ``.camotics`` project.
+Tool tables: :func:`load_tool_table` reads TOML (``[tool.N]`` tables) and LinuxCNC ``.tbl``
+files (:func:`load_linuxcnc_tool_table`: diameters for cutter compensation, Z offsets for
+G43), and :func:`load_camotics_project` reads the tools and stock of a CAMotics ``.camotics``
+project.
 
 Examples
 --------
@@ -37,6 +39,8 @@ __all__ = [
     "CUTTER_KINDS",
     "parse_tool_spec",
     "load_tool_table",
+    "load_linuxcnc_tool_table",
+    "TableTool",
     "load_camotics_project",
 ]
 
@@ -50,7 +54,7 @@ def _num(name: str, value: Any) -> float:
         raise ToolError(f"{name} must be a number, got {value!r}")
     v = float(value)
     if not math.isfinite(v):
-        raise ToolError(f"{name} must be finite, got {value!r}")
+        raise ToolError(f"{name} must be finite, got {v!r}")
     return v
 
 
@@ -90,23 +94,23 @@ class Cutter:
         rc = _num("corner_radius", self.corner_radius)
         length = _num("length", self.length)
         if d <= 0:
-            raise ToolError(f"diameter must be positive, got {self.diameter!r}")
+            raise ToolError(f"diameter must be positive, got {d!r}")
         r = d / 2.0
         if self.kind == "flat" and rc != 0.0:
-            raise ToolError(f"a flat cutter has corner_radius 0, got {self.corner_radius!r}")
+            raise ToolError(f"a flat cutter has corner_radius 0, got {rc!r}")
         if self.kind == "ball":
             if rc == 0.0:
                 rc = r
             elif abs(rc - r) > 1e-12 * max(1.0, r):
                 raise ToolError(
-                    f"a ball cutter's corner_radius is its radius {r!r}, got {self.corner_radius!r}")
+                    f"a ball cutter's corner_radius is its radius {r!r}, got {rc!r}")
             rc = r
         if self.kind == "bull" and not (0.0 < rc <= r):
             raise ToolError(
-                f"a bull-nose corner_radius must be in (0, {r!r}], got {self.corner_radius!r}")
+                f"a bull-nose corner_radius must be in (0, {r!r}], got {rc!r}")
         if length <= 0 or length < rc:
             raise ToolError(f"length must be positive and >= the corner radius {rc!r}, "
-                            f"got {self.length!r}")
+                            f"got {length!r}")
         object.__setattr__(self, "diameter", d)
         object.__setattr__(self, "corner_radius", rc)
         object.__setattr__(self, "length", length)
@@ -234,7 +238,7 @@ _TABLE_KEYS = {"kind", "diameter", "corner_radius", "length", "units", "descript
 
 
 def load_tool_table(path: str | os.PathLike) -> dict[int, Cutter]:
-    """Read a TOML tool table.
+    """Read a TOML tool table (a ``.tbl`` file goes to :func:`load_linuxcnc_tool_table`).
 
     The file holds one table per tool number::
 
@@ -270,6 +274,8 @@ def load_tool_table(path: str | os.PathLike) -> dict[int, Cutter]:
     {2: Cutter(kind='flat', diameter=6.0, corner_radius=0.0, length=50.0)}
     """
     path = os.fspath(path)
+    if str(path).lower().endswith(".tbl"):
+        return load_linuxcnc_tool_table(path)  # type: ignore[return-value]
     try:
         with open(path, "rb") as fh:
             data = tomllib.load(fh)
@@ -307,6 +313,111 @@ def load_tool_table(path: str | os.PathLike) -> dict[int, Cutter]:
             out[num] = Cutter(str(entry["kind"]), **kw)
         except ToolError as e:
             raise ToolError(f"{where}: {e}") from None
+    return out
+
+
+@dataclass(frozen=True)
+class TableTool:
+    """One entry of a LinuxCNC tool table, in mm.
+
+    Attributes
+    ----------
+    number : int
+        The T number.
+    diameter : float
+        Cutter diameter (G41/G42 compensate by half of it), mm; may be 0.
+    length_offset : float
+        Tool length offset (the ``Z`` column, applied by G43), mm.
+    pocket : int
+        The ``P`` column.
+    comment : str
+        Text after ``;``.
+    """
+
+    number: int
+    diameter: float
+    length_offset: float = 0.0
+    pocket: int = 0
+    comment: str = ""
+
+    def cutter(self, kind: str = "flat", length: float = 50.0) -> Cutter:
+        """The cutter for simulation (a table has no shape: flat unless told), mm."""
+        return Cutter(kind, self.diameter, length=length)
+
+
+_TBL_FIELD = re.compile(r"([A-Za-z])\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
+
+
+def load_linuxcnc_tool_table(path: str | os.PathLike, *, units: str = "inch") -> dict[int, TableTool]:
+    """Read a LinuxCNC tool table (``.tbl``): ``T1 P1 Z0.5 D0.0625 ;comment`` per line.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``.tbl`` file.
+    units : {"inch", "mm"}, keyword-only
+        Units of the table's numbers. LinuxCNC keeps the table in the machine's units; its
+        standalone interpreter ``rs274`` (whose ``.expected`` outputs are the reference here)
+        reads them as inches, hence the default. Give ``"mm"`` for a metric machine's table.
+
+    Returns
+    -------
+    dict of int to TableTool
+        Diameters and Z offsets in mm. Columns other than T, P, Z, D (X Y A B C U V W I J Q)
+        are read and ignored: a 3-axis mill has no use for them.
+
+    Raises
+    ------
+    ToolError
+        Unreadable file or a bad line, naming the file and line.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "t.tbl"
+    >>> _ = p.write_text("T1 P1 Z0.5 D0.0625 ;first tool\\n")
+    >>> load_linuxcnc_tool_table(p)[1].diameter
+    1.5875
+    """
+    path = os.fspath(path)
+    if units not in ("inch", "mm"):
+        raise ToolError(f"units={units!r} is not one of 'inch', 'mm'")
+    scale = _MM_PER_INCH if units == "inch" else 1.0
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            text = fh.read()
+    except OSError as e:
+        raise ToolError(f"{path}: cannot read tool table: {e.strerror or e}") from None
+    out: dict[int, TableTool] = {}
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        body, _, comment = raw.partition(";")
+        if not body.strip():
+            continue
+        fields: dict[str, float] = {}
+        pos = 0
+        for m in _TBL_FIELD.finditer(body):
+            if body[pos:m.start()].strip():
+                break
+            fields[m.group(1).upper()] = float(m.group(2))
+            pos = m.end()
+        rest = body[pos:].strip()
+        where = f"{path}:{lineno}"
+        if rest:
+            raise ToolError(f"{where}: cannot read {rest[:20]!r} (fields are a letter and a number)")
+        if "T" not in fields:
+            raise ToolError(f"{where}: a tool line needs a T word")
+        t = fields["T"]
+        if t != int(t) or not 0 <= t <= 2**31 - 1:
+            raise ToolError(f"{where}: tool number must be an integer 0..2147483647, got {t:g}")
+        if any(not math.isfinite(v) or abs(v) > 1e6 for v in fields.values()):
+            raise ToolError(f"{where}: a value is out of range")
+        d = fields.get("D", 0.0) * scale
+        if d < 0:
+            raise ToolError(f"{where}: diameter must not be negative, got {fields['D']:g}")
+        out[int(t)] = TableTool(int(t), d, fields.get("Z", 0.0) * scale,
+                                int(fields.get("P", t)), comment.strip())
+    if not out:
+        raise ToolError(f"{path}: no tools found (lines like 'T1 P1 Z0.5 D0.25')")
     return out
 
 

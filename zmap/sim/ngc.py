@@ -1,0 +1,588 @@
+"""The LinuxCNC (rs274ngc) language layer of the G-code reader: parameters, expressions, O-words.
+
+:mod:`zmap.sim.gcode` hands every line that holds a ``#``, a ``[`` or an ``O`` to
+:func:`scan_line`, which turns it into words with numeric values, parameter assignments and an
+O-word statement. Parameters live in a :class:`Parameters` store (numbered ``#1``-``#5602``,
+local ``#<name>`` per subroutine call, global ``#<_name>``); expressions follow LinuxCNC's
+``read_real_expression``: operators ``** * / MOD + - EQ NE GT GE LT LE AND OR XOR`` with its
+precedence, left to right within a level, and the functions ``ABS ACOS ASIN ATAN[y]/[x] COS
+EXP FIX FUP LN ROUND SIN SQRT TAN EXISTS`` (angles in degrees). :func:`program_structure`
+pairs the O-word statements of a file (``sub/endsub``, ``while/endwhile``, ``do/while``,
+``repeat/endrepeat``, ``if/elseif/else/endif``) before anything runs.
+
+Everything works on the *compact* line: upper case, comments blanked, blanks removed (as
+LinuxCNC reads a line), with a map back to the columns of the source line for messages.
+
+Examples
+--------
+>>> p = Parameters()
+>>> line = scan_line("#1 = [2 ** 3 MOD 5]  G1 X[#2 + 1] Y-#1", p)
+>>> [(w.letter, w.value) for w in line.words], line.assigns
+([('G', 1.0), ('X', 1.0), ('Y', -0.0)], [(1, 3.0)])
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from typing import Callable, NamedTuple
+
+__all__ = [
+    "NgcError",
+    "Word",
+    "OWord",
+    "Line",
+    "Parameters",
+    "compact",
+    "scan_line",
+    "evaluate",
+    "program_structure",
+    "Structure",
+    "MAX_PARAMETER",
+]
+
+#: highest numbered parameter (LinuxCNC RS274NGC_MAX_PARAMETERS - 1)
+MAX_PARAMETER = 5602
+#: ``EQ``, ``NE``, ``LE``, ``GE`` compare within this, as LinuxCNC's TOLERANCE_EQUAL
+TOLERANCE_EQUAL = 0.0001
+#: a number or expression beyond this magnitude is refused (no machine needs it; 1e300 * 1e300
+#: would otherwise become infinity silently)
+MAX_MAGNITUDE = 1e100
+
+_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)")
+_NAME = re.compile(r"<([^>]*)>")
+_UNARY = ("ABS", "ACOS", "ASIN", "ATAN", "COS", "EXISTS", "EXP", "FIX", "FUP", "LN", "ROUND",
+          "SIN", "SQRT", "TAN")
+# operator, precedence (LinuxCNC's precedence(): AND OR XOR 2, comparisons 3, + - 4, * / MOD 5,
+# ** 6); longer spellings first so that "**" is not read as "*".
+_OPERATORS = (("**", 6), ("*", 5), ("/", 5), ("MOD", 5), ("+", 4), ("-", 4), ("EQ", 3),
+              ("NE", 3), ("GT", 3), ("GE", 3), ("LT", 3), ("LE", 3), ("AND", 2), ("OR", 2),
+              ("XOR", 2))
+_KEYWORDS = ("ENDSUB", "ENDWHILE", "ENDREPEAT", "ENDIF", "ELSEIF", "ELSE", "SUB", "CALL", "DO",
+             "WHILE", "IF", "BREAK", "CONTINUE", "RETURN", "REPEAT")
+
+
+class NgcError(Exception):
+    """A problem at index ``pos`` of the compact line (turned into GCodeError by the reader)."""
+
+    def __init__(self, pos: int, word: str, problem: str):
+        super().__init__(problem)
+        self.pos = pos
+        self.word = word
+        self.problem = problem
+
+
+class Word(NamedTuple):
+    """A word of a block: letter, value (program units) and 1-based source column."""
+
+    letter: str
+    value: float
+    col: int
+
+
+class OWord(NamedTuple):
+    """An O-word statement: label (``"<name>"`` or the number as text), keyword, arguments."""
+
+    label: str
+    keyword: str
+    args: tuple[float, ...]
+    col: int
+
+
+@dataclass
+class Line:
+    """A scanned line: words in order, parameter assignments, an O-word statement or None."""
+
+    words: list[Word] = field(default_factory=list)
+    assigns: list[tuple[int | str, float]] = field(default_factory=list)
+    oword: OWord | None = None
+
+
+def compact(s: str) -> tuple[str, list[int]]:
+    """Drop blanks from an (upper-cased, comment-free) line; map each kept char to its column.
+
+    Examples
+    --------
+    >>> compact("G1 X [1 + 2]")
+    ('G1X[1+2]', [1, 2, 4, 6, 7, 9, 11, 12])
+    """
+    chars, cols = [], []
+    for i, ch in enumerate(s):
+        if ch not in " \t\r\n\f\v":
+            chars.append(ch)
+            cols.append(i + 1)
+    return "".join(chars), cols
+
+
+class Parameters:
+    """Numbered, local named and global named parameters, with a call stack for subroutines.
+
+    ``system`` maps read-only names or numbers (``"_X"``, ``5420``, ...) to callables that give
+    the machine's current value; the reader installs them.
+
+    Examples
+    --------
+    >>> p = Parameters()
+    >>> p.set(1, 2.5); p.set("<_G>", 1.0); p.get(1), p.get("<_G>"), p.get(7)
+    (2.5, 1.0, 0.0)
+    """
+
+    def __init__(self) -> None:
+        self.numbered: dict[int, float] = {}
+        self.globals: dict[str, float] = {}
+        self.frames: list[dict[str, float]] = [{}]
+        self.saved: list[dict[int, float]] = []
+        self.system: dict[int | str, Callable[[], float]] = {}
+
+    # names are stored without the angle brackets, upper case (the line is upper-cased)
+    def get(self, key: int | str) -> float:
+        """Value of ``#n`` or ``#<name>``; KeyError for an undefined named parameter."""
+        if isinstance(key, int):
+            if key in self.system:
+                return float(self.system[key]())
+            return self.numbered.get(key, 0.0)
+        name = key.strip("<>")
+        if name in self.system:
+            return float(self.system[name]())
+        if name.startswith("_"):
+            return self.globals[name]
+        return self.frames[-1][name]
+
+    def exists(self, key: str) -> bool:
+        """Whether a named parameter is defined (EXISTS[#<name>])."""
+        name = key.strip("<>")
+        if name in self.system:
+            return True
+        return name in (self.globals if name.startswith("_") else self.frames[-1])
+
+    def set(self, key: int | str, value: float) -> None:
+        """Assign ``#n`` or ``#<name>``."""
+        if isinstance(key, int):
+            self.numbered[key] = value
+            return
+        name = key.strip("<>")
+        if name.startswith("_"):
+            self.globals[name] = value
+        else:
+            self.frames[-1][name] = value
+
+    def push(self, args: tuple[float, ...]) -> None:
+        """Enter a subroutine: #1-#30 saved and set from ``args`` (the rest 0), new locals."""
+        self.saved.append({k: self.numbered[k] for k in range(1, 31) if k in self.numbered})
+        for k in range(1, 31):
+            self.numbered.pop(k, None)
+        for k, v in enumerate(args[:30], 1):
+            self.numbered[k] = v
+        self.frames.append({})
+
+    def pop(self) -> None:
+        """Leave a subroutine: #1-#30 and the caller's locals come back."""
+        for k in range(1, 31):
+            self.numbered.pop(k, None)
+        self.numbered.update(self.saved.pop())
+        self.frames.pop()
+
+    def snapshot(self) -> tuple:
+        return (dict(self.numbered), dict(self.globals), [dict(f) for f in self.frames],
+                [dict(s) for s in self.saved])
+
+    def restore(self, snap: tuple) -> None:
+        n, g, f, s = snap
+        self.numbered, self.globals = dict(n), dict(g)
+        self.frames, self.saved = [dict(x) for x in f], [dict(x) for x in s]
+
+
+def _checked(v: float, pos: int, word: str) -> float:
+    if not math.isfinite(v) or abs(v) > MAX_MAGNITUDE:
+        raise NgcError(pos, word, f"value {v:.6g} is out of range (|value| <= {MAX_MAGNITUDE:.0e})")
+    return v
+
+
+class _Reader:
+    """LinuxCNC's read_real_value / read_real_expression over one compact line."""
+
+    def __init__(self, c: str, params: Parameters):
+        self.c = c
+        self.params = params
+
+    def _snippet(self, i: int, j: int | None = None) -> str:
+        return self.c[i:(j if j is not None else i + 20)][:40] or "end of line"
+
+    def value(self, i: int) -> tuple[float, int]:
+        c = self.c
+        if i >= len(c):
+            raise NgcError(max(i - 1, 0), self._snippet(max(i - 1, 0)), "a value is missing")
+        ch = c[i]
+        nxt = c[i + 1] if i + 1 < len(c) else ""
+        if ch == "[":
+            return self.expression(i)
+        if ch == "#":
+            key, j = self.parameter(i)
+            try:
+                return self.params.get(key), j
+            except KeyError:
+                raise NgcError(i, self._snippet(i, j),
+                               f"named parameter #{key} is not defined") from None
+        if ch in "+-" and nxt and not (nxt.isdigit() or nxt == "."):
+            v, j = self.value(i + 1)
+            return (-v if ch == "-" else v), j
+        if ch.isalpha():
+            return self.unary(i)
+        m = _NUMBER.match(c, i)
+        if not m:
+            raise NgcError(i, self._snippet(i), f"a number, #parameter or [expression] was "
+                                                f"expected, got {ch!r}")
+        return _checked(float(m.group()), i, m.group()[:40]), m.end()
+
+    def parameter(self, i: int) -> tuple[int | str, int]:
+        """The key of ``#n``, ``#<name>``, ``##n`` or ``#[expr]`` at ``c[i] == '#'``."""
+        c = self.c
+        j = i + 1
+        if j < len(c) and c[j] == "<":
+            m = _NAME.match(c, j)
+            if not m:
+                raise NgcError(i, self._snippet(i), "named parameter without a closing '>'")
+            name = m.group(1)
+            if not name:
+                raise NgcError(i, self._snippet(i), "empty parameter name")
+            return "<" + name + ">", m.end()
+        v, j = self.value(j)
+        n = round(v)
+        if abs(v - n) > 1e-4:
+            raise NgcError(i, self._snippet(i, j), f"parameter number {v:.6g} is not an integer")
+        if not 1 <= n <= MAX_PARAMETER:
+            raise NgcError(i, self._snippet(i, j),
+                           f"parameter number {n} is out of range (1..{MAX_PARAMETER})")
+        return int(n), j
+
+    def unary(self, i: int) -> tuple[float, int]:
+        c = self.c
+        name = next((u for u in _UNARY if c.startswith(u, i)), None)
+        if name is None:
+            m = re.match(r"[A-Z]+", c[i:])
+            word = m.group() if m else c[i]
+            raise NgcError(i, word, f"unknown function or word {word!r} in a value")
+        j = i + len(name)
+        if j >= len(c) or c[j] != "[":
+            raise NgcError(i, name, f"{name} needs its argument in [brackets]")
+        if name == "EXISTS":
+            k = j + 1
+            if k < len(c) and c[k] == "#":
+                key, k2 = self.parameter(k)
+                if k2 < len(c) and c[k2] == "]" and isinstance(key, str):
+                    return (1.0 if self.params.exists(key) else 0.0), k2 + 1
+            raise NgcError(i, name, "EXISTS needs a named parameter: EXISTS[#<name>]")
+        a, j = self.expression(j)
+        word = self.c[i:j][:40]
+        if name == "ATAN":
+            if j >= len(c) or c[j] != "/":
+                raise NgcError(i, word, "ATAN needs two arguments: ATAN[y]/[x]")
+            if j + 1 >= len(c) or c[j + 1] != "[":
+                raise NgcError(j, word, "ATAN's second argument must be in [brackets]")
+            b, j = self.expression(j + 1)
+            return math.degrees(math.atan2(a, b)), j
+        if name in ("ASIN", "ACOS") and not -1.0 <= a <= 1.0:
+            raise NgcError(i, word, f"argument to {name} must be between -1 and 1, got {a:.6g}")
+        if name == "SQRT" and a < 0:
+            raise NgcError(i, word, f"argument to SQRT must not be negative, got {a:.6g}")
+        if name == "LN" and a <= 0:
+            raise NgcError(i, word, f"argument to LN must be positive, got {a:.6g}")
+        if name == "ABS":
+            v = abs(a)
+        elif name == "ACOS":
+            v = math.degrees(math.acos(a))
+        elif name == "ASIN":
+            v = math.degrees(math.asin(a))
+        elif name == "COS":
+            v = math.cos(math.radians(a))
+        elif name == "SIN":
+            v = math.sin(math.radians(a))
+        elif name == "TAN":
+            v = math.tan(math.radians(a))
+        elif name == "EXP":
+            v = math.exp(a) if a < 709 else math.inf
+        elif name == "FIX":
+            v = float(math.floor(a))
+        elif name == "FUP":
+            v = float(math.ceil(a))
+        elif name == "LN":
+            v = math.log(a)
+        elif name == "ROUND":
+            v = float(math.trunc(a + (-0.5 if a < 0 else 0.5)))
+        else:  # SQRT
+            v = math.sqrt(a)
+        return _checked(v, i, word), j
+
+    def operator(self, i: int) -> tuple[str | None, int]:
+        for op, _ in _OPERATORS:
+            if self.c.startswith(op, i):
+                return op, i + len(op)
+        return None, i
+
+    def expression(self, i: int) -> tuple[float, int]:
+        """``[ ... ]`` at ``c[i] == '['``: value and the index after the closing bracket."""
+        v, j = self._binary(i + 1, 0, i)
+        if j >= len(self.c) or self.c[j] != "]":
+            what = repr(self.c[j]) if j < len(self.c) else "end of line"
+            raise NgcError(i, self._snippet(i, j + 1), f"expression: ']' or an operator was "
+                                                       f"expected, got {what}")
+        return v, j + 1
+
+    def _binary(self, i: int, min_prec: int, start: int) -> tuple[float, int]:
+        left, i = self.value(i)
+        prec = dict(_OPERATORS)
+        while True:
+            op, j = self.operator(i)
+            if op is None or prec[op] < min_prec or prec[op] == 0:
+                return left, i
+            right, i = self._binary(j, prec[op] + 1, start)
+            left = _checked(self._apply(op, left, right, start, i), start,
+                            self._snippet(start, i))
+
+    def _apply(self, op: str, a: float, b: float, start: int, end: int) -> float:
+        if op == "+":
+            return a + b
+        if op == "-":
+            return a - b
+        if op == "*":
+            return a * b
+        if op == "/":
+            if b == 0.0:
+                raise NgcError(start, self._snippet(start, end), "division by zero")
+            return a / b
+        if op == "MOD":
+            if b == 0.0:
+                raise NgcError(start, self._snippet(start, end), "MOD by zero")
+            r = math.fmod(a, b)
+            return r + abs(b) if r < 0 else r
+        if op == "**":
+            if a < 0 and math.floor(b) != b:
+                raise NgcError(start, self._snippet(start, end),
+                               "a negative number raised to a non-integer power")
+            if a == 0 and b < 0:
+                raise NgcError(start, self._snippet(start, end), "zero raised to a negative power")
+            try:
+                return math.pow(a, b)
+            except OverflowError:
+                return math.inf
+        if op == "EQ":
+            return 1.0 if abs(a - b) < TOLERANCE_EQUAL else 0.0
+        if op == "NE":
+            return 1.0 if abs(a - b) >= TOLERANCE_EQUAL else 0.0
+        if op == "LT":
+            return 1.0 if a < b else 0.0
+        if op == "LE":
+            return 1.0 if abs(a - b) < TOLERANCE_EQUAL or a <= b else 0.0
+        if op == "GT":
+            return 1.0 if a > b else 0.0
+        if op == "GE":
+            return 1.0 if abs(a - b) < TOLERANCE_EQUAL or a >= b else 0.0
+        if op == "AND":
+            return 0.0 if a == 0.0 or b == 0.0 else 1.0
+        if op == "OR":
+            return 1.0 if a != 0.0 or b != 0.0 else 0.0
+        return 1.0 if (a == 0.0) != (b == 0.0) else 0.0  # XOR
+
+
+def evaluate(expr: str, params: Parameters | None = None) -> float:
+    """Value of one LinuxCNC expression, e.g. ``"[1 + 2 * 3]"`` or ``"SIN[30]"``.
+
+    Examples
+    --------
+    >>> evaluate("[1 + 2 * 3 ** 2]"), evaluate("[-7 MOD 3]"), round(evaluate("ATAN[1]/[1]"), 9)
+    (19.0, 2.0, 45.0)
+    >>> evaluate("[1 LT 2 AND 3 EQ 3.00001]")
+    1.0
+    """
+    c, _ = compact(expr.upper())
+    v, j = _Reader(c, params or Parameters()).value(0)
+    if j != len(c):
+        raise NgcError(j, c[j:j + 20], "unexpected text after the value")
+    return v
+
+
+def scan_line(s: str, params: Parameters) -> Line:
+    """Words, parameter assignments and O-word statement of one upper-cased, comment-free line.
+
+    Values are read with the parameters as they stand *before* the line: LinuxCNC sets all the
+    line's parameters after reading it. Raises :class:`NgcError` with the index into the
+    compact line; use the returned columns through :func:`compact` for messages.
+    """
+    c, cols = compact(s)
+    rd = _Reader(c, params)
+    out = Line()
+    i, n = 0, len(c)
+    first = True
+
+    def col(k: int) -> int:
+        return cols[min(k, len(cols) - 1)] if cols else 1
+
+    try:
+        while i < n:
+            ch = c[i]
+            if ch == "#":
+                key, j = rd.parameter(i)
+                if j >= n or c[j] != "=":
+                    raise NgcError(i, c[i:j], "a parameter outside a word must be set: '=' is "
+                                              "missing")
+                if isinstance(key, str) and key.strip("<>") in params.system:
+                    raise NgcError(i, c[i:j], f"#{key} is read-only")
+                v, j = rd.value(j + 1)
+                out.assigns.append((key, v))
+                i = j
+                first = False
+                continue
+            if ch == "O":
+                if not first:
+                    raise NgcError(i, c[i:i + 20], "an O-word must start the line")
+                out.oword = _scan_oword(rd, i, col)
+                return out
+            if not ch.isalpha():
+                raise NgcError(i, ch, f"unexpected character {ch!r}")
+            v, j = rd.value(i + 1)
+            if ch != "N":
+                out.words.append(Word(ch, v, col(i)))
+            i = j
+            first = False
+    except NgcError as e:
+        e.pos = col(e.pos)  # from here on the position is a source column
+        raise
+    return out
+
+
+def _scan_oword(rd: _Reader, i: int, col: Callable[[int], int]) -> OWord:
+    c = rd.c
+    j = i + 1
+    if j < len(c) and c[j] == "<":
+        m = _NAME.match(c, j)
+        if not m or not m.group(1):
+            raise NgcError(i, c[i:i + 20], "O-word name without a closing '>'")
+        label, j = "<" + m.group(1) + ">", m.end()
+    else:
+        m = re.compile(r"\d+").match(c, j)
+        if not m:
+            raise NgcError(i, c[i:i + 20], "O-word without a number or <name>")
+        label, j = str(int(m.group())), m.end()
+    keyword = next((k for k in _KEYWORDS if c.startswith(k, j)), "")
+    j += len(keyword)
+    args: list[float] = []
+    while j < len(c):
+        if c[j] != "[":
+            raise NgcError(j, c[j:j + 20], f"unexpected text after O{label} {keyword}".rstrip())
+        v, j = rd.expression(j)
+        args.append(v)
+    return OWord(label, keyword, tuple(args), col(i))
+
+
+# --------------------------------------------------------------------- program structure ---
+@dataclass
+class Structure:
+    """O-word pairing of one file, by line index (0-based).
+
+    ``subs`` maps a label to the index of its ``sub`` line (``<name>`` or a number; Fanuc-style
+    ``O1`` program headers too, under ``"P1"``); ``end`` maps the index of a ``sub``, ``while``,
+    ``do``, ``repeat`` or ``if``/``elseif``/``else`` to the index of its closing statement
+    (``endsub``, ``endwhile``, the ``while`` of a do-loop, ``endrepeat``, the next branch or
+    ``endif``); ``start`` maps a closing loop statement back to its opening one; ``endif``
+    maps every branch of an if to its ``endif``; ``loop`` maps ``break``/``continue`` to the
+    opening statement of their loop.
+    """
+
+    subs: dict[str, int] = field(default_factory=dict)
+    end: dict[int, int] = field(default_factory=dict)
+    start: dict[int, int] = field(default_factory=dict)
+    endif: dict[int, int] = field(default_factory=dict)
+    loop: dict[int, int] = field(default_factory=dict)
+    fanuc: set[int] = field(default_factory=set)
+
+
+def program_structure(owords: dict[int, OWord], m99_lines: list[int]) -> Structure:
+    """Pair the O-word statements of a file; raise NgcError(line index, ...) if unbalanced.
+
+    Parameters
+    ----------
+    owords : dict of int to OWord
+        The O-word statement of each line index that has one (arguments not needed).
+    m99_lines : list of int
+        Line indices that hold an M99 (the end of a Fanuc-style ``O<n>`` subprogram).
+    """
+    st = Structure()
+    stack: list[tuple[int, OWord]] = []  # open sub/while/do/repeat/if statements
+    branches: dict[int, list[int]] = {}  # if index -> its branch indices
+    m99 = sorted(m99_lines)
+
+    def fail(idx: int, ow: OWord, problem: str) -> NgcError:
+        return NgcError(idx, f"O{ow.label}", problem)
+
+    def close(idx: int, ow: OWord, opening: tuple[str, ...]) -> int:
+        for k in range(len(stack) - 1, -1, -1):
+            if stack[k][1].label == ow.label and stack[k][1].keyword in opening:
+                if k != len(stack) - 1:
+                    inner_idx, inner = stack[-1]
+                    raise fail(inner_idx, inner, f"O{inner.label} {inner.keyword.lower()} is not "
+                                                 f"closed before O{ow.label} {ow.keyword.lower()}")
+                return stack.pop()[0]
+        raise fail(idx, ow, f"O{ow.label} {ow.keyword.lower()} has no matching "
+                            f"{' or '.join(o.lower() for o in opening)}")
+
+    for idx in sorted(owords):
+        ow = owords[idx]
+        kw = ow.keyword
+        if kw == "":
+            # Fanuc-style program number: a subprogram that runs to the next M99
+            st.subs.setdefault("P" + ow.label, idx)
+            st.fanuc.add(idx)
+            nxt = next((m for m in m99 if m > idx), None)
+            if nxt is None:
+                raise fail(idx, ow, f"subprogram O{ow.label} has no M99")
+            st.end[idx] = nxt
+        elif kw == "SUB":
+            if ow.label in st.subs and not st.subs[ow.label] in st.fanuc:
+                raise fail(idx, ow, f"subroutine O{ow.label} is defined twice")
+            st.subs[ow.label] = idx
+            stack.append((idx, ow))
+        elif kw in ("WHILE",):
+            # the while of a do-loop closes it; otherwise it opens a while-loop
+            if any(o.label == ow.label and o.keyword == "DO" for _, o in stack):
+                s = close(idx, ow, ("DO",))
+                st.end[s], st.start[idx] = idx, s
+            else:
+                stack.append((idx, ow))
+        elif kw in ("DO", "REPEAT", "IF"):
+            stack.append((idx, ow))
+            if kw == "IF":
+                branches[idx] = [idx]
+        elif kw in ("ELSEIF", "ELSE"):
+            if not stack or stack[-1][1].label != ow.label or stack[-1][1].keyword != "IF":
+                raise fail(idx, ow, f"O{ow.label} {kw.lower()} has no matching if")
+            br = branches[stack[-1][0]]
+            if owords[br[-1]].keyword == "ELSE":
+                raise fail(idx, ow, f"O{ow.label} {kw.lower()} after else")
+            br.append(idx)
+        elif kw in ("ENDSUB", "ENDWHILE", "ENDREPEAT", "ENDIF"):
+            opening = {"ENDSUB": ("SUB",), "ENDWHILE": ("WHILE",), "ENDREPEAT": ("REPEAT",),
+                       "ENDIF": ("IF",)}[kw]
+            s = close(idx, ow, opening)
+            st.end[s], st.start[idx] = idx, s
+            if kw == "ENDIF":
+                br = branches.pop(s) + [idx]
+                for a, b in zip(br[:-1], br[1:]):
+                    st.end[a] = b
+                    st.endif[a] = idx
+        elif kw in ("BREAK", "CONTINUE"):
+            loop = next((k for k, o in reversed(stack)
+                         if o.label == ow.label and o.keyword in ("WHILE", "DO", "REPEAT")), None)
+            if loop is None:
+                raise fail(idx, ow, f"O{ow.label} {kw.lower()} is not inside loop O{ow.label}")
+            st.loop[idx] = loop
+        elif kw == "RETURN":
+            sub = next((k for k, o in reversed(stack) if o.keyword == "SUB"), None)
+            if sub is None:
+                raise fail(idx, ow, f"O{ow.label} return outside a subroutine")
+            st.loop[idx] = sub
+        # CALL needs no pairing
+    if stack:
+        idx, ow = stack[-1]
+        raise fail(idx, ow, f"O{ow.label} {ow.keyword.lower()} is never closed")
+    return st
