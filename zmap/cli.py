@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 import click
@@ -11,7 +12,24 @@ from .errors import ZMapError
 __all__ = ["main", "cli"]
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Raised(Exception):
+    """Carries an interrupt or an ``EOFError`` out of a subcommand past click's own handler
+    (which turns both into ``Abort``: an EOFError from a truncated file would read "aborted")."""
+
+    def __init__(self, exc: BaseException):
+        super().__init__(exc)
+        self.exc = exc
+
+
+class _Group(click.Group):
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except (KeyboardInterrupt, EOFError) as exc:
+            raise _Raised(exc) from None
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="zmap")
 def cli() -> None:
     """Precision z-map modelling of die and mould surfaces."""
@@ -76,19 +94,67 @@ cli.add_command(refine_cmd)  # cad commands
 cli.add_command(report_cmd)  # cad commands
 
 
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
+
+
+def _report(exc: BaseException, command: str) -> int:
+    """Print ``exc`` in one line on stderr; returns the exit status.
+
+    1: bad input (a missing or unreadable file, a bad option value, a G-code or STEP error)
+    and every other failure; 2: the command line itself (unknown option, missing
+    argument: click's usage errors); 130: interrupted.
+    """
+    if isinstance(exc, KeyboardInterrupt):
+        click.echo("zmap: interrupted", err=True)
+        return 130
+    if isinstance(exc, click.BadParameter) and not isinstance(exc, click.MissingParameter):
+        # a value click or the command refused (a missing file, a number out of range, a
+        # choice not offered) is bad input, not a malformed command line
+        click.echo(f"zmap: error: {_one_line(exc.format_message())}", err=True)
+        return 1
+    if isinstance(exc, click.ClickException):
+        click.echo(f"zmap: error: {_one_line(exc.format_message())}", err=True)
+        return exc.exit_code
+    if isinstance(exc, (ZMapError, ValueError, OSError, EOFError)):
+        click.echo(f"zmap: error: {_one_line(exc)}", err=True)
+        return 1
+    if isinstance(exc, MemoryError):
+        detail = _one_line(exc)
+        click.echo(f"zmap: error: out of memory while running {command}"
+                   + (f" ({detail})" if detail else "") + ": MemoryError", err=True)
+        return 1
+    click.echo(f"zmap: error: internal error while running {command}: {type(exc).__name__}: {_one_line(exc)} "
+               f"(ZMAP_TRACEBACK=1 shows the traceback)", err=True)
+    return 1
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the ``zmap`` command; errors are printed in one line with a non-zero exit."""
+    """Run the ``zmap`` command; errors are printed in one line on stderr, no traceback.
+
+    Exit status: 0 done; 1 bad input (missing or unreadable file, bad option value, G-code
+    or STEP error) or any other failure, out of memory included; 2 a malformed command
+    line (click's usage errors: unknown option, missing argument); 130 interrupted. With
+    the environment variable ``ZMAP_TRACEBACK=1`` unexpected errors raise as usual.
+    """
+    args = sys.argv[1:] if argv is None else list(argv)
+    name = next((a for a in args if a in cli.commands), None)
+    command = f"'zmap {name}'" if name else "'zmap'"
     try:
-        cli.main(args=argv, prog_name="zmap", standalone_mode=False)
-    except click.exceptions.Abort:
+        cli.main(args=args, prog_name="zmap", standalone_mode=False)
+    except _Raised as raised:
+        return _report(raised.exc, command)
+    except click.exceptions.Abort as exc:
+        if isinstance(exc.__cause__, KeyboardInterrupt):
+            return _report(exc.__cause__, command)
         click.echo("zmap: aborted", err=True)
         return 130
-    except click.ClickException as exc:
-        click.echo(f"zmap: error: {exc.format_message()}", err=True)
-        return exc.exit_code
-    except (ZMapError, ValueError, OSError) as exc:
-        click.echo(f"zmap: error: {' '.join(str(exc).split())}", err=True)
-        return 1
+    except (ZMapError, ValueError, OSError, click.ClickException) as exc:
+        return _report(exc, command)
+    except Exception as exc:  # MemoryError included; never BaseException (KeyboardInterrupt, SystemExit)
+        if os.environ.get("ZMAP_TRACEBACK"):
+            raise
+        return _report(exc, command)
     return 0
 
 

@@ -7,6 +7,7 @@ commands, so ``zmap --help`` stays fast.
 from __future__ import annotations
 
 import json
+import os
 import re
 
 import click
@@ -16,17 +17,25 @@ __all__ = ["simulate_cmd", "replay_cmd"]
 _HISTORIES = ("none", "ztrace", "ttrace", "treap")
 
 
+def _need_file(path: str | None) -> None:
+    """A missing input file is bad input (exit 1, "FILE: no such file"), as in every command."""
+    if path is not None and not os.path.exists(path):
+        from ..errors import ZMapFileError
+
+        raise ZMapFileError(path, "no such file")
+
+
 @click.command("simulate")
-@click.argument("program", type=click.Path(exists=True, dir_okay=False))
+@click.argument("program", type=click.Path(dir_okay=False))
 @click.option("--stock", default=None, metavar="SPEC",
               help="box:LxWxH (top at z=0, centred on the program's xy extent), "
                    "box:X0,Y0,Z0,X1,Y1,Z1, or FILE.zmap.npz (material below the surface). "
                    "Default: the stock of --camotics.")
 @click.option("--tool", default=None, metavar="SPEC",
               help="Cutter for tool numbers not in the table, e.g. ball:3, flat:6, bull:10:1.")
-@click.option("--tools", "tools_path", type=click.Path(exists=True, dir_okay=False), default=None,
+@click.option("--tools", "tools_path", type=click.Path(dir_okay=False), default=None,
               help="TOML tool table.")
-@click.option("--camotics", "project", type=click.Path(exists=True, dir_okay=False), default=None,
+@click.option("--camotics", "project", type=click.Path(dir_okay=False), default=None,
               help="CAMotics project: its tools, and its stock unless --stock is given.")
 @click.option("--pitch", type=float, default=0.26, show_default=True, help="Ray pitch and DDA step, mm.")
 @click.option("--history", type=click.Choice(_HISTORIES), default="treap", show_default=True)
@@ -35,10 +44,14 @@ _HISTORIES = ("none", "ztrace", "ttrace", "treap")
 @click.option("--progress/--no-progress", default=True, show_default=True)
 def simulate_cmd(program, stock, tool, tools_path, project, pitch, history, lenient, output, progress) -> None:
     """Simulate PROGRAM on a dexel stock, recording a history, and save the run."""
+    import warnings
+
     from .gcode import parse
     from .session import simulate
     from .tools import load_tool_table
 
+    for path in (program, tools_path, project):
+        _need_file(path)
     tools = {}
     if project:
         from .tools import load_camotics_project
@@ -54,7 +67,11 @@ def simulate_cmd(program, stock, tool, tools_path, project, pitch, history, leni
     if stock is None:
         raise click.UsageError("give --stock (or --camotics with a stock)")
     prog = parse(program, lenient=lenient, tool_table=tools or None)
-    run = simulate(prog, stock, tool=tool, tools=tools or None, pitch=pitch, history=history, progress=progress)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run = simulate(prog, stock, tool=tool, tools=tools or None, pitch=pitch, history=history, progress=progress)
+    for w in caught:
+        click.echo(f"warning: {' '.join(str(w.message).split())}", err=True)
     run.save(output)
     s = run.summary
     if getattr(prog, "warnings", None):

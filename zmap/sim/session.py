@@ -20,6 +20,7 @@ import math
 import os
 import re
 import time
+import warnings
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -50,6 +51,7 @@ class _Path:
     tool: np.ndarray
     line: np.ndarray
     n_moves: int | None
+    name: str = "the program"
 
 
 def _as_positions(obj: Any, pitch: float) -> _Path:
@@ -58,9 +60,12 @@ def _as_positions(obj: Any, pitch: float) -> _Path:
         from .gcode import parse
 
         obj = parse(obj)
+    name = "the program"
     if hasattr(obj, "moves"):  # a Program
         from .path import positions
 
+        name = str(getattr(obj, "filename", name))
+        name = "the program" if name == "<string>" else name
         n_moves = int(len(obj.moves))
         obj = positions(obj, pitch=pitch)
     else:
@@ -80,7 +85,7 @@ def _as_positions(obj: Any, pitch: float) -> _Path:
         line = np.zeros(len(xyz), dtype=np.int32)
     if not np.isfinite(xyz).all():
         raise ValueError("tool positions hold NaN or infinite coordinates")
-    return _Path(xyz, tool, line, n_moves)
+    return _Path(xyz, tool, line, n_moves, name)
 
 
 def _as_cutter(tool: Any) -> Any:
@@ -436,6 +441,12 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
     -------
     Run
 
+    Warns
+    -----
+    UserWarning
+        When there is no tool position to cut (a program without moves): the run is the
+        stock alone.
+
     Examples
     --------
     >>> import numpy as np
@@ -446,8 +457,12 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
     """
     _check_choice("history", history, HISTORY_KINDS)
     if not (isinstance(pitch, (int, float, np.floating)) and math.isfinite(pitch) and pitch > 0):
-        raise ValueError(f"pitch must be a positive number of mm, got {pitch!r}")
+        got = float(pitch) if isinstance(pitch, (int, float, np.floating)) else pitch
+        raise ValueError(f"pitch must be a positive number of mm, got {got!r}")
     path = _as_positions(program_or_positions, float(pitch))
+    if len(path.xyz) == 0:
+        what = "no moves" if not path.n_moves else f"{path.n_moves} moves but no tool positions"
+        warnings.warn(f"{path.name} has {what}; the run is the stock alone", UserWarning, stacklevel=2)
     numbers, cutters, slot = _resolve_tools(path, tool, tools)
     if len(path.xyz):
         lo, hi = path.xyz.min(axis=0), path.xyz.max(axis=0)
