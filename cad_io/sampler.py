@@ -63,7 +63,7 @@ def _spacing(grid: Any) -> tuple[float, float]:
         dx = dy = grid
     else:
         if np.shape(grid) != (2,):
-            raise ValueError(f"grid must be an interval or a pair (dx, dy), got {grid!r}")
+            raise ValueError(f"grid must be an interval or a pair (dx, dy), got {np.asarray(grid).tolist()!r}")
         dx, dy = grid
     try:
         dx, dy = float(dx), float(dy)
@@ -481,7 +481,7 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
     if default_bounds:
         bounds = _view_bounds(part, axis)
     elif np.shape(bounds) != (4,):
-        raise ValueError(f"bounds must be (x0, y0, x1, y1), got {bounds!r}")
+        raise ValueError(f"bounds must be (x0, y0, x1, y1), got {np.asarray(bounds).tolist()!r}")
     x0, y0 = float(bounds[0]), float(bounds[1])
     nx, ny = grid_shape(bounds, dx, dy)
     need = _check_memory(nx, ny)

@@ -96,7 +96,7 @@ def accuracy_rows(
         if s not in SCHEMES:
             raise ValueError(f"scheme={s!r} is not one of {', '.join(repr(k) for k in SCHEMES)}")
     if int(n_points) < 1:
-        raise ValueError(f"n_points must be at least 1, got {n_points!r}")
+        raise ValueError(f"n_points must be at least 1, got {int(n_points)!r}")
     rows = []
     for surf in surfaces:
         surf = get(surf) if isinstance(surf, str) else surf

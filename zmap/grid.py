@@ -127,7 +127,7 @@ class ZMap:
         self.dy = _positive_float("dy", self.dy)
         self.angle = _finite_float("angle", self.angle)
         if np.shape(self.origin) != (2,):
-            raise ValueError(f"origin must be a pair (ox, oy), got {self.origin!r}")
+            raise ValueError(f"origin must be a pair (ox, oy), got {np.asarray(self.origin).tolist()!r}")
         self.origin = (_finite_float("origin[0]", self.origin[0]), _finite_float("origin[1]", self.origin[1]))
         z = np.asarray(self.z)
         if z.ndim != 2:

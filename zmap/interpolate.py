@@ -49,7 +49,7 @@ def _finish(out: np.ndarray, xs: np.ndarray, ys: np.ndarray, shape: tuple, stric
             where = "a non-finite coordinate" if not (np.isfinite(xs[k]) and np.isfinite(ys[k])) else (
                 "outside the map" if not zm.contains(xs[k], ys[k]) else "in a cell with a missing corner height")
             raise OutOfDomainError(
-                f"no height at point {k} (x={xs[k]!r}, y={ys[k]!r}): {where}; "
+                f"no height at point {k} (x={float(xs[k])!r}, y={float(ys[k])!r}): {where}; "
                 f"{bad.size} of {out.size} points have none")
     out = out.reshape(shape)
     return out[()] if out.ndim == 0 else out

@@ -172,7 +172,7 @@ class PrecisionModel:
             bad = np.flatnonzero(np.isnan(out))
             if bad.size:
                 k = int(bad[0])
-                raise OutOfDomainError(f"no height at point {k} (x={xs[k]!r}, y={ys[k]!r}); "
+                raise OutOfDomainError(f"no height at point {k} (x={float(xs[k])!r}, y={float(ys[k])!r}); "
                                        f"{bad.size} of {out.size} points have none")
         out = out.reshape(shape)
         return out[()] if out.ndim == 0 else out

@@ -105,7 +105,7 @@ class DexelWorkpiece:
         """
         b = [float(v) for v in bounds]
         if len(b) != 6 or not all(math.isfinite(v) for v in b):
-            raise ValueError(f"box bounds must be 6 finite numbers (x0, y0, z0, x1, y1, z1), got {tuple(bounds)!r}")
+            raise ValueError(f"box bounds must be 6 finite numbers (x0, y0, z0, x1, y1, z1), got {tuple(b)!r}")
         x0, y0, z0, x1, y1, z1 = b
         if not (x1 > x0 and y1 > y0 and z1 > z0):
             raise ValueError(f"box bounds must satisfy x0 < x1, y0 < y1, z0 < z1, got {tuple(b)}")
@@ -298,7 +298,7 @@ def _check_pitch(pitch: Any) -> float:
     except (TypeError, ValueError):
         raise ValueError(f"pitch must be a positive number of mm, got {pitch!r}") from None
     if not (math.isfinite(p) and p > 0):
-        raise ValueError(f"pitch must be a positive number of mm, got {pitch!r}")
+        raise ValueError(f"pitch must be a positive number of mm, got {p!r}")
     return p
 
 
