@@ -207,7 +207,16 @@ class _Reader:
         self.params = params
 
     def _snippet(self, i: int, j: int | None = None) -> str:
-        return self.c[i:(j if j is not None else i + 20)][:40] or "end of line"
+        """The text from ``i``: to ``j``, or a whole ``[...]`` group, at most 40 characters."""
+        c = self.c
+        if i < len(c) and c[i] == "[":
+            depth = 0
+            for k in range(i, len(c)):
+                depth += (c[k] == "[") - (c[k] == "]")
+                if depth == 0:
+                    j = max(j or 0, k + 1)
+                    break
+        return c[i:(j if j is not None else i + 20)][:40] or "end of line"
 
     def value(self, i: int) -> tuple[float, int]:
         c = self.c
