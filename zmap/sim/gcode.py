@@ -1051,7 +1051,6 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
     # 13. cutter radius compensation (G40, G41, G42, G41.1, G42.1)
     comp = st.comp
     comp_code = groups.get(7)
-    comp_pos = None
     if comp_code is not None or comp is not None:
         from .cutter_comp import CompError, CutterComp  # here: it imports arc_sweep from us
     if comp_code in (410, 420, 411, 421):
@@ -1087,8 +1086,12 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
             comp.flush()
         except CompError as e:
             raise gerr(400, str(e)) from None
-        comp_pos = list(comp.position)
         comp = None
+    if st.comp is not None and comp is not None:
+        if 12 in groups:
+            raise gerr(groups[12], "coordinate system change with cutter compensation on")
+        if plane != st.plane:
+            raise gerr(groups[2], "plane change with cutter compensation on")
     # 15. coordinate system
     cs = st.cs
     if 12 in groups:
@@ -1134,7 +1137,9 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
         motion = 800
     if 1 in groups and groups[1] != 800:
         motion = groups[1]
-    pos = list(comp_pos) if comp_pos is not None else list(st.pos)
+    # after G40 the tool sits at the compensated point (the next row starts there: rows chain),
+    # while the program goes on from the programmed point, as in LinuxCNC
+    pos = list(st.pos)
     pos[2] -= tlo - st.tlo  # G43/G49 move the tip's programmed Z, not the machine
     rows = st.rows
     n_before = len(rows)
