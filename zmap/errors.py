@@ -19,6 +19,8 @@ __all__ = [
     "GridTooLargeError",
     "NurbsError",
     "RefineError",
+    "PathError",
+    "PathTooLargeError",
 ]
 
 
@@ -78,3 +80,32 @@ class NurbsError(ZMapError, ValueError):
 class RefineError(ZMapError, ValueError):
     """A precision refinement (CZ-map, EZ-map) that cannot be built: no exact surface to
     sample, or a surface callable that answers with the wrong shape."""
+
+
+class PathError(ZMapError, ValueError):
+    """A toolpath that cannot be cut into tool positions (a non-finite coordinate, a negative
+    tool number), located by file and line (``line`` 0: unknown, the message says where)."""
+
+    def __init__(self, file: str, line: int, problem: str):
+        self.file = str(file)
+        self.line = int(line)
+        self.problem = problem
+        where = f"{self.file}:{self.line}" if self.line > 0 else self.file
+        super().__init__(f"{where}: {problem}")
+
+    def __reduce__(self):
+        return type(self), (self.file, self.line, self.problem)
+
+
+class PathTooLargeError(PathError):
+    """A toolpath with more tool positions than the cap (or the memory available) allows; the
+    message gives the estimate, the cap and the line of the move that crosses it."""
+
+    def __init__(self, file: str, line: int, problem: str, estimate: float = float("nan"),
+                 cap: float = float("nan")):
+        super().__init__(file, line, problem)
+        self.estimate = float(estimate)
+        self.cap = float(cap)
+
+    def __reduce__(self):
+        return type(self), (self.file, self.line, self.problem, self.estimate, self.cap)

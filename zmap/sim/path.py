@@ -11,6 +11,12 @@ into chords whose sagitta is at most ``chord_tol``.
 Stage ``k`` (1..n) is the state after the cutter has been at ``xyz[k-1]``; stage 0 is the
 stock.
 
+Limits: the number of positions is estimated in float64 (chords, then DDA steps) before
+anything is allocated; above ``max_positions`` (default :data:`DEFAULT_MAX_POSITIONS`,
+2e8) or above 80 % of the memory available, :class:`zmap.errors.PathTooLargeError` names
+the line of the move that crosses the limit. Non-finite coordinates and negative tool
+numbers raise :class:`zmap.errors.PathError` naming their line.
+
 Examples
 --------
 >>> from zmap.sim.gcode import parse
@@ -22,14 +28,28 @@ Examples
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from ..errors import PathError, PathTooLargeError
 from .gcode import ARC_CW, MOVE_DTYPE, Program, _PLANE_AXES, arc_sweep
 
-__all__ = ["positions", "Positions", "arc_chords", "dda"]
+__all__ = ["DEFAULT_MAX_POSITIONS", "Positions", "arc_chords", "dda", "positions"]
+
+#: Default cap on the tool positions of one program: 2e8 positions (7.2 GB of
+#: :class:`Positions`, about 24 GB of working memory while they are made) is a 1 m x 1 m
+#: raster at 0.26 mm stepover and pitch, cut 13 times.
+DEFAULT_MAX_POSITIONS = 200_000_000
+
+# Peak working memory of positions() per tool position, bytes (tracemalloc: 96 for lines,
+# 122 for short arc chords; the result itself is 36).
+_POSITION_BYTES = 120
+# Below this estimate, memory is not asked for (reading /proc costs more than the DDA).
+_MEMORY_CHECK_BYTES = 256 * 1024**2
+_MOVE_NAMES = {0: "G0", 1: "G1", 2: "G2", 3: "G3"}
 
 
 @dataclass
@@ -125,7 +145,8 @@ def _check_positive(name: str, v: Any) -> float:
     return f
 
 
-def dda(a: Any, b: Any, *, pitch: float) -> tuple[np.ndarray, np.ndarray]:
+def dda(a: Any, b: Any, *, pitch: float,
+        max_positions: float = DEFAULT_MAX_POSITIONS) -> tuple[np.ndarray, np.ndarray]:
     """3D DDA of straight segments: positions after ``a`` up to ``b`` inclusive.
 
     Parameters
@@ -134,6 +155,9 @@ def dda(a: Any, b: Any, *, pitch: float) -> tuple[np.ndarray, np.ndarray]:
         Segment starts and ends (mm).
     pitch : float, keyword-only
         Largest step of the dominant axis (mm), the ray spacing.
+    max_positions : float, keyword-only
+        Most positions allowed (default :data:`DEFAULT_MAX_POSITIONS`); counted in float64
+        before anything is allocated.
 
     Returns
     -------
@@ -143,6 +167,11 @@ def dda(a: Any, b: Any, *, pitch: float) -> tuple[np.ndarray, np.ndarray]:
     seg : ndarray of shape (n,), int64
         Segment index of each position.
 
+    Raises
+    ------
+    zmap.errors.PathError
+        A non-finite end point (``PathTooLargeError``: more than ``max_positions``).
+
     Examples
     --------
     >>> xyz, seg = dda([[0, 0, 0]], [[1, 0.5, 0]], pitch=0.5)
@@ -150,15 +179,40 @@ def dda(a: Any, b: Any, *, pitch: float) -> tuple[np.ndarray, np.ndarray]:
     ([[0.5, 0.25, 0.0], [1.0, 0.5, 0.0]], [0, 0])
     """
     pitch = _check_positive("pitch", pitch)
+    cap = _check_cap(max_positions)
     a = np.asarray(a, dtype=np.float64).reshape(-1, 3)
     b = np.asarray(b, dtype=np.float64).reshape(-1, 3)
     if a.shape != b.shape:
         raise ValueError(f"a and b must have the same shape, got {a.shape} and {b.shape}")
-    d = b - a
-    linf = np.abs(d).max(axis=1) if d.shape[0] else np.zeros(0)
-    steps = np.ceil(linf / pitch - 1e-9).astype(np.int64)
-    steps[linf == 0] = 0
-    steps = np.maximum(steps, (linf > 0).astype(np.int64))
+    bad = ~(np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise PathError("<dda>", 0, f"segment {i} has a non-finite end point: "
+                        f"a={a[i].tolist()}, b={b[i].tolist()}")
+    d, steps = _dda_steps(a, b, pitch)
+    total = float(steps.sum())
+    if not total <= cap:
+        i = int(np.argmax(np.cumsum(steps) > cap))
+        raise PathTooLargeError(
+            "<dda>", 0, f"segments need {total:.3g} positions at pitch {pitch:g} mm, more than "
+            f"max_positions={cap:.3g} (segment {i} alone needs {steps[i]:.3g})", total, cap)
+    return _dda_fill(a, b, d, steps.astype(np.int64))
+
+
+def _dda_steps(a: np.ndarray, b: np.ndarray, pitch: float) -> tuple[np.ndarray, np.ndarray]:
+    """Differences and DDA step counts (float64, uncapped: no integer overflow) of segments."""
+    with np.errstate(over="ignore"):  # finite ends far apart: inf steps, refused by the cap
+        d = b - a
+        ad = np.abs(d)
+        linf = np.maximum(np.maximum(ad[:, 0], ad[:, 1]), ad[:, 2])  # faster than max(axis=1)
+        steps = np.ceil(linf / pitch - 1e-9)
+    steps[linf == 0] = 0.0
+    return d, np.maximum(steps, linf > 0)
+
+
+def _dda_fill(a: np.ndarray, b: np.ndarray, d: np.ndarray,
+              steps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The DDA positions for int64 ``steps`` already checked against the cap."""
     total = int(steps.sum())
     seg = np.repeat(np.arange(a.shape[0], dtype=np.int64), steps)
     first = np.cumsum(steps) - steps
@@ -171,7 +225,8 @@ def dda(a: Any, b: Any, *, pitch: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def arc_chords(start: Any, end: Any, center: Any, plane: Any, sweep: Any, *,
-               chord_tol: float) -> tuple[np.ndarray, np.ndarray]:
+               chord_tol: float,
+               max_vertices: float = DEFAULT_MAX_POSITIONS) -> tuple[np.ndarray, np.ndarray]:
     """Chord vertices of arcs (any plane, helical, multi-turn) within a chord tolerance.
 
     Parameters
@@ -184,6 +239,9 @@ def arc_chords(start: Any, end: Any, center: Any, plane: Any, sweep: Any, *,
         Signed swept angle in radians (positive counter-clockwise about the plane normal).
     chord_tol : float, keyword-only
         Largest sagitta (distance from a chord to the circle) in mm.
+    max_vertices : float, keyword-only
+        Most vertices allowed (default :data:`DEFAULT_MAX_POSITIONS`); counted in float64
+        before anything is allocated.
 
     Returns
     -------
@@ -194,6 +252,11 @@ def arc_chords(start: Any, end: Any, center: Any, plane: Any, sweep: Any, *,
     arc : ndarray of shape (k,), int64
         Arc index of each vertex.
 
+    Raises
+    ------
+    zmap.errors.PathError
+        A non-finite input (``PathTooLargeError``: more than ``max_vertices``).
+
     Examples
     --------
     >>> v, _ = arc_chords([[1, 0, 0]], [[-1, 0, 0]], [[0, 0, 0]], [17], [np.pi], chord_tol=0.3)
@@ -201,48 +264,99 @@ def arc_chords(start: Any, end: Any, center: Any, plane: Any, sweep: Any, *,
     [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]
     """
     tol = _check_positive("chord_tol", chord_tol)
+    cap = _check_cap(max_vertices)
     s = np.asarray(start, dtype=np.float64).reshape(-1, 3)
     e = np.asarray(end, dtype=np.float64).reshape(-1, 3)
     c = np.asarray(center, dtype=np.float64).reshape(-1, 3)
     pl = np.asarray(plane).reshape(-1)
     sw = np.asarray(sweep, dtype=np.float64).reshape(-1)
-    m = s.shape[0]
-    ax = np.empty((m, 3), dtype=np.int64)
-    for p, axes in _PLANE_AXES.items():
-        ax[pl == p] = axes
     bad = ~np.isin(pl, list(_PLANE_AXES))
     if bad.any():
         raise ValueError(f"plane must be 17, 18 or 19, got {pl[bad][0]!r}")
-    rows = np.arange(m)
-    ia, ib, inn = ax[:, 0], ax[:, 1], ax[:, 2]
-    da0, db0 = s[rows, ia] - c[rows, ia], s[rows, ib] - c[rows, ib]
-    da1, db1 = e[rows, ia] - c[rows, ia], e[rows, ib] - c[rows, ib]
-    r0 = np.hypot(da0, db0)
-    r1 = np.hypot(da1, db1)
-    rmax = np.maximum(r0, r1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cosv = np.clip(1.0 - tol / rmax, -1.0, 1.0)
-        dmax = np.minimum(2.0 * np.arccos(cosv), np.pi / 2)
-    dmax = np.where(rmax > 0, dmax, np.pi / 2)
-    nseg = np.maximum(np.ceil(np.abs(sw) / dmax - 1e-9), 1).astype(np.int64)
-    arc = np.repeat(rows, nseg)
-    first = np.cumsum(nseg) - nseg
-    k = np.arange(int(nseg.sum()), dtype=np.int64) - first[arc] + 1
-    frac = k / nseg[arc]
-    ang = np.arctan2(db0, da0)[arc] + sw[arc] * frac
-    rad = r0[arc] + (r1 - r0)[arc] * frac
-    v = np.empty((arc.shape[0], 3), dtype=np.float64)
-    rr = np.arange(arc.shape[0])
-    v[rr, ia[arc]] = c[arc, ia[arc]] + rad * np.cos(ang)
-    v[rr, ib[arc]] = c[arc, ib[arc]] + rad * np.sin(ang)
-    v[rr, inn[arc]] = s[arc, inn[arc]] + (e[arc, inn[arc]] - s[arc, inn[arc]]) * frac
-    last = k == nseg[arc]
-    v[last] = e[arc[last]]
-    return v, arc
+    bad = ~(np.isfinite(s).all(axis=1) & np.isfinite(e).all(axis=1)
+            & np.isfinite(c).all(axis=1) & np.isfinite(sw))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise PathError("<arc_chords>", 0, f"arc {i} has a non-finite start, end, centre or "
+                        f"sweep: {s[i].tolist()}, {e[i].tolist()}, {c[i].tolist()}, {sw[i]!r}")
+    g = _ArcGeometry(s, e, c, pl, sw, tol)
+    total = float(g.nseg.sum())
+    if not total <= cap:
+        i = int(np.argmax(np.cumsum(g.nseg) > cap))
+        raise PathTooLargeError(
+            "<arc_chords>", 0, f"arcs need {total:.3g} chords at chord_tol {tol:g} mm, more "
+            f"than max_vertices={cap:.3g} (arc {i} alone needs {g.nseg[i]:.3g})", total, cap)
+    return g.vertices()
+
+
+class _ArcGeometry:
+    """Per-arc radii, axes and chord counts (float64, uncapped); vertices on demand."""
+
+    def __init__(self, s: np.ndarray, e: np.ndarray, c: np.ndarray, pl: np.ndarray,
+                 sw: np.ndarray, tol: float):
+        m = s.shape[0]
+        ax = np.empty((m, 3), dtype=np.int64)
+        for p, axes in _PLANE_AXES.items():
+            ax[pl == p] = axes
+        rows = np.arange(m)
+        ia, ib, inn = ax[:, 0], ax[:, 1], ax[:, 2]
+        # extreme finite coordinates may overflow to inf here: inf chords, refused by the cap
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            da0, db0 = s[rows, ia] - c[rows, ia], s[rows, ib] - c[rows, ib]
+            da1, db1 = e[rows, ia] - c[rows, ia], e[rows, ib] - c[rows, ib]
+            r0 = np.hypot(da0, db0)
+            r1 = np.hypot(da1, db1)
+            rmax = np.maximum(r0, r1)
+            cosv = np.clip(1.0 - tol / rmax, -1.0, 1.0)
+            dmax = np.minimum(2.0 * np.arccos(cosv), np.pi / 2)
+            # a radius so large that 1 - tol/r rounds to 1: 2 acos(1 - x) = 4 asin(sqrt(x/2))
+            dmax = np.where(dmax > 0, dmax, 4.0 * np.arcsin(np.sqrt(0.5 * tol / rmax)))
+            dmax = np.where(rmax > 0, dmax, np.pi / 2)
+            ratio = np.where(sw == 0, 0.0, np.abs(sw) / dmax)
+        ratio = np.where(np.isnan(ratio), np.inf, ratio)
+        self.nseg = np.maximum(np.ceil(ratio - 1e-9), 1.0)
+        self.s, self.e, self.c, self.sw = s, e, c, sw
+        self.ia, self.ib, self.inn = ia, ib, inn
+        self.da0, self.db0, self.r0, self.r1 = da0, db0, r0, r1
+
+    def min_steps(self, pitch: float) -> np.ndarray:
+        """A lower bound of the DDA steps of each arc (float64): in-plane chords are at
+        least 0.9 of the arc (chords span at most 90 degrees), and L_inf >= L_2 / sqrt(2)."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            rmin = np.minimum(self.r0, self.r1)
+            plane = 0.9 * np.abs(self.sw) * rmin / math.sqrt(2.0)
+            normal = np.abs(self.e[np.arange(self.e.shape[0]), self.inn]
+                            - self.s[np.arange(self.s.shape[0]), self.inn])
+            return np.maximum(np.floor(np.maximum(plane, normal) / pitch), 0.0)
+
+    def vertices(self) -> tuple[np.ndarray, np.ndarray]:
+        with np.errstate(over="ignore", invalid="ignore"):  # extreme finite input: refused later
+            return self._vertices()
+
+    def _vertices(self) -> tuple[np.ndarray, np.ndarray]:
+        nseg = self.nseg.astype(np.int64)
+        s, e, c, sw = self.s, self.e, self.c, self.sw
+        ia, ib, inn = self.ia, self.ib, self.inn
+        r0, r1 = self.r0, self.r1
+        arc = np.repeat(np.arange(s.shape[0]), nseg)
+        first = np.cumsum(nseg) - nseg
+        k = np.arange(int(nseg.sum()), dtype=np.int64) - first[arc] + 1
+        frac = k / nseg[arc]
+        ang = np.arctan2(self.db0, self.da0)[arc] + sw[arc] * frac
+        rad = r0[arc] + (r1 - r0)[arc] * frac
+        v = np.empty((arc.shape[0], 3), dtype=np.float64)
+        rr = np.arange(arc.shape[0])
+        v[rr, ia[arc]] = c[arc, ia[arc]] + rad * np.cos(ang)
+        v[rr, ib[arc]] = c[arc, ib[arc]] + rad * np.sin(ang)
+        v[rr, inn[arc]] = s[arc, inn[arc]] + (e[arc, inn[arc]] - s[arc, inn[arc]]) * frac
+        last = k == nseg[arc]
+        v[last] = e[arc[last]]
+        return v, arc
 
 
 def positions(program_or_moves: Program | np.ndarray, *, pitch: float = 0.26,
-              chord_tol: float | None = None) -> Positions:
+              chord_tol: float | None = None,
+              max_positions: float = DEFAULT_MAX_POSITIONS) -> Positions:
     """Elementary tool-tip positions of a program by 3D DDA at the ray pitch.
 
     Parameters
@@ -256,11 +370,24 @@ def positions(program_or_moves: Program | np.ndarray, *, pitch: float = 0.26,
         collision to show.
     chord_tol : float, optional, keyword-only
         Largest chord error of arcs in mm (default ``pitch / 10``).
+    max_positions : float, keyword-only
+        Most positions allowed (default :data:`DEFAULT_MAX_POSITIONS`, 2e8; ``math.inf``
+        leaves only the memory check). The count is estimated in float64 from the moves
+        before chords or positions are allocated.
 
     Returns
     -------
     Positions
         In move order; each move ends exactly on its end point; zero-length moves add none.
+
+    Raises
+    ------
+    zmap.errors.PathError
+        A move with a non-finite start, end, centre or sweep, an arc plane other than 17, 18,
+        19, or a negative tool number; the message starts ``file:line:``.
+    zmap.errors.PathTooLargeError
+        More positions than ``max_positions``, or than 80 % of the memory available takes;
+        the message gives the estimate and the line of the move that crosses the limit.
 
     Examples
     --------
@@ -268,40 +395,59 @@ def positions(program_or_moves: Program | np.ndarray, *, pitch: float = 0.26,
     >>> p = positions(parse("G0 X0 Y0 Z1\\nG1 X0.5 F100\\n"), pitch=0.26)
     >>> len(p), p.move.tolist()[-2:], p.xyz[-1].tolist()
     (6, [1, 1], [0.5, 0.0, 1.0])
+    >>> positions(parse("G0 X1000\\n", filename="fine.nc"), pitch=1e-6)
+    Traceback (most recent call last):
+    ...
+    zmap.errors.PathTooLargeError: fine.nc:1: this program needs 1e+09 tool positions ...
     """
     pitch = _check_positive("pitch", pitch)
     tol = pitch / 10.0 if chord_tol is None else _check_positive("chord_tol", chord_tol)
-    moves = program_or_moves.moves if isinstance(program_or_moves, Program) else program_or_moves
+    cap = _check_cap(max_positions)
+    is_program = isinstance(program_or_moves, Program)
+    moves = program_or_moves.moves if is_program else program_or_moves
     if not isinstance(moves, np.ndarray) or moves.dtype.names is None:
         raise TypeError("program_or_moves must be a Program or a structured moves array, "
                         f"got {type(program_or_moves).__name__}")
     missing = {"kind", "start", "end", "center", "plane", "tool", "line"} - set(moves.dtype.names)
     if missing:
         raise ValueError(f"moves lack fields {sorted(missing)}; expected {MOVE_DTYPE.names}")
+    fname = program_or_moves.filename if is_program else "<moves>"
     n_moves = moves.shape[0]
     kind = moves["kind"]
     start = np.ascontiguousarray(moves["start"], dtype=np.float64)
     end = np.ascontiguousarray(moves["end"], dtype=np.float64)
     is_arc = kind >= ARC_CW
     arcs = np.flatnonzero(is_arc)
-
-    # Segment end points: one per line move, one per chord of an arc, in move order.
-    seg_end = np.empty((0, 3))
-    seg_move = np.empty(0, dtype=np.int64)
+    sweep = None
     if arcs.size:
         if "sweep" in moves.dtype.names:
-            sweep = moves["sweep"][arcs]
+            sweep = np.asarray(moves["sweep"][arcs], dtype=np.float64)
         else:
             sweep = _sweeps(moves[arcs])
-        verts, arc_of = arc_chords(start[arcs], end[arcs], moves["center"][arcs],
-                                   moves["plane"][arcs], sweep, chord_tol=tol)
-        lines = np.flatnonzero(~is_arc)
-        seg_end = np.concatenate([end[lines], verts])
-        seg_move = np.concatenate([lines, arcs[arc_of]])
-        order = np.argsort(seg_move, kind="stable")
-        seg_end, seg_move = seg_end[order], seg_move[order]
-    else:
-        seg_end, seg_move = end, np.arange(n_moves, dtype=np.int64)
+    _check_moves(moves, start, end, arcs, sweep, fname)
+
+    # Estimate before allocating: lines exactly, arcs by lower bounds of their positions; all
+    # in float64 so that no count can overflow. Then arcs exactly once their chords exist.
+    d, steps = _dda_steps(start, end, pitch)
+    geom = None
+    if arcs.size:
+        geom = _ArcGeometry(start[arcs], end[arcs], np.asarray(moves["center"][arcs], np.float64),
+                            np.asarray(moves["plane"][arcs]), sweep, tol)
+        # chords (each makes a position unless of zero length), the arc's length, and its
+        # chord's straight-line count less one (the steps of chords sum to at least that)
+        steps[arcs] = np.maximum(np.maximum(geom.nseg, geom.min_steps(pitch)), steps[arcs] - 1)
+    _check_size(steps, moves["line"], fname, pitch, cap)
+    if geom is None:
+        xyz, mv = _dda_fill(start, end, d, steps.astype(np.int64))
+        return Positions(xyz=xyz, tool=moves["tool"][mv], move=mv, line=moves["line"][mv])
+
+    # Segment end points: one per line move, one per chord of an arc, in move order.
+    verts, arc_of = geom.vertices()
+    lines = np.flatnonzero(~is_arc)
+    seg_end = np.concatenate([end[lines], verts])
+    seg_move = np.concatenate([lines, arcs[arc_of]])
+    order = np.argsort(seg_move, kind="stable")
+    seg_end, seg_move = seg_end[order], seg_move[order]
     # Each segment starts at the previous vertex of the same move, or at the move's start.
     seg_start = np.empty_like(seg_end)
     if seg_end.shape[0]:
@@ -309,9 +455,127 @@ def positions(program_or_moves: Program | np.ndarray, *, pitch: float = 0.26,
         new_move = np.ones(seg_end.shape[0], dtype=bool)
         new_move[1:] = seg_move[1:] != seg_move[:-1]
         seg_start[new_move] = start[seg_move[new_move]]
-    xyz, seg = dda(seg_start, seg_end, pitch=pitch)
+    d, seg_steps = _dda_steps(seg_start, seg_end, pitch)
+    _check_size(np.bincount(seg_move, weights=seg_steps, minlength=n_moves), moves["line"],
+                fname, pitch, cap)
+    xyz, seg = _dda_fill(seg_start, seg_end, d, seg_steps.astype(np.int64))
     mv = seg_move[seg]
     return Positions(xyz=xyz, tool=moves["tool"][mv], move=mv, line=moves["line"][mv])
+
+
+def _check_cap(v: Any) -> float:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise ValueError(f"max_positions must be a number >= 1, got {v!r}") from None
+    if not f >= 1:
+        raise ValueError(f"max_positions must be a number >= 1, got {v!r}")
+    return f
+
+
+def _move_name(moves: np.ndarray, i: int) -> str:
+    return _MOVE_NAMES.get(int(moves["kind"][i]), f"kind {int(moves['kind'][i])}")
+
+
+def _where(moves: np.ndarray, i: int, fname: str) -> tuple[str, int, str]:
+    """(file, line, prefix) of move ``i``: the prefix names the move when its line is 0."""
+    line = int(moves["line"][i])
+    return fname, line, "" if line > 0 else f"move {i}: "
+
+
+def _check_moves(moves: np.ndarray, start: np.ndarray, end: np.ndarray, arcs: np.ndarray,
+                 sweep: np.ndarray | None, fname: str) -> None:
+    """PathError for the first move with a non-finite input, a bad plane or a negative tool."""
+    finite = bool(np.isfinite(start).all() and np.isfinite(end).all())
+    if arcs.size:
+        center = np.asarray(moves["center"][arcs], dtype=np.float64)
+        finite = finite and bool(np.isfinite(center).all() and np.isfinite(sweep).all())
+        plane = np.asarray(moves["plane"][arcs])
+        badp = ~np.isin(plane, list(_PLANE_AXES))
+        if badp.any():
+            i = int(arcs[np.argmax(badp)])
+            file, line, pre = _where(moves, i, fname)
+            raise PathError(file, line, f"{pre}{_move_name(moves, i)} arc in plane "
+                            f"{int(moves['plane'][i])}, expected 17, 18 or 19")
+    if not finite:
+        bad = ~(np.isfinite(start).all(axis=1) & np.isfinite(end).all(axis=1))
+        if arcs.size:
+            bad[arcs] |= ~(np.isfinite(center).all(axis=1) & np.isfinite(sweep))
+        i = int(np.argmax(bad))
+        file, line, pre = _where(moves, i, fname)
+        parts = [("end", end[i]), ("start", start[i])]
+        is_arc_i = bool(np.isin(i, arcs))
+        if is_arc_i:
+            j = int(np.searchsorted(arcs, i))
+            parts += [("centre", moves["center"][i]), ("sweep", np.array([sweep[j]]))]
+        what = ", ".join(f"{n} {np.asarray(v).tolist()}" for n, v in parts
+                         if not np.isfinite(v).all())
+        raise PathError(file, line, f"{pre}{_move_name(moves, i)} {'arc' if is_arc_i else 'move'}"
+                        f" with a non-finite {what}; tool positions need finite coordinates")
+    tool = moves["tool"]
+    if n := int(np.count_nonzero(tool < 0)):
+        i = int(np.argmax(tool < 0))
+        file, line, pre = _where(moves, i, fname)
+        raise PathError(file, line, f"{pre}{_move_name(moves, i)} move with tool number "
+                        f"{int(tool[i])} (negative; {n} such moves): tool numbers are >= 0")
+
+
+def _available_bytes() -> float:
+    """Memory this process may still allocate: MemAvailable, and the room left under
+    RLIMIT_AS when one is set."""
+    avail = math.inf
+    try:
+        with open("/proc/meminfo") as fh:
+            for row in fh:
+                if row.startswith("MemAvailable:"):
+                    avail = int(row.split()[1]) * 1024.0
+                    break
+    except OSError:
+        pass
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+        if soft != resource.RLIM_INFINITY:
+            with open("/proc/self/statm") as fh:
+                used = int(fh.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+            avail = min(avail, float(soft - used))
+    except (ImportError, OSError, ValueError):
+        pass
+    return avail
+
+
+def _check_size(per_move: np.ndarray, line: np.ndarray, fname: str, pitch: float,
+                cap: float) -> None:
+    """PathTooLargeError when the positions estimated per move (float64) exceed the cap or
+    80 % of the memory available, naming the line of the move where the sum crosses it."""
+    cum = np.cumsum(per_move)
+    total = float(cum[-1]) if cum.size else 0.0
+    if math.isnan(total):  # inf - inf or 0 * inf of extreme (finite) coordinates: too many
+        per_move = np.where(np.isnan(per_move), np.inf, per_move)
+        cum = np.cumsum(per_move)
+        total = math.inf
+    need = total * _POSITION_BYTES
+    if total <= cap and need <= _MEMORY_CHECK_BYTES:
+        return
+    limit, why = cap, f"more than the cap of {cap:.3g} (max_positions)"
+    if total <= cap:
+        avail = _available_bytes()
+        if need <= 0.8 * avail:
+            return
+        limit = 0.8 * avail / _POSITION_BYTES
+        why = (f"more than the {limit:.3g} that fit in 80 % of the {avail / 1e9:.3g} GB of "
+               "memory available")
+    i = int(np.argmax(cum > limit))
+    ln = int(line[i])
+    where = "" if ln > 0 else f"move {i}: "
+    alone = float(per_move[i])
+    raise PathTooLargeError(
+        fname, ln,
+        f"{where}this program needs {total:.3g} tool positions at pitch {pitch:g} mm, {why} "
+        f"(about {need / 1e9:.3g} GB); it crosses that limit at this move, which alone needs "
+        f"{alone:.3g}: check its coordinates and units, or use a coarser pitch, or raise "
+        "max_positions", total, cap)
 
 
 def _sweeps(arcs: np.ndarray) -> np.ndarray:
