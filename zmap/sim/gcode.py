@@ -90,8 +90,9 @@ _OWORD_HEAD = re.compile(
     r"(?:N\d+(?:\.\d*)?)?O(?:<([^>]*)>|(\d+))(ENDSUB|ENDWHILE|ENDREPEAT|ENDIF|ELSEIF|ELSE|SUB|"
     r"CALL|DO|WHILE|IF|BREAK|CONTINUE|RETURN|REPEAT)?")
 _M99 = re.compile(r"M0*99(?![\d.])")
-#: default limits of one parse: blocks executed (loops and calls counted) and moves made
-MAX_BLOCKS = 5_000_000
+#: default limits of one parse: blocks run again by loops and calls (beyond one pass through the
+#: file's lines, so a long plain program is never cut) and moves made
+MAX_BLOCKS = 200_000
 MAX_MOVES = 20_000_000
 #: the work envelope: no machine coordinate, offset or arc centre beyond this (mm)
 MAX_COORD_MM = 1.0e6
@@ -380,8 +381,14 @@ class _Interp:
 
     # -- state snapshot for lenient mode ---------------------------------------------------
     def snapshot(self) -> tuple:
-        state = {k: copy.deepcopy(v) for k, v in self.__dict__.items()
-                 if k not in ("rows", "tool_changes", "tool_table", "params")}
+        # scalars are immutable: a shallow copy, then fresh copies of the few mutable fields
+        state = dict(self.__dict__)
+        for k in ("rows", "tool_changes", "tool_table", "params"):
+            del state[k]
+        state["pos"] = list(self.pos)
+        state["offsets"] = [list(o) for o in self.offsets]
+        if self.comp is not None:
+            state["comp"] = copy.deepcopy(self.comp)
         return len(self.rows), len(self.tool_changes), state, self.params.snapshot()
 
     def restore(self, snap: tuple) -> None:
@@ -427,8 +434,9 @@ def parse(
         True (default): lines starting with ``/`` are skipped, as with the block-delete
         switch on. False: the ``/`` is ignored and the block runs.
     max_blocks, max_moves : int, keyword-only
-        Limits of one parse: blocks executed (each pass through a loop or a subroutine
-        counts) and moves made. A program beyond either stops with GCodeError at the block
+        Limits of one parse: blocks run beyond one pass through the file's lines (each
+        pass through a loop or a subroutine counts) and moves made. A program beyond
+        either stops with GCodeError at the block
         that crossed it, before memory runs out (an endless ``while`` loop, ``L1000000000``).
 
     Returns
@@ -504,6 +512,10 @@ def parse(
     )
 
 
+
+
+class _LimitError(GCodeError):
+    """A limit of the whole parse was crossed: fatal even under ``lenient=True``."""
 
 
 @dataclass
@@ -618,6 +630,7 @@ class _Runner:
         repeats: dict[tuple[int, int], int] = {}
         jumped = False
         executed = 0
+        budget = self.max_blocks + len(src.lines)
         while not st.ended:
             if i >= len(src.lines):
                 if frames:
@@ -630,8 +643,8 @@ class _Runner:
                 i += 1
                 continue
             executed += 1
-            if executed > self.max_blocks:
-                raise GCodeError(src.name, i + 1, 1, "block",
+            if executed > budget:
+                raise _LimitError(src.name, i + 1, 1, "block",
                                  f"more than {self.max_blocks} blocks executed (an endless "
                                  f"loop?); parse(max_blocks=...) allows more")
             st.file = src.name
@@ -646,11 +659,11 @@ class _Runner:
                     continue
                 self._line(src, i, item)
                 if len(st.rows) > self.max_moves:
-                    raise GCodeError(src.name, i + 1, 1, "block",
+                    raise _LimitError(src.name, i + 1, 1, "block",
                                      f"the program makes more than {self.max_moves} moves; "
                                      f"parse(max_moves=...) allows more")
             except GCodeError as e:
-                if not self.lenient:
+                if not self.lenient or isinstance(e, _LimitError):
                     raise
                 st.restore(snap)
                 self.warnings.append(str(e))

@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Callable, NamedTuple
 
 __all__ = [
@@ -59,6 +60,8 @@ _UNARY = ("ABS", "ACOS", "ASIN", "ATAN", "COS", "EXISTS", "EXP", "FIX", "FUP", "
 _OPERATORS = (("**", 6), ("*", 5), ("/", 5), ("MOD", 5), ("+", 4), ("-", 4), ("EQ", 3),
               ("NE", 3), ("GT", 3), ("GE", 3), ("LT", 3), ("LE", 3), ("AND", 2), ("OR", 2),
               ("XOR", 2))
+_OPERATOR_RE = re.compile("|".join(re.escape(op) for op, _ in _OPERATORS))
+_PRECEDENCE = dict(_OPERATORS)
 _KEYWORDS = ("ENDSUB", "ENDWHILE", "ENDREPEAT", "ENDIF", "ELSEIF", "ELSE", "SUB", "CALL", "DO",
              "WHILE", "IF", "BREAK", "CONTINUE", "RETURN", "REPEAT")
 
@@ -99,20 +102,17 @@ class Line:
     oword: OWord | None = None
 
 
-def compact(s: str) -> tuple[str, list[int]]:
+@lru_cache(maxsize=8192)  # lines inside loops and subroutines are scanned again and again
+def compact(s: str) -> tuple[str, tuple[int, ...]]:
     """Drop blanks from an (upper-cased, comment-free) line; map each kept char to its column.
 
     Examples
     --------
     >>> compact("G1 X [1 + 2]")
-    ('G1X[1+2]', [1, 2, 4, 6, 7, 9, 11, 12])
+    ('G1X[1+2]', (1, 2, 4, 6, 7, 9, 11, 12))
     """
-    chars, cols = [], []
-    for i, ch in enumerate(s):
-        if ch not in " \t\r\n\f\v":
-            chars.append(ch)
-            cols.append(i + 1)
-    return "".join(chars), cols
+    cols = tuple(i + 1 for i, ch in enumerate(s) if ch not in " \t\r\n\f\v")
+    return "".join(s[i - 1] for i in cols), cols
 
 
 class Parameters:
@@ -324,10 +324,8 @@ class _Reader:
         return _checked(v, i, word), j
 
     def operator(self, i: int) -> tuple[str | None, int]:
-        for op, _ in _OPERATORS:
-            if self.c.startswith(op, i):
-                return op, i + len(op)
-        return None, i
+        m = _OPERATOR_RE.match(self.c, i)
+        return (m.group(), m.end()) if m else (None, i)
 
     def expression(self, i: int) -> tuple[float, int]:
         """``[ ... ]`` at ``c[i] == '['``: value and the index after the closing bracket."""
@@ -340,7 +338,7 @@ class _Reader:
 
     def _binary(self, i: int, min_prec: int, start: int) -> tuple[float, int]:
         left, i = self.value(i)
-        prec = dict(_OPERATORS)
+        prec = _PRECEDENCE
         while True:
             op, j = self.operator(i)
             if op is None or prec[op] < min_prec or prec[op] == 0:

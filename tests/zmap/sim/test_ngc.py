@@ -182,7 +182,7 @@ def test_scan_line_errors(text, key):
 
 def test_compact_maps_columns():
     c, cols = compact("G1  X [ 1 ]")
-    assert c == "G1X[1]" and cols == [1, 2, 5, 7, 9, 11]
+    assert c == "G1X[1]" and cols == (1, 2, 5, 7, 9, 11)
 
 
 # ------------------------------------------------------------------ O-word structure --------
