@@ -380,7 +380,7 @@ class _Interp:
         return float(getattr(self.tool_entry(number), "diameter", 0.0))
 
     # -- state snapshot for lenient mode ---------------------------------------------------
-    def snapshot(self) -> tuple:
+    def snapshot(self, params: bool = True) -> tuple:
         # scalars are immutable: a shallow copy, then fresh copies of the few mutable fields
         state = dict(self.__dict__)
         for k in ("rows", "tool_changes", "tool_table", "params"):
@@ -389,12 +389,15 @@ class _Interp:
         state["offsets"] = [list(o) for o in self.offsets]
         if self.comp is not None:
             state["comp"] = copy.deepcopy(self.comp)
-        return len(self.rows), len(self.tool_changes), state, self.params.snapshot()
+        # parameters change only on lines with #, [ or O: the caller says whether to copy them
+        return (len(self.rows), len(self.tool_changes), state,
+                self.params.snapshot() if params else None)
 
     def restore(self, snap: tuple) -> None:
         n, nt, state, params = snap
         self.__dict__.update(state)
-        self.params.restore(params)
+        if params is not None:
+            self.params.restore(params)
         del self.rows[n:]
         del self.tool_changes[nt:]
 
@@ -649,7 +652,7 @@ class _Runner:
                                  f"loop?); parse(max_blocks=...) allows more")
             st.file = src.name
             was_jumped, jumped = jumped, False
-            snap = st.snapshot() if self.lenient else None
+            snap = st.snapshot(src.special[i]) if self.lenient else None
             try:
                 if isinstance(item, GCodeError):
                     raise item

@@ -27,7 +27,7 @@ import math
 import re
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Callable, NamedTuple
+from typing import Any, Callable, NamedTuple
 
 __all__ = [
     "NgcError",
@@ -199,12 +199,25 @@ def _checked(v: float, pos: int, word: str) -> float:
     return v
 
 
-class _Reader:
-    """LinuxCNC's read_real_value / read_real_expression over one compact line."""
+#: a compiled value: called with the parameters, gives the number
+Value = Callable[["Parameters"], float]
 
-    def __init__(self, c: str, params: Parameters):
+
+def _const(v: float) -> Value:
+    return lambda P: v
+
+
+class _Compiler:
+    """LinuxCNC's read_real_value / read_real_expression over one compact line, compiled once.
+
+    Each value becomes a closure over the parameters, so a line inside a loop is read once and
+    evaluated on every pass. Syntax errors raise at compile time, arithmetic errors (division
+    by zero, an undefined parameter) when the value is evaluated; both carry the index into
+    the compact line.
+    """
+
+    def __init__(self, c: str):
         self.c = c
-        self.params = params
 
     def _snippet(self, i: int, j: int | None = None) -> str:
         """The text from ``i``: to ``j``, or a whole ``[...]`` group, at most 40 characters."""
@@ -218,7 +231,7 @@ class _Reader:
                     break
         return c[i:(j if j is not None else i + 20)][:40] or "end of line"
 
-    def value(self, i: int) -> tuple[float, int]:
+    def value(self, i: int) -> tuple[Value, int]:
         c = self.c
         if i >= len(c):
             raise NgcError(max(i - 1, 0), self._snippet(max(i - 1, 0)), "a value is missing")
@@ -228,24 +241,29 @@ class _Reader:
             return self.expression(i)
         if ch == "#":
             key, j = self.parameter(i)
-            try:
-                return self.params.get(key), j
-            except KeyError:
-                raise NgcError(i, self._snippet(i, j),
-                               f"named parameter #{key} is not defined") from None
+            word = self._snippet(i, j)
+            if isinstance(key, str):
+                def named(P: Parameters, key: str = key) -> float:
+                    try:
+                        return P.get(key)
+                    except KeyError:
+                        raise NgcError(i, word, f"named parameter #{key} is not defined") from None
+                return named, j
+            return (lambda P: P.get(key(P))), j
         if ch in "+-" and nxt and not (nxt.isdigit() or nxt == "."):
-            v, j = self.value(i + 1)
-            return (-v if ch == "-" else v), j
+            inner, j = self.value(i + 1)
+            return ((lambda P: -inner(P)) if ch == "-" else inner), j
         if ch.isalpha():
             return self.unary(i)
         m = _NUMBER.match(c, i)
         if not m:
             raise NgcError(i, self._snippet(i), f"a number, #parameter or [expression] was "
                                                 f"expected, got {ch!r}")
-        return _checked(float(m.group()), i, m.group()[:40]), m.end()
+        return _const(_checked(float(m.group()), i, m.group()[:40])), m.end()
 
-    def parameter(self, i: int) -> tuple[int | str, int]:
-        """The key of ``#n``, ``#<name>``, ``##n`` or ``#[expr]`` at ``c[i] == '#'``."""
+    def parameter(self, i: int) -> tuple[str | Callable[["Parameters"], int], int]:
+        """``#n``, ``#<name>``, ``##n`` or ``#[expr]`` at ``c[i] == '#'``: the name, or a
+        function of the parameters that gives the (checked) number."""
         c = self.c
         j = i + 1
         if j < len(c) and c[j] == "<":
@@ -256,16 +274,24 @@ class _Reader:
             if not name:
                 raise NgcError(i, self._snippet(i), "empty parameter name")
             return "<" + name + ">", m.end()
-        v, j = self.value(j)
-        n = round(v)
-        if abs(v - n) > 1e-4:
-            raise NgcError(i, self._snippet(i, j), f"parameter number {v:.6g} is not an integer")
-        if not 1 <= n <= MAX_PARAMETER:
-            raise NgcError(i, self._snippet(i, j),
-                           f"parameter number {n} is out of range (1..{MAX_PARAMETER})")
-        return int(n), j
+        number, j = self.value(j)
+        word = self._snippet(i, j)
 
-    def unary(self, i: int) -> tuple[float, int]:
+        def key(P: Parameters) -> int:
+            v = number(P)
+            n = round(v)
+            if abs(v - n) > 1e-4:
+                raise NgcError(i, word, f"parameter number {v:.6g} is not an integer")
+            if not 1 <= n <= MAX_PARAMETER:
+                raise NgcError(i, word, f"parameter number {n} is out of range (1..{MAX_PARAMETER})")
+            return int(n)
+
+        if c[i + 1].isdigit():  # a literal number: check it now, once
+            n = key(Parameters())
+            return (lambda P: n), j
+        return key, j
+
+    def unary(self, i: int) -> tuple[Value, int]:
         c = self.c
         name = next((u for u in _UNARY if c.startswith(u, i)), None)
         if name is None:
@@ -280,7 +306,7 @@ class _Reader:
             if k < len(c) and c[k] == "#":
                 key, k2 = self.parameter(k)
                 if k2 < len(c) and c[k2] == "]" and isinstance(key, str):
-                    return (1.0 if self.params.exists(key) else 0.0), k2 + 1
+                    return (lambda P: 1.0 if P.exists(key) else 0.0), k2 + 1
             raise NgcError(i, name, "EXISTS needs a named parameter: EXISTS[#<name>]")
         a, j = self.expression(j)
         word = self.c[i:j][:40]
@@ -290,45 +316,11 @@ class _Reader:
             if j + 1 >= len(c) or c[j + 1] != "[":
                 raise NgcError(j, word, "ATAN's second argument must be in [brackets]")
             b, j = self.expression(j + 1)
-            return math.degrees(math.atan2(a, b)), j
-        if name in ("ASIN", "ACOS") and not -1.0 <= a <= 1.0:
-            raise NgcError(i, word, f"argument to {name} must be between -1 and 1, got {a:.6g}")
-        if name == "SQRT" and a < 0:
-            raise NgcError(i, word, f"argument to SQRT must not be negative, got {a:.6g}")
-        if name == "LN" and a <= 0:
-            raise NgcError(i, word, f"argument to LN must be positive, got {a:.6g}")
-        if name == "ABS":
-            v = abs(a)
-        elif name == "ACOS":
-            v = math.degrees(math.acos(a))
-        elif name == "ASIN":
-            v = math.degrees(math.asin(a))
-        elif name == "COS":
-            v = math.cos(math.radians(a))
-        elif name == "SIN":
-            v = math.sin(math.radians(a))
-        elif name == "TAN":
-            v = math.tan(math.radians(a))
-        elif name == "EXP":
-            v = math.exp(a) if a < 709 else math.inf
-        elif name == "FIX":
-            v = float(math.floor(a))
-        elif name == "FUP":
-            v = float(math.ceil(a))
-        elif name == "LN":
-            v = math.log(a)
-        elif name == "ROUND":
-            v = float(math.trunc(a + (-0.5 if a < 0 else 0.5)))
-        else:  # SQRT
-            v = math.sqrt(a)
-        return _checked(v, i, word), j
+            return (lambda P: math.degrees(math.atan2(a(P), b(P)))), j
+        return (lambda P: _checked(_function(name, a(P), i, word), i, word)), j
 
-    def operator(self, i: int) -> tuple[str | None, int]:
-        m = _OPERATOR_RE.match(self.c, i)
-        return (m.group(), m.end()) if m else (None, i)
-
-    def expression(self, i: int) -> tuple[float, int]:
-        """``[ ... ]`` at ``c[i] == '['``: value and the index after the closing bracket."""
+    def expression(self, i: int) -> tuple[Value, int]:
+        """``[ ... ]`` at ``c[i] == '['``: the value and the index after the closing bracket."""
         v, j = self._binary(i + 1, 0, i)
         if j >= len(self.c) or self.c[j] != "]":
             what = repr(self.c[j]) if j < len(self.c) else "end of line"
@@ -336,60 +328,100 @@ class _Reader:
                                                        f"expected, got {what}")
         return v, j + 1
 
-    def _binary(self, i: int, min_prec: int, start: int) -> tuple[float, int]:
+    def _binary(self, i: int, min_prec: int, start: int) -> tuple[Value, int]:
         left, i = self.value(i)
-        prec = _PRECEDENCE
         while True:
-            op, j = self.operator(i)
-            if op is None or prec[op] < min_prec or prec[op] == 0:
+            m = _OPERATOR_RE.match(self.c, i)
+            if m is None or _PRECEDENCE[m.group()] < min_prec:
                 return left, i
-            right, i = self._binary(j, prec[op] + 1, start)
-            left = _checked(self._apply(op, left, right, start, i), start,
-                            self._snippet(start, i))
+            op = m.group()
+            right, i = self._binary(m.end(), _PRECEDENCE[op] + 1, start)
+            word = self._snippet(start, i)
+            left = _binary_op(op, left, right, start, word)
 
-    def _apply(self, op: str, a: float, b: float, start: int, end: int) -> float:
-        if op == "+":
-            return a + b
-        if op == "-":
-            return a - b
-        if op == "*":
-            return a * b
-        if op == "/":
-            if b == 0.0:
-                raise NgcError(start, self._snippet(start, end), "division by zero")
-            return a / b
-        if op == "MOD":
-            if b == 0.0:
-                raise NgcError(start, self._snippet(start, end), "MOD by zero")
-            r = math.fmod(a, b)
-            return r + abs(b) if r < 0 else r
-        if op == "**":
-            if a < 0 and math.floor(b) != b:
-                raise NgcError(start, self._snippet(start, end),
-                               "a negative number raised to a non-integer power")
-            if a == 0 and b < 0:
-                raise NgcError(start, self._snippet(start, end), "zero raised to a negative power")
-            try:
-                return math.pow(a, b)
-            except OverflowError:
-                return math.inf
-        if op == "EQ":
-            return 1.0 if abs(a - b) < TOLERANCE_EQUAL else 0.0
-        if op == "NE":
-            return 1.0 if abs(a - b) >= TOLERANCE_EQUAL else 0.0
-        if op == "LT":
-            return 1.0 if a < b else 0.0
-        if op == "LE":
-            return 1.0 if abs(a - b) < TOLERANCE_EQUAL or a <= b else 0.0
-        if op == "GT":
-            return 1.0 if a > b else 0.0
-        if op == "GE":
-            return 1.0 if abs(a - b) < TOLERANCE_EQUAL or a >= b else 0.0
-        if op == "AND":
-            return 0.0 if a == 0.0 or b == 0.0 else 1.0
-        if op == "OR":
-            return 1.0 if a != 0.0 or b != 0.0 else 0.0
-        return 1.0 if (a == 0.0) != (b == 0.0) else 0.0  # XOR
+
+def _binary_op(op: str, left: Value, right: Value, pos: int, word: str) -> Value:
+    def f(P: Parameters) -> float:
+        return _checked(_apply(op, left(P), right(P), pos, word), pos, word)
+    return f
+
+
+def _function(name: str, a: float, pos: int, word: str) -> float:
+    """LinuxCNC's execute_unary, angles in degrees."""
+    if name in ("ASIN", "ACOS") and not -1.0 <= a <= 1.0:
+        raise NgcError(pos, word, f"argument to {name} must be between -1 and 1, got {a:.6g}")
+    if name == "SQRT" and a < 0:
+        raise NgcError(pos, word, f"argument to SQRT must not be negative, got {a:.6g}")
+    if name == "LN" and a <= 0:
+        raise NgcError(pos, word, f"argument to LN must be positive, got {a:.6g}")
+    if name == "ABS":
+        return abs(a)
+    if name == "ACOS":
+        return math.degrees(math.acos(a))
+    if name == "ASIN":
+        return math.degrees(math.asin(a))
+    if name == "COS":
+        return math.cos(math.radians(a))
+    if name == "SIN":
+        return math.sin(math.radians(a))
+    if name == "TAN":
+        return math.tan(math.radians(a))
+    if name == "EXP":
+        return math.exp(a) if a < 709 else math.inf
+    if name == "FIX":
+        return float(math.floor(a))
+    if name == "FUP":
+        return float(math.ceil(a))
+    if name == "LN":
+        return math.log(a)
+    if name == "ROUND":
+        return float(math.trunc(a + (-0.5 if a < 0 else 0.5)))
+    return math.sqrt(a)  # SQRT
+
+
+def _apply(op: str, a: float, b: float, pos: int, word: str) -> float:
+    """LinuxCNC's execute_binary1/2."""
+    if op == "+":
+        return a + b
+    if op == "-":
+        return a - b
+    if op == "*":
+        return a * b
+    if op == "/":
+        if b == 0.0:
+            raise NgcError(pos, word, "division by zero")
+        return a / b
+    if op == "MOD":
+        if b == 0.0:
+            raise NgcError(pos, word, "MOD by zero")
+        r = math.fmod(a, b)
+        return r + abs(b) if r < 0 else r
+    if op == "**":
+        if a < 0 and math.floor(b) != b:
+            raise NgcError(pos, word, "a negative number raised to a non-integer power")
+        if a == 0 and b < 0:
+            raise NgcError(pos, word, "zero raised to a negative power")
+        try:
+            return math.pow(a, b)
+        except OverflowError:
+            return math.inf
+    if op == "EQ":
+        return 1.0 if abs(a - b) < TOLERANCE_EQUAL else 0.0
+    if op == "NE":
+        return 1.0 if abs(a - b) >= TOLERANCE_EQUAL else 0.0
+    if op == "LT":
+        return 1.0 if a < b else 0.0
+    if op == "LE":
+        return 1.0 if abs(a - b) < TOLERANCE_EQUAL or a <= b else 0.0
+    if op == "GT":
+        return 1.0 if a > b else 0.0
+    if op == "GE":
+        return 1.0 if abs(a - b) < TOLERANCE_EQUAL or a >= b else 0.0
+    if op == "AND":
+        return 0.0 if a == 0.0 or b == 0.0 else 1.0
+    if op == "OR":
+        return 1.0 if a != 0.0 or b != 0.0 else 0.0
+    return 1.0 if (a == 0.0) != (b == 0.0) else 0.0  # XOR
 
 
 def evaluate(expr: str, params: Parameters | None = None) -> float:
@@ -403,63 +435,87 @@ def evaluate(expr: str, params: Parameters | None = None) -> float:
     1.0
     """
     c, _ = compact(expr.upper())
-    v, j = _Reader(c, params or Parameters()).value(0)
+    v, j = _Compiler(c).value(0)
     if j != len(c):
         raise NgcError(j, c[j:j + 20], "unexpected text after the value")
-    return v
+    return v(params or Parameters())
+
+
+class _CompiledLine(NamedTuple):
+    words: tuple[tuple[str, Value, int], ...]  # letter, value, source column
+    assigns: tuple[tuple[Any, Value, int, str], ...]  # key (name or number function), value, pos, text
+    oword: tuple[str, str, tuple[Value, ...], int] | None  # label, keyword, arguments, column
+    cols: tuple[int, ...]
+
+
+@lru_cache(maxsize=4096)  # lines inside loops and subroutines are read again and again
+def _compile_line(s: str) -> _CompiledLine:
+    c, cols = compact(s)
+    cp = _Compiler(c)
+    words: list[tuple[str, Value, int]] = []
+    assigns: list[tuple[Any, Value, int, str]] = []
+    i, n = 0, len(c)
+    first = True
+    while i < n:
+        ch = c[i]
+        if ch == "#":
+            key, j = cp.parameter(i)
+            if j >= n or c[j] != "=":
+                raise NgcError(i, c[i:j], "a parameter outside a word must be set: '=' is missing")
+            v, k = cp.value(j + 1)
+            assigns.append((key, v, i, c[i:j]))
+            i = k
+            first = False
+            continue
+        if ch == "O":
+            if not first:
+                raise NgcError(i, c[i:i + 20], "an O-word must start the line")
+            return _CompiledLine((), (), _compile_oword(cp, i, cols), cols)
+        if not ch.isalpha():
+            raise NgcError(i, ch, f"unexpected character {ch!r}")
+        v, j = cp.value(i + 1)
+        if ch != "N":
+            words.append((ch, v, cols[i]))
+        i = j
+        first = False
+    return _CompiledLine(tuple(words), tuple(assigns), None, cols)
 
 
 def scan_line(s: str, params: Parameters) -> Line:
     """Words, parameter assignments and O-word statement of one upper-cased, comment-free line.
 
     Values are read with the parameters as they stand *before* the line: LinuxCNC sets all the
-    line's parameters after reading it. Raises :class:`NgcError` with the index into the
-    compact line; use the returned columns through :func:`compact` for messages.
+    line's parameters after reading it. Raises :class:`NgcError` whose ``pos`` is the column
+    in ``s`` (1-based). The line's syntax is compiled once and cached; only its values are
+    evaluated on each call.
     """
-    c, cols = compact(s)
-    rd = _Reader(c, params)
-    out = Line()
-    i, n = 0, len(c)
-    first = True
-
-    def col(k: int) -> int:
-        return cols[min(k, len(cols) - 1)] if cols else 1
-
+    cols: tuple[int, ...] = ()
     try:
-        while i < n:
-            ch = c[i]
-            if ch == "#":
-                key, j = rd.parameter(i)
-                if j >= n or c[j] != "=":
-                    raise NgcError(i, c[i:j], "a parameter outside a word must be set: '=' is "
-                                              "missing")
-                if isinstance(key, str) and key.strip("<>") in params.system:
-                    raise NgcError(i, c[i:j], f"#{key} is read-only")
-                v, j = rd.value(j + 1)
-                out.assigns.append((key, v))
-                i = j
-                first = False
-                continue
-            if ch == "O":
-                if not first:
-                    raise NgcError(i, c[i:i + 20], "an O-word must start the line")
-                out.oword = _scan_oword(rd, i, col)
-                return out
-            if not ch.isalpha():
-                raise NgcError(i, ch, f"unexpected character {ch!r}")
-            v, j = rd.value(i + 1)
-            if ch != "N":
-                out.words.append(Word(ch, v, col(i)))
-            i = j
-            first = False
+        cl = _compile_line(s)
+        cols = cl.cols
+        out = Line()
+        if cl.oword is not None:
+            label, keyword, args, col = cl.oword
+            out.oword = OWord(label, keyword, tuple(a(params) for a in args), col)
+            return out
+        out.words = [Word(letter, v(params), col) for letter, v, col in cl.words]
+        for key, v, pos, text in cl.assigns:
+            if isinstance(key, str):
+                if key.strip("<>") in params.system:
+                    raise NgcError(pos, text, f"#{key} is read-only")
+                out.assigns.append((key, v(params)))
+            else:
+                out.assigns.append((key(params), v(params)))
+        return out
     except NgcError as e:
-        e.pos = col(e.pos)  # from here on the position is a source column
+        if not cols:
+            cols = compact(s)[1]
+        e.pos = cols[min(e.pos, len(cols) - 1)] if cols else 1  # a source column from here on
         raise
-    return out
 
 
-def _scan_oword(rd: _Reader, i: int, col: Callable[[int], int]) -> OWord:
-    c = rd.c
+def _compile_oword(cp: _Compiler, i: int, cols: tuple[int, ...]) -> tuple:
+    c = cp.c
     j = i + 1
     if j < len(c) and c[j] == "<":
         m = _NAME.match(c, j)
@@ -473,13 +529,13 @@ def _scan_oword(rd: _Reader, i: int, col: Callable[[int], int]) -> OWord:
         label, j = str(int(m.group())), m.end()
     keyword = next((k for k in _KEYWORDS if c.startswith(k, j)), "")
     j += len(keyword)
-    args: list[float] = []
+    args: list[Value] = []
     while j < len(c):
         if c[j] != "[":
             raise NgcError(j, c[j:j + 20], f"unexpected text after O{label} {keyword}".rstrip())
-        v, j = rd.expression(j)
+        v, j = cp.expression(j)
         args.append(v)
-    return OWord(label, keyword, tuple(args), col(i))
+    return label, keyword, tuple(args), cols[i]
 
 
 # --------------------------------------------------------------------- program structure ---
