@@ -160,7 +160,6 @@ def test_the_sources_parse_cleanly():
         check_text("\n".join(lines) + "\n", name)
 
 
-@pytest.mark.xfail(strict=False, reason="reader hardening in progress")
 @settings(max_examples=150, deadline=None, database=None,
           phases=(Phase.explicit, Phase.generate),  # no shrinking: a hang costs ALARM_S
           suppress_health_check=[HealthCheck.too_slow])
@@ -198,7 +197,6 @@ ISSUE_CASES = {
 }
 
 
-@pytest.mark.xfail(strict=False, reason="reader hardening in progress")
 @pytest.mark.parametrize("case", sorted(ISSUE_CASES))
 def test_issue_case_raises_gcode_error_naming_its_line(case):
     text = "G21 G90 G0 X-1 Y0 Z5\n" + ISSUE_CASES[case] + "\n"
