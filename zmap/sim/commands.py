@@ -34,7 +34,8 @@ def _need_file(path: str | None) -> None:
 @click.option("--tool", default=None, metavar="SPEC",
               help="Cutter for tool numbers not in the table, e.g. ball:3, flat:6, bull:10:1.")
 @click.option("--tools", "tools_path", type=click.Path(dir_okay=False), default=None,
-              help="TOML tool table.")
+              help="Tool table: TOML, or LinuxCNC .tbl (inches, as LinuxCNC's rs274 reads it; "
+                   "flat end mills of its diameters).")
 @click.option("--camotics", "project", type=click.Path(dir_okay=False), default=None,
               help="CAMotics project: its tools, and its stock unless --stock is given.")
 @click.option("--pitch", type=float, default=0.26, show_default=True, help="Ray pitch and DDA step, mm.")

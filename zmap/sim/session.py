@@ -95,6 +95,11 @@ def _as_cutter(tool: Any) -> Any:
         from .tools import parse_tool_spec
 
         return parse_tool_spec(tool)
+    if hasattr(tool, "cutter") and hasattr(tool, "length_offset"):  # a LinuxCNC .tbl entry
+        if not tool.diameter > 0:
+            raise ToolError(f"tool T{tool.number} has diameter {tool.diameter:g} in the tool "
+                            "table: no cutter to simulate")
+        return tool.cutter()  # a .tbl has no shape: a flat end mill of its diameter
     if not all(hasattr(tool, a) for a in ("code", "radius", "corner_radius", "length")):
         raise ToolError(f"tool must be a Cutter or a spec like 'ball:3', got {tool!r}")
     return tool
@@ -107,12 +112,12 @@ def _resolve_tools(path: _Path, tool: Any, tools: Any) -> tuple[list[int], list[
         from .tools import load_tool_table
 
         tools = load_tool_table(tools)
-    table = {int(k): _as_cutter(v) for k, v in dict(tools or {}).items()}
+    table = {int(k): v for k, v in dict(tools or {}).items()}  # entries in use become cutters
     numbers = [int(t) for t in np.unique(path.tool)] if len(path.tool) else [0]
     cutters = []
     for t in numbers:
         if t in table:
-            cutters.append(table[t])
+            cutters.append(_as_cutter(table[t]))
         elif default is not None:
             cutters.append(default)
         else:
