@@ -212,6 +212,29 @@ def treap_display(node_off, root_off, root_hi, tz, ts, tk, k, out, stack_n, stac
                 break
 
 
+@njit(cache=True, inline="always")
+def _descend(tz, mask, first, node, lo, hi, sp, stack_n, stack_lo, stack_hi):
+    """One step down an in-order treap traversal from ``node`` [lo, hi], whose children
+    start at ``first`` (``mask`` != 0).
+
+    ``mask`` 3 (split): the right piece goes on the stack and the left one is entered; 1:
+    the left child, the modified Zmax, unless it is NaN (the empty leaf of a deletion); 2:
+    the right child, the modified Zmin. Returns ``(node, lo, hi, sp, moved)``; ``moved`` is
+    False where there is nothing below to enter. The caller makes sure the stack has room.
+    """
+    if mask == 3:
+        stack_n[sp] = first + 1
+        stack_lo[sp] = tz[first + 1]
+        stack_hi[sp] = hi
+        return first, lo, tz[first], sp + 1, True
+    if mask == 1:
+        zl = tz[first]
+        if zl == zl:
+            return first, lo, zl, sp, True
+        return node, lo, hi, sp, False
+    return first, tz[first], hi, sp, True
+
+
 @njit(cache=True)
 def treap_reconstruct(node_off, root_off, root_hi, tz, ts, tk, k, cnt_out, near, far,
                       stack_n, stack_lo, stack_hi):
@@ -241,24 +264,10 @@ def treap_reconstruct(node_off, root_off, root_hi, tz, ts, tk, k, cnt_out, near,
                         near[q] = lo
                         far[q] = hi
                         q += 1
-                elif mask == 3:  # split: left piece now, right piece later
-                    stack_n[sp] = first + 1
-                    stack_lo[sp] = tz[first + 1]
-                    stack_hi[sp] = hi
-                    sp += 1
-                    node = first
-                    hi = tz[first]
-                    continue
-                elif mask == 1:
-                    zl = tz[first]
-                    if zl == zl:
-                        node = first
-                        hi = zl
-                        continue
                 else:
-                    node = first
-                    lo = tz[first]
-                    continue
+                    node, lo, hi, sp, moved = _descend(tz, mask, first, node, lo, hi, sp, stack_n, stack_lo, stack_hi)
+                    if moved:
+                        continue
                 if sp == 0:
                     break
                 sp -= 1
@@ -362,25 +371,10 @@ def treap_cut_ray(r, a, b, stage, root_off, root_hi, tz, ts, tk, tr_ray, counts,
             elif lo >= b:  # (1) false and (2) true: everything further lies above the tool
                 return 0
             if descend:
-                if mask == 3:
-                    if sp >= stack_n.shape[0]:
-                        return 2
-                    stack_n[sp] = first + 1
-                    stack_lo[sp] = tz[first + 1]
-                    stack_hi[sp] = hi
-                    sp += 1
-                    node = first
-                    hi = tz[first]
-                    continue
-                if mask == 1:
-                    zl = tz[first]
-                    if zl == zl:
-                        node = first
-                        hi = zl
-                        continue
-                else:
-                    node = first
-                    lo = tz[first]
+                if mask == 3 and sp >= stack_n.shape[0]:
+                    return 2
+                node, lo, hi, sp, moved = _descend(tz, mask, first, node, lo, hi, sp, stack_n, stack_lo, stack_hi)
+                if moved:
                     continue
             if sp == 0:
                 break
