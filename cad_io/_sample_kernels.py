@@ -410,10 +410,37 @@ def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mod
 
 
 @njit(cache=True, parallel=True)
+def _solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
+                 deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
+                 px, py, x0, y0, dx, dy, ny, mode, tol, max_iter, z, status):
+    """The pair loop of :func:`solve_pairs` (``ny > 0``: pair ``p`` at grid point
+    ``gidx[p]`` of an ``ny``-column grid) and :func:`solve_pairs_xy` (``ny == 0``: at
+    ``(px[gidx[p]], py[gidx[p]])``), in 64 blocks over the threads."""
+    P = gidx.shape[0]
+    nblk = 64
+    for blk in prange(nblk):
+        out = np.empty((3, 3))
+        p0 = blk * P // nblk
+        p1 = (blk + 1) * P // nblk
+        for p in range(p0, p1):
+            g = gidx[p]
+            if ny > 0:
+                xg = x0 + (g // ny) * dx
+                yg = y0 + (g % ny) * dy
+            else:
+                xg = px[g]
+                yg = py[g]
+            _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap, deg, ncp,
+                       koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf, mode, tol,
+                       max_iter, z, status, out)
+
+
+@njit(cache=True)
 def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                 deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
                 x0, y0, dx, dy, ny, mode, tol, max_iter, z, status):
-    """Height candidate of every pair, into ``z`` (P,) and ``status`` (P,) int8.
+    """Height candidate of every pair, into ``z`` (P,) and ``status`` (P,) int8; pair ``p``
+    is at grid point ``gidx[p]``, ``(x0 + (g // ny) * dx, y0 + (g % ny) * dy)``.
 
     Parameters
     ----------
@@ -431,35 +458,20 @@ def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, f
     mode : int
         0 auto (Newton, facet where it fails), 1 Newton only, 2 facets only.
     """
-    P = gidx.shape[0]
-    nblk = 64
-    for blk in prange(nblk):
-        out = np.empty((3, 3))
-        p0 = blk * P // nblk
-        p1 = (blk + 1) * P // nblk
-        for p in range(p0, p1):
-            g = gidx[p]
-            _solve_one(p, x0 + (g // ny) * dx, y0 + (g % ny) * dy, tri, w, nodes, uv, tris, tri_face,
-                       tri_check, face_mode, face_zgap, deg, ncp, koff, poff, knots, cpw, domain, edges,
-                       band_ptr, band_edges, face_bi, face_bf, mode, tol, max_iter, z, status, out)
+    none = np.empty(0)
+    _solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap, deg, ncp, koff, poff,
+                 knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf, none, none, x0, y0, dx, dy,
+                 max(ny, 1), mode, tol, max_iter, z, status)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def solve_pairs_xy(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                    deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
                    px, py, mode, tol, max_iter, z, status):
     """:func:`solve_pairs` for scattered points: pair ``p`` is at ``(px[gidx[p]], py[gidx[p]])``."""
-    P = gidx.shape[0]
-    nblk = 64
-    for blk in prange(nblk):
-        out = np.empty((3, 3))
-        p0 = blk * P // nblk
-        p1 = (blk + 1) * P // nblk
-        for p in range(p0, p1):
-            g = gidx[p]
-            _solve_one(p, px[g], py[g], tri, w, nodes, uv, tris, tri_face,
-                       tri_check, face_mode, face_zgap, deg, ncp, koff, poff, knots, cpw, domain, edges,
-                       band_ptr, band_edges, face_bi, face_bf, mode, tol, max_iter, z, status, out)
+    _solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap, deg, ncp, koff, poff,
+                 knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf, px, py, 0.0, 0.0, 0.0, 0.0, 0,
+                 mode, tol, max_iter, z, status)
 
 
 @njit(cache=True, parallel=True)
