@@ -1,22 +1,62 @@
 """One container for every zmap file: an ``.npz`` with a versioned JSON header.
 
 ZMaps (``.zmap.npz``), simulation runs (``.zsim``) and precision models share it: arrays by
-name plus a ``header`` array holding JSON with ``format`` and ``version``. Writes are atomic.
+name plus a ``header`` array holding JSON with ``format`` and ``version``. Writes are atomic
+(:func:`atomic_write`, which the PNG, GIF and text writers use too; it is re-exported as
+``zmap.grid.atomic_write``). This module imports nothing else of zmap but its errors.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import tempfile
 import zipfile
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from .errors import ZMapFileError
-from .grid import atomic_write
 
-__all__ = ["write_npz", "read_npz"]
+__all__ = ["atomic_write", "write_npz", "read_npz"]
+
+
+def atomic_write(path: str | os.PathLike, write: Callable[[str], None], suffix: str = "") -> Path:
+    """Write a file through a temporary name in the same folder, then rename it.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        Final file name.
+    write : callable
+        ``write(tmp_path)`` writes the whole file to ``tmp_path``.
+    suffix : str
+        Suffix of the temporary name (some writers, like ``np.savez``, append one).
+
+    Returns
+    -------
+    Path
+        The final path. An exception inside ``write`` leaves no file behind.
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    folder.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp" + suffix, dir=folder)
+    os.close(fd)
+    try:
+        write(tmp)
+        # mkstemp creates 0600; give the file the permissions a plain open() would.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        # Clean up on any interruption (KeyboardInterrupt too), then re-raise it unchanged.
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
 
 
 def write_npz(path: str | os.PathLike, header: dict, arrays: dict[str, np.ndarray], *, compress: bool = False) -> Path:

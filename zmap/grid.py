@@ -11,13 +11,13 @@ from __future__ import annotations
 import copy
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
+from ._npzfile import atomic_write, read_npz, write_npz
 from .errors import ZMapFileError
 
 __all__ = ["ZMap", "FORMAT_NAME", "FORMAT_VERSION", "atomic_write"]
@@ -42,43 +42,6 @@ def _positive_float(name: str, value: Any) -> float:
     if f <= 0.0:
         raise ValueError(f"{name} must be positive, got {f!r}")
     return f
-
-
-def atomic_write(path: str | os.PathLike, write: Callable[[str], None], suffix: str = "") -> Path:
-    """Write a file through a temporary name in the same folder, then rename it.
-
-    Parameters
-    ----------
-    path : str or PathLike
-        Final file name.
-    write : callable
-        ``write(tmp_path)`` writes the whole file to ``tmp_path``.
-    suffix : str
-        Suffix of the temporary name (some writers, like ``np.savez``, append one).
-
-    Returns
-    -------
-    Path
-        The final path. An exception inside ``write`` leaves no file behind.
-    """
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    folder.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp" + suffix, dir=folder)
-    os.close(fd)
-    try:
-        write(tmp)
-        # mkstemp creates 0600; give the file the permissions a plain open() would.
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        # Clean up on any interruption (KeyboardInterrupt too), then re-raise it unchanged.
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
 
 
 @dataclass(eq=False)
@@ -300,19 +263,15 @@ class ZMap:
         >>> import tempfile, os, numpy as np
         >>> zm = ZMap(0, 0, 0.5, 0.5, np.ones((3, 3)), meta={"source": "doc"})
         >>> p = zm.save(os.path.join(tempfile.mkdtemp(), "a.zmap.npz"))
-        >>> ZMap.load(p).z.sum()
+        >>> float(ZMap.load(p).z.sum())
         9.0
         """
-        from ._npzfile import write_npz
-
         arrays = {"z": self.z} | {_LAYER_PREFIX + name: arr for name, arr in self.layers.items()}
         return write_npz(path, self.header(), arrays, compress=True)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "ZMap":
         """Read a map written by :meth:`save`; a foreign or corrupt file raises ZMapFileError."""
-        from ._npzfile import read_npz
-
         header, arrays = read_npz(path, FORMAT_NAME, FORMAT_VERSION, what="zmap")
         if "z" not in arrays:
             raise ZMapFileError(str(path), f"not a zmap file (arrays {sorted(arrays)}, no 'z')")
