@@ -28,11 +28,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..grid import ZMap
+from ._emap import CellPatches, EZMap, all_edges, encode_heights, sub_grid
 
 __all__ = ["PATCH_SUBCELLS", "TEST_POINTS", "CellPatches", "cell_test_points", "failing_cells", "misfit", "patch_levels"]
 
@@ -170,247 +170,6 @@ def failing_cells(model_height: Heights, base: ZMap, heights: Heights, tol: floa
     return np.unique(cells[np.flatnonzero(bad) // (n * n)])
 
 
-@dataclass(eq=False)
-class CellPatches:
-    """Finer EZ-maps over single base cells (see the module docstring).
-
-    Parameters
-    ----------
-    cells : ndarray of shape (K,), int64
-        Sorted flat ids ``i * (ny - 1) + j`` of the patched base cells.
-    level : ndarray of shape (K,), int16
-        Sub-cells per base interval ``m`` of each patch (EZ sub-grid), or ``-n`` for a
-        dense lattice of ``n`` intervals per side.
-    node_off, code_off, edge_off : ndarray of shape (K+1,), int64
-        CSR offsets of each patch's sub-grid heights, e-point codes and sub-edges.
-    nodes : ndarray, float64
-        Sub-grid heights, ``(m+1) x (m+1)`` per EZ patch in C order (NaN = no surface);
-        none for a lattice.
-    codes : ndarray, uint16
-        E-point heights of every sub-edge (e-map coding, see :mod:`zmap.refine.ez`), or
-        the ``(n+1) x (n+1)`` lattice heights in C order.
-    lo, step : ndarray, float32
-        Per sub-edge (one per lattice) offset and quantum of the codes.
-    """
-
-    cells: np.ndarray
-    level: np.ndarray
-    node_off: np.ndarray
-    nodes: np.ndarray
-    code_off: np.ndarray
-    codes: np.ndarray
-    edge_off: np.ndarray
-    lo: np.ndarray
-    step: np.ndarray
-    _maps: dict = field(default_factory=dict, repr=False)
-
-    def __post_init__(self) -> None:
-        self.cells = np.ascontiguousarray(self.cells, dtype=np.int64)
-        self.level = np.ascontiguousarray(self.level, dtype=np.int16)
-        for name in ("node_off", "code_off", "edge_off"):
-            setattr(self, name, np.ascontiguousarray(getattr(self, name), dtype=np.int64))
-        self.nodes = np.ascontiguousarray(self.nodes, dtype=np.float64)
-        self.codes = np.ascontiguousarray(self.codes, dtype=np.uint16)
-        self.lo = np.ascontiguousarray(self.lo, dtype=np.float32)
-        self.step = np.ascontiguousarray(self.step, dtype=np.float32)
-        K = self.cells.shape[0]
-        if self.level.shape != (K,) or any(getattr(self, n).shape != (K + 1,)
-                                           for n in ("node_off", "code_off", "edge_off")):
-            raise ValueError(f"cell patches: level must have shape ({K},) and the offsets ({K + 1},)")
-        if K and (np.any(np.diff(self.cells) <= 0) or np.any(self.level == 0)):
-            raise ValueError("cell patches: cells must be strictly increasing and levels non-zero")
-        m = self.level.astype(np.int64)
-        ez, n = m > 0, -m
-        if (not np.array_equal(np.diff(self.node_off), np.where(ez, (m + 1) ** 2, 0))
-                or self.node_off[-1] != self.nodes.size
-                or not np.array_equal(np.diff(self.edge_off), np.where(ez, 2 * m * (m + 1), 1))
-                or self.edge_off[-1] != self.lo.size or self.lo.shape != self.step.shape or self.code_off[0] != 0
-                or self.code_off[-1] != self.codes.size or np.any(np.diff(self.code_off) < 0)
-                or not np.array_equal(np.diff(self.code_off)[~ez], (n[~ez] + 1) ** 2)):
-            raise ValueError("cell patches: offsets do not match the levels and array sizes")
-
-    @classmethod
-    def empty(cls) -> CellPatches:
-        z = np.zeros(0)
-        zero = np.zeros(1, dtype=np.int64)
-        return cls(np.zeros(0, np.int64), np.zeros(0, np.int16), zero, z, zero, np.zeros(0, np.uint16), zero,
-                   np.zeros(0, np.float32), np.zeros(0, np.float32))
-
-    @classmethod
-    def pack(cls, per_cell: dict[int, tuple]) -> CellPatches:
-        """Patches from ``{cell: (m, nodes, codes, lo, step)}``."""
-        if not per_cell:
-            return cls.empty()
-        keys = sorted(per_cell)
-        parts = [per_cell[k] for k in keys]
-        off = lambda sizes: np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-        return cls(np.array(keys, dtype=np.int64), np.array([p[0] for p in parts], dtype=np.int16),
-                   off([p[1].size for p in parts]), np.concatenate([p[1].ravel() for p in parts]),
-                   off([p[2].size for p in parts]), np.concatenate([p[2] for p in parts]),
-                   off([p[3].size for p in parts]), np.concatenate([p[3] for p in parts]),
-                   np.concatenate([p[4] for p in parts]))
-
-    def unpack(self) -> dict[int, tuple]:
-        """Inverse of :meth:`pack`."""
-        return {int(c): (int(self.level[k]),
-                         self.nodes[self.node_off[k]:self.node_off[k + 1]].reshape(max(int(self.level[k]) + 1, 0), -1),
-                         self.codes[self.code_off[k]:self.code_off[k + 1]],
-                         self.lo[self.edge_off[k]:self.edge_off[k + 1]],
-                         self.step[self.edge_off[k]:self.edge_off[k + 1]]) for k, c in enumerate(self.cells)}
-
-    @property
-    def n_patches(self) -> int:
-        return int(self.cells.shape[0])
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes stored (every array)."""
-        return int(sum(a.nbytes for a in (self.cells, self.level, self.node_off, self.nodes, self.code_off,
-                                           self.codes, self.edge_off, self.lo, self.step)))
-
-    def to_arrays(self) -> dict[str, np.ndarray]:
-        return {"cells": self.cells, "level": self.level, "node_off": self.node_off, "nodes": self.nodes,
-                "code_off": self.code_off, "codes": self.codes, "edge_off": self.edge_off, "lo": self.lo,
-                "step": self.step}
-
-    @classmethod
-    def from_arrays(cls, a: dict[str, np.ndarray]) -> CellPatches:
-        return cls(a["cells"], a["level"], a["node_off"], a["nodes"], a["code_off"], a["codes"], a["edge_off"],
-                   a["lo"], a["step"])
-
-    # ---- evaluation -----------------------------------------------------------------------
-
-    def _patch_maps(self, k: int, base: ZMap, interval: float, tol: float):
-        """The sub-grid ZMap and EZMap of EZ patch ``k``."""
-        from .ez import EZMap
-
-        m = int(self.level[k])
-        sub = sub_grid(base, int(self.cells[k]), m, self.nodes[self.node_off[k]:self.node_off[k + 1]].reshape(m + 1, m + 1))
-        ids, offsets = all_edges(sub, interval)
-        ez = EZMap(sub.x0, sub.y0, sub.dx, sub.dy, m + 1, m + 1, interval, tol, ids, offsets,
-                   self.codes[self.code_off[k]:self.code_off[k + 1]], self.lo[self.edge_off[k]:self.edge_off[k + 1]],
-                   self.step[self.edge_off[k]:self.edge_off[k + 1]])
-        return sub, ez
-
-    def _stacks(self, base: ZMap, interval: float, tol: float) -> dict[int, dict]:
-        """Per EZ level, the patches' sub-grids and evaluation tables stacked (built once).
-
-        Every patch of a level has the same sub-edges, points and cells, so one kernel
-        call evaluates them all (:func:`zmap.refine._ez_kernels.patch_kernel`).
-        """
-        key = (id(base), base.z.ctypes.data, interval, tol)
-        if self._maps.get("key") == key:
-            return self._maps["stacks"]
-        stacks = {}
-        for m in np.unique(self.level[self.level > 0]):
-            index = np.flatnonzero(self.level == m)
-            maps = [self._patch_maps(int(k), base, interval, tol) for k in index]
-            tabs = [ez._tables(sub) for sub, ez in maps]
-            sub0, ez0 = maps[0]
-            st = {name: np.ascontiguousarray(np.stack([t[name] for t in tabs]))
-                  for name in ("brk_kind", "brk_t", "nb", "bk", "bt", "pts", "arc")}
-            st.update(index=index, zs=np.ascontiguousarray(np.stack([sub.z for sub, _ in maps])),
-                      x0s=np.array([sub.x0 for sub, _ in maps]), y0s=np.array([sub.y0 for sub, _ in maps]),
-                      dx=sub0.dx, dy=sub0.dy, edge_ids=ez0.edge_ids, offsets=ez0.offsets,
-                      ecell_ids=tabs[0]["ecell_ids"], slots=tabs[0]["slots"],
-                      codes=np.ascontiguousarray(np.stack([ez.codes for _, ez in maps])),
-                      lo=np.ascontiguousarray(np.stack([ez.lo for _, ez in maps])),
-                      step=np.ascontiguousarray(np.stack([ez.step for _, ez in maps])))
-            stacks[int(m)] = st
-        self._maps = {"key": key, "stacks": stacks}
-        return stacks
-
-    def evaluate(self, base: ZMap, interval: float, tol: float, x: np.ndarray, y: np.ndarray,
-                 out: np.ndarray) -> None:
-        """Overwrite ``out`` where a point lies in a patched cell and its patch has a height.
-
-        ``x``, ``y``, ``out``: flat float64 arrays, world xy.
-        """
-        from . import _ez_kernels as _k
-        from .ez import SERIAL_BELOW
-
-        if not self.n_patches or x.size == 0:
-            return
-        lx, ly = base.world_to_local(x, y)
-        i = np.floor((lx - base.x0) / base.dx).astype(np.int64)
-        j = np.floor((ly - base.y0) / base.dy).astype(np.int64)
-        # points on the map's far edges belong to the last cell, as in the kernels
-        i = np.where(i == base.nx - 1, base.nx - 2, i)
-        j = np.where(j == base.ny - 1, base.ny - 2, j)
-        inside = (i >= 0) & (i <= base.nx - 2) & (j >= 0) & (j <= base.ny - 2)
-        cid = np.where(inside, i * (base.ny - 1) + j, -1)
-        pos = np.minimum(np.searchsorted(self.cells, cid), self.n_patches - 1)
-        hit = np.flatnonzero(inside & (self.cells[pos] == cid))
-        if hit.size == 0:
-            return
-        k = pos[hit]
-        level = self.level[k]
-        h = np.full(hit.size, np.nan)
-        lat = level < 0
-        if lat.any():
-            h[lat] = self._lattice(k[lat], base, lx[hit[lat]], ly[hit[lat]])
-        if not lat.all():
-            c, s_ = math.cos(base.angle), math.sin(base.angle)
-            for m, st in self._stacks(base, interval, tol).items():
-                sel = np.flatnonzero(level == m)
-                if sel.size == 0:
-                    continue
-                ks = np.searchsorted(st["index"], k[sel])
-                hs = np.empty(sel.size)
-                kernel = _k.patch_kernel if sel.size >= SERIAL_BELOW else _k.patch_kernel_serial
-                kernel(st["zs"], st["x0s"], st["y0s"], st["dx"], st["dy"], c, s_, base.origin[0], base.origin[1],
-                       np.ascontiguousarray(x[hit[sel]]), np.ascontiguousarray(y[hit[sel]]), ks, st["edge_ids"],
-                       st["offsets"], st["codes"], st["lo"], st["step"], st["brk_kind"], st["brk_t"], st["ecell_ids"],
-                       st["slots"], st["nb"], st["bk"], st["bt"], st["pts"], st["arc"], hs)
-                h[sel] = hs
-        ok = ~np.isnan(h)
-        out[hit[ok]] = h[ok]
-
-    def _lattice(self, k: np.ndarray, base: ZMap, lx: np.ndarray, ly: np.ndarray) -> np.ndarray:
-        """Bilinear heights in lattice patches ``k`` (one per point) at local xy; NaN on a
-        missing corner."""
-        from .ez import NAN_CODE
-
-        n = -self.level[k].astype(np.int64)
-        ci, cj = np.divmod(self.cells[k], base.ny - 1)
-        u = np.clip((lx - base.x0 - ci * base.dx) / base.dx * n, 0.0, n)
-        v = np.clip((ly - base.y0 - cj * base.dy) / base.dy * n, 0.0, n)
-        i = np.minimum(u.astype(np.int64), n - 1)
-        j = np.minimum(v.astype(np.int64), n - 1)
-        fu, fv = u - i, v - j
-        at = self.code_off[k] + i * (n + 1) + j
-        lo = self.lo[self.edge_off[k]].astype(np.float64)
-        st = self.step[self.edge_off[k]].astype(np.float64)
-
-        def z(q):
-            cq = self.codes[q]
-            return np.where(cq == NAN_CODE, np.nan, lo + st * cq.astype(np.float64))
-
-        return ((1 - fu) * ((1 - fv) * z(at) + fv * z(at + 1))
-                + fu * ((1 - fv) * z(at + n + 1) + fv * z(at + n + 2)))
-
-
-def sub_grid(base: ZMap, cell: int, m: int, z: np.ndarray | None = None) -> ZMap:
-    """The ``m x m`` sub-grid over base cell ``cell`` (base frame); heights ``z`` or zeros."""
-    ci, cj = divmod(int(cell), base.ny - 1)
-    zz = np.zeros((m + 1, m + 1)) if z is None else z
-    return ZMap(base.x0 + ci * base.dx, base.y0 + cj * base.dy, base.dx / m, base.dy / m, zz, base.angle,
-                base.origin)
-
-
-def all_edges(sub: ZMap, interval: float) -> tuple[np.ndarray, np.ndarray]:
-    """Edge ids and CSR offsets of an e-map with points on every edge of ``sub``."""
-    from .ez import _n_points, edge_count
-
-    nx, ny = sub.shape
-    E = edge_count(nx, ny)
-    ids = np.arange(E, dtype=np.int64)
-    counts = np.where(ids < (nx - 1) * ny, _n_points(sub.dx, interval), _n_points(sub.dy, interval))
-    offsets = np.zeros(E + 1, dtype=np.int64)
-    np.cumsum(counts, out=offsets[1:])
-    return ids, offsets
-
-
 def build_patches(base: ZMap, heights: Heights, cells: np.ndarray, m: int, interval: float,
                   tol: float) -> dict[int, tuple]:
     """Patch data ``{cell: (m, nodes, codes, lo, step)}`` of level ``m`` for ``cells``.
@@ -418,7 +177,6 @@ def build_patches(base: ZMap, heights: Heights, cells: np.ndarray, m: int, inter
     Two calls of ``heights``: the sub-grid nodes of all cells, then their e-points.
     """
     from . import _ez_kernels as _k
-    from .ez import EZMap, encode_heights
 
     cells = [int(c) for c in np.asarray(cells, dtype=np.int64)]
     if not cells:
@@ -462,8 +220,6 @@ def lattice_intervals(base: ZMap, tol: float) -> int:
 
 def build_lattices(base: ZMap, heights: Heights, cells: np.ndarray, n: int) -> dict[int, tuple]:
     """Dense lattice patch data ``{cell: (-n, nodes, codes, lo, step)}`` (one ``heights`` call)."""
-    from .ez import encode_heights
-
     cells = [int(c) for c in np.asarray(cells, dtype=np.int64)]
     if not cells:
         return {}

@@ -1,0 +1,703 @@
+"""The e-map data: :class:`EZMap` and its :class:`CellPatches`, stored and evaluated.
+
+An EZ-map holds e-points on grid edges of a base z-map as 16-bit codes and evaluates its
+cells as Coons patches split along walls and sharp edges (paper 004 §3.2, see
+:mod:`zmap.refine.ez`); the cells that missed the exact surface carry a finer EZ-map of
+their own or a dense lattice (:class:`CellPatches`, see :mod:`zmap.refine.patch`). The two
+types hold each other, so they live here together; the procedures that build them are
+:func:`zmap.refine.ez.build_ez` and :func:`zmap.refine.patch.patch_failing`, which import
+this module (and ``ez`` imports ``patch``: no cycle). Public names are re-exported from
+``zmap.refine.ez`` and ``zmap.refine.patch``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..grid import ZMap
+
+__all__ = ["BREAK_RATIO", "FORMAT_VERSION", "NAN_CODE", "SERIAL_BELOW", "CellPatches", "EZMap", "all_edges",
+           "cells_around", "edge_count", "encode_heights", "sub_grid"]
+
+FORMAT_VERSION = 2
+#: Batches smaller than this are evaluated on one thread (no thread-pool wake-up).
+SERIAL_BELOW = 4096
+#: A jump or kink must stand out this many times from its neighbours to count as a break.
+BREAK_RATIO = 4.0
+
+
+def edge_count(nx: int, ny: int) -> int:
+    """Number of grid edges of an ``nx`` by ``ny`` grid: ``(nx-1)*ny + nx*(ny-1)``."""
+    return (nx - 1) * ny + nx * (ny - 1)
+
+
+#: 16-bit code of an e-point with no height; valid codes are 0 .. NAN_CODE - 1.
+NAN_CODE = 65535
+
+
+def encode_heights(offsets: np.ndarray, heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """16-bit codes of e-point heights, per edge ``height = lo + step * code``.
+
+    Parameters
+    ----------
+    offsets : ndarray of shape (E+1,), int64
+        CSR offsets of the edges (each edge owns at least one point).
+    heights : ndarray of shape (P,), float64
+        Heights in mm, NaN = none.
+
+    Returns
+    -------
+    codes : ndarray of shape (P,), uint16
+        ``round((height - lo) / step)``, :data:`NAN_CODE` for NaN.
+    lo, step : ndarray of shape (E,), float32
+        The edge's lowest height and its range over ``NAN_CODE - 1`` steps.
+
+    Examples
+    --------
+    >>> c, lo, st = encode_heights(np.array([0, 3]), np.array([1.0, np.nan, 3.0]))
+    >>> c.tolist(), lo.tolist(), float(lo[0] + st[0] * c[2])
+    ([0, 65535, 65534], [1.0], 3.0)
+    """
+    E = offsets.shape[0] - 1
+    if E == 0:
+        return np.zeros(0, np.uint16), np.zeros(0, np.float32), np.zeros(0, np.float32)
+    starts = offsets[:-1]
+    finite = ~np.isnan(heights)
+    lo = np.minimum.reduceat(np.where(finite, heights, np.inf), starts)
+    hi = np.maximum.reduceat(np.where(finite, heights, -np.inf), starts)
+    none = ~np.isfinite(lo)
+    lo[none] = 0.0
+    hi[none] = 0.0
+    lo32 = lo.astype(np.float32)
+    span = np.maximum(hi - lo32.astype(np.float64), 0.0)
+    step32 = (span / (NAN_CODE - 1)).astype(np.float32)
+    e = np.repeat(np.arange(E), np.diff(offsets))
+    st = step32[e].astype(np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = np.where(st > 0, np.rint((heights - lo32[e].astype(np.float64)) / np.where(st > 0, st, 1.0)), 0.0)
+    q = np.clip(np.nan_to_num(q, nan=0.0), 0, NAN_CODE - 1)
+    codes = q.astype(np.uint16)
+    codes[~finite] = NAN_CODE
+    return codes, lo32, step32
+
+
+def cells_around(nx: int, ny: int, ids: np.ndarray) -> np.ndarray:
+    """Cells next to the grid edges ``ids`` and the ring whose Bezier stencil reaches them.
+
+    Returns a bool ndarray of shape (nx-1, ny-1).
+    """
+    nxe = (nx - 1) * ny
+    is_x = ids < nxe
+    a, r = ids[is_x] // ny, ids[is_x] % ny
+    yi, yb = (ids[~is_x] - nxe) // (ny - 1), (ids[~is_x] - nxe) % (ny - 1)
+    # x-edge (a, r): own cells (a, r), (a, r-1); stencil ring (a+-1, r), (a+-1, r-1)
+    # y-edge (yi, yb): own cells (yi, yb), (yi-1, yb); ring (yi, yb+-1), (yi-1, yb+-1)
+    ci = np.concatenate([a, a, a + 1, a + 1, a - 1, a - 1, yi, yi - 1, yi, yi - 1, yi, yi - 1])
+    cj = np.concatenate([r, r - 1, r, r - 1, r, r - 1, yb, yb, yb + 1, yb + 1, yb - 1, yb - 1])
+    ok = (ci >= 0) & (ci <= nx - 2) & (cj >= 0) & (cj <= ny - 2)
+    m = np.zeros((nx - 1) * (ny - 1), dtype=bool)
+    m[ci[ok] * (ny - 1) + cj[ok]] = True
+    return m.reshape(nx - 1, ny - 1)
+
+
+def _n_points(length: float, interval: float) -> int:
+    """Interior points that split ``length`` into pieces no longer than ``interval``."""
+    return max(math.ceil(length / interval - 1e-9) - 1, 0)
+
+
+@dataclass(eq=False)
+class EZMap:
+    """The e-map of a base z-map: samples on selected grid edges.
+
+    Parameters
+    ----------
+    x0, y0, dx, dy : float
+        Grid of the base (local frame of the base), mm.
+    nx, ny : int
+        Grid points of the base.
+    interval : float
+        Largest spacing of the e-points along an edge, mm.
+    tol : float
+        Tolerance the map was built for, mm (sets the break thresholds).
+    edge_ids : ndarray of shape (E,), int64
+        Sorted ids of the edges that carry e-points.
+    offsets : ndarray of shape (E+1,), int64
+        CSR offsets: edge ``edge_ids[k]`` owns points ``offsets[k]:offsets[k+1]``, the
+        ``n_e`` interior points of the edge at ``t = (q+1)/(n_e+1)`` from its first grid
+        point.
+    codes : ndarray of shape (P,), uint16
+        Heights as 16-bit codes (as the paper's Table 2 stores e-points, 2 bytes each):
+        ``height = lo[k] + step[k] * code`` in mm; ``65535`` where the surface gave none.
+    lo, step : ndarray of shape (E,), float32
+        Per-edge offset and quantum of the codes, mm; the quantisation error is at most
+        ``step / 2`` (:attr:`resolution`): 1/131068 of the edge's height range, 1.1e-4 mm
+        for a 15 mm wall.
+    failed : int
+        E-points whose height came back NaN from the ``heights`` callable.
+    lifted : int
+        E-points lifted to their higher neighbour: a single sample more than ``tol`` below
+        both neighbours is a point on a wall's line that the surface callable answered
+        with a lower face (the top-most height there is the wall's top).
+    patches : zmap.refine.patch.CellPatches, optional
+        Finer e-maps over the cells that missed the exact surface when the map was checked
+        (``build_ez(verify=True)``); each answers for its cell.
+    unresolved : int
+        Cells still off the exact surface at a test point after the finest patch level.
+    pruned : int
+        Candidate edges dropped because the base already held them (``build_ez(prune=True)``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from zmap import ZMap
+    >>> from zmap.refine.ez import build_ez
+    >>> f = lambda x, y: np.where(x > 1.23, 5.0, 0.0)
+    >>> base = ZMap.from_function(f, (0, 0, 3, 3), 0.5)
+    >>> ez = build_ez(base, f, tol=0.01)
+    >>> round(float(ez.evaluate(base, 1.225, 1.6)), 6), round(float(ez.evaluate(base, 1.235, 1.6)), 6)
+    (0.0, 5.0)
+    """
+
+    x0: float
+    y0: float
+    dx: float
+    dy: float
+    nx: int
+    ny: int
+    interval: float
+    tol: float
+    edge_ids: np.ndarray
+    offsets: np.ndarray
+    codes: np.ndarray
+    lo: np.ndarray
+    step: np.ndarray
+    failed: int = 0
+    lifted: int = 0
+    patches: Any = None
+    unresolved: int = 0
+    pruned: int = 0
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self.x0, self.y0, self.dx, self.dy = (float(v) for v in (self.x0, self.y0, self.dx, self.dy))
+        self.nx, self.ny, self.failed, self.lifted = int(self.nx), int(self.ny), int(self.failed), int(self.lifted)
+        self.unresolved, self.pruned = int(self.unresolved), int(self.pruned)
+        if self.patches is not None and self.patches.n_patches and (
+                self.patches.cells[0] < 0 or self.patches.cells[-1] >= (self.nx - 1) * (self.ny - 1)):
+            raise ValueError("patched cells must be cells of the grid")
+        self.interval, self.tol = float(self.interval), float(self.tol)
+        if self.nx < 2 or self.ny < 2:
+            raise ValueError(f"nx and ny must be >= 2, got nx={self.nx}, ny={self.ny}")
+        self.edge_ids = np.ascontiguousarray(self.edge_ids, dtype=np.int64)
+        self.offsets = np.ascontiguousarray(self.offsets, dtype=np.int64)
+        self.codes = np.ascontiguousarray(self.codes, dtype=np.uint16)
+        self.lo = np.ascontiguousarray(self.lo, dtype=np.float32)
+        self.step = np.ascontiguousarray(self.step, dtype=np.float32)
+        E = self.edge_ids.shape[0]
+        if self.lo.shape != (E,) or self.step.shape != (E,):
+            raise ValueError(f"lo and step must have shape (E,) = ({E},), got {self.lo.shape} and {self.step.shape}")
+        if self.edge_ids.ndim != 1 or self.offsets.shape != (E + 1,):
+            raise ValueError(f"offsets must have shape (E+1,) = ({E + 1},) for {E} edge ids, got {self.offsets.shape}")
+        if E and (np.any(np.diff(self.edge_ids) <= 0) or self.edge_ids[0] < 0
+                  or self.edge_ids[-1] >= edge_count(self.nx, self.ny)):
+            raise ValueError("edge_ids must be strictly increasing ids of edges of the grid")
+        if self.offsets[0] != 0 or np.any(np.diff(self.offsets) < 0) or self.offsets[-1] != self.codes.shape[0]:
+            raise ValueError(f"offsets must rise from 0 to len(codes)={self.codes.shape[0]}, "
+                             f"got {self.offsets[0]}..{self.offsets[-1] if E + 1 else None}")
+
+    # ---- figures --------------------------------------------------------------------------
+
+    @classmethod
+    def from_heights(cls, x0: float, y0: float, dx: float, dy: float, nx: int, ny: int, interval: float, tol: float,
+                     edge_ids: np.ndarray, offsets: np.ndarray, heights: np.ndarray, **kwargs) -> EZMap:
+        """The e-map of e-point ``heights`` (float, NaN = none; shape (P,)), coded to 16 bits."""
+        codes, lo, step = encode_heights(np.asarray(offsets, dtype=np.int64), np.asarray(heights, dtype=np.float64))
+        return cls(x0, y0, dx, dy, nx, ny, interval, tol, edge_ids, offsets, codes, lo, step, **kwargs)
+
+    @property
+    def heights(self) -> np.ndarray:
+        """Decoded e-point heights, ndarray of shape (P,), float64, mm (NaN = none)."""
+        e = np.repeat(np.arange(self.n_edges), np.diff(self.offsets))
+        h = self.lo[e].astype(np.float64) + self.step[e].astype(np.float64) * self.codes.astype(np.float64)
+        h[self.codes == NAN_CODE] = np.nan
+        return h
+
+    @property
+    def resolution(self) -> float:
+        """Largest quantisation error of the coded heights, mm (half the largest quantum)."""
+        return float(self.step.max()) / 2.0 if self.n_edges else 0.0
+
+    @property
+    def n_points(self) -> int:
+        """Number of e-points."""
+        return int(self.codes.shape[0])
+
+    @property
+    def n_edges(self) -> int:
+        """Number of grid edges carrying e-points."""
+        return int(self.edge_ids.shape[0])
+
+    @property
+    def edge_ratio(self) -> float:
+        """Share of all grid edges that carry e-points (Table 2's 'e-map ratio')."""
+        return self.n_edges / edge_count(self.nx, self.ny)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the stored e-map (edge ids, offsets, codes, lo, step, cell patches); the
+        evaluation cache, rebuilt from them, is :attr:`cache_nbytes`."""
+        return int(self.edge_ids.nbytes + self.offsets.nbytes + self.codes.nbytes + self.lo.nbytes + self.step.nbytes
+                   + self.patch_nbytes)
+
+    @property
+    def patch_nbytes(self) -> int:
+        """Bytes of the cell patches (0 without)."""
+        return int(self.patches.nbytes) if self.patches is not None else 0
+
+    @property
+    def n_patches(self) -> int:
+        """Number of base cells answered by a finer cell patch."""
+        return int(self.patches.n_patches) if self.patches is not None else 0
+
+    @property
+    def n_lattices(self) -> int:
+        """Number of patched cells answered by a dense lattice (the last resort)."""
+        return int(np.count_nonzero(self.patches.level < 0)) if self.patches is not None else 0
+
+    @property
+    def cache_nbytes(self) -> int:
+        """Bytes of the per-cell evaluation tables currently cached (0 before evaluate)."""
+        return int(sum(a.nbytes for a in self._cache.get("arrays", {}).values()))
+
+    def __repr__(self) -> str:
+        return (f"EZMap({self.nx}x{self.ny} grid, {self.n_edges} edges ({100 * self.edge_ratio:.1f}%), "
+                f"{self.n_points} points at <= {self.interval:g} mm, {self.n_patches} cell patches, "
+                f"{self.nbytes / 1024:.1f} KB)")
+
+    # ---- points ---------------------------------------------------------------------------
+
+    def points(self) -> tuple[np.ndarray, np.ndarray]:
+        """Local xy of every e-point, each ndarray of shape (P,), float64, in heights order."""
+        from . import _ez_kernels as _k
+
+        px = np.empty(self.n_points)
+        py = np.empty(self.n_points)
+        _k.edge_points(self.edge_ids, self.offsets, self.x0, self.y0, self.dx, self.dy, self.nx, self.ny, px, py)
+        return px, py
+
+    # ---- evaluation -----------------------------------------------------------------------
+
+    def _check_base(self, base: ZMap) -> None:
+        if not isinstance(base, ZMap):
+            raise TypeError(f"base must be a zmap.ZMap, got {type(base).__name__}")
+        if (base.nx, base.ny) != (self.nx, self.ny) or not np.allclose(
+                (base.x0, base.y0, base.dx, base.dy), (self.x0, self.y0, self.dx, self.dy), rtol=0, atol=1e-12):
+            raise ValueError(f"base grid {base.nx}x{base.ny} at ({base.x0}, {base.y0}) step ({base.dx}, {base.dy}) "
+                             f"is not the e-map's {self.nx}x{self.ny} at ({self.x0}, {self.y0}) "
+                             f"step ({self.dx}, {self.dy})")
+
+    def _hq(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return (self.codes, self.lo, self.step)
+
+    def _tables(self, base: ZMap) -> dict:
+        """Per-edge breaks and per-cell traces, cached per base object."""
+        key = (id(base), base.z.ctypes.data)
+        if self._cache.get("key") == key:
+            return self._cache["arrays"]
+        from . import _ez_kernels as _k
+
+        nx, ny = self.nx, self.ny
+        E = self.n_edges
+        kind = np.zeros(E, dtype=np.int8)
+        brk_t = np.zeros(E, dtype=np.float64)
+        n_max = max(_n_points(self.dx, self.interval), _n_points(self.dy, self.interval)) + 1
+        h = max(self.dx, self.dy)
+        jump_min = self.tol
+        kink_min = 4.0 * self.tol * (h / n_max) / h
+        if E:
+            _k.detect_breaks(base.z, self.edge_ids, self.offsets, self._hq(), jump_min, kink_min, BREAK_RATIO,
+                             kind, brk_t)
+        # cells touching an e-edge, and the slot of each of their four edges
+        ecell = np.flatnonzero(self.cell_mask().ravel()).astype(np.int64)
+        ids = self.edge_ids
+        nxe = (nx - 1) * ny
+        ci, cj = ecell // (ny - 1), ecell % (ny - 1)
+        want = np.stack([ci * ny + cj, nxe + (ci + 1) * (ny - 1) + cj, ci * ny + cj + 1,
+                         nxe + ci * (ny - 1) + cj], axis=1)
+        pos = np.searchsorted(ids, want)
+        pos_c = np.minimum(pos, max(E - 1, 0))
+        slots = np.where((pos < E) & (ids[pos_c] == want) if E else np.zeros(want.shape, bool), pos, -1)
+        slots = np.ascontiguousarray(slots, dtype=np.int64)
+        C = ecell.shape[0]
+        nb = np.zeros(C, dtype=np.int8)
+        bk = np.zeros((C, 2), dtype=np.int8)
+        bt = np.zeros((C, 2), dtype=np.float64)
+        pts = np.zeros((C, 3, 2), dtype=np.float64)
+        arc = np.zeros((C, 3), dtype=np.float64)
+        if C:
+            _k.cell_geometry(ecell, slots, kind, brk_t, nx, ny, self.dx, self.dy, self.interval, nb, bk, bt, pts, arc)
+        arrays = {"brk_kind": kind, "brk_t": brk_t, "ecell_ids": ecell, "slots": slots, "nb": nb, "bk": bk,
+                  "bt": bt, "pts": pts, "arc": arc}
+        self._cache = {"key": key, "arrays": arrays}
+        return arrays
+
+    def cell_mask(self) -> np.ndarray:
+        """Cells where :meth:`evaluate` answers, ndarray of shape (nx-1, ny-1), bool.
+
+        These are the cells with e-points on any edge, and the ring around them whose base
+        Bezier stencil (the outer edges their corner slopes use) holds an e-edge: there the
+        edge curves take their slopes from the side away from a break, so that no cell
+        blends base heights across a wall or a sharp edge.
+        """
+        m = cells_around(self.nx, self.ny, self.edge_ids)
+        if self.patches is not None and self.patches.n_patches:
+            m.ravel()[self.patches.cells] = True
+        return m
+
+    # ---- evaluation helpers ------------------------------------------------------------------
+
+    def breaks(self, base: ZMap) -> tuple[np.ndarray, np.ndarray]:
+        """Break found on each e-edge: ``kind`` (E,) int8 (0 none, 1 jump, 2 kink) and
+        ``t`` (E,) float64, the parameter along the edge from its first grid point."""
+        self._check_base(base)
+        a = self._tables(base)
+        return a["brk_kind"].copy(), a["brk_t"].copy()
+
+
+    def evaluate(self, base: ZMap, x, y) -> np.ndarray:
+        """Heights in the cells of :meth:`cell_mask`; NaN elsewhere (use the base there).
+
+        Those are the cells with e-points on any edge and the ring of cells whose base
+        stencil reaches an e-edge (their plain edges take slopes from the side away from a
+        break), so that no base cell blends heights across a wall or a sharp edge.
+
+        Parameters
+        ----------
+        base : ZMap
+            The base z-map the e-map was built on (same grid and frame).
+        x, y : array_like of float, broadcastable
+            World coordinates, mm.
+
+        Returns
+        -------
+        ndarray of float64, broadcast shape of x and y (float for scalars)
+            Heights in mm; NaN outside e-cells, outside the map, in cells with a missing
+            corner height, and where a needed e-point has no height.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from zmap import ZMap
+        >>> from zmap.refine.ez import build_ez
+        >>> f = lambda x, y: 0.3 * x - 0.2 * y + np.where(y > 0.7 * x + 0.1, 4.0, 0.0)
+        >>> base = ZMap.from_function(f, (0, 0, 2, 2), 0.5)
+        >>> ez = build_ez(base, f, tol=0.01)
+        >>> x, y = np.array([0.9, 1.0]), np.array([0.4, 1.3])
+        >>> bool(np.abs(ez.evaluate(base, x, y) - f(x, y)).max() < 2 * ez.resolution)
+        True
+        """
+        from . import _ez_kernels as _k
+
+        self._check_base(base)
+        xb, yb = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+        shape = xb.shape
+        xs = np.ascontiguousarray(xb).ravel()
+        ys = np.ascontiguousarray(yb).ravel()
+        out = np.full(xs.shape[0], np.nan)
+        if self.n_edges and xs.size:
+            a = self._tables(base)
+            kernel = _k.ez_kernel if xs.size >= SERIAL_BELOW else _k.ez_kernel_serial
+            kernel(base.z, base.x0, base.y0, base.dx, base.dy, math.cos(base.angle), math.sin(base.angle),
+                         base.origin[0], base.origin[1], xs, ys, self.edge_ids, self.offsets, self._hq(), a["brk_kind"],
+                         a["brk_t"], a["ecell_ids"], a["slots"], a["nb"], a["bk"], a["bt"], a["pts"], a["arc"], out)
+        if self.n_patches and xs.size:
+            self.patches.evaluate(base, self.interval, self.tol, xs, ys, out)
+        out = out.reshape(shape)
+        return out[()] if out.ndim == 0 else out
+
+    def height(self, base: ZMap, x, y) -> np.ndarray:
+        """EZ model heights everywhere: :meth:`evaluate` in e-cells, the base's Bezier
+        elsewhere (the scheme the e-cells' plain edges follow)."""
+        from ..interpolate import bezier
+
+        h = np.asarray(self.evaluate(base, x, y), dtype=np.float64)
+        miss = np.isnan(h)
+        if miss.any():
+            xb, yb = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+            h = np.array(h, copy=True).reshape(xb.shape)
+            h[miss] = bezier(base, xb[miss], yb[miss])
+        return h[()] if h.ndim == 0 else h
+
+    # ---- storage --------------------------------------------------------------------------
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Arrays to save inside another file; :meth:`from_arrays` restores the map exactly."""
+        return {
+            "version": np.array([FORMAT_VERSION], dtype=np.int64),
+            "grid": np.array([self.x0, self.y0, self.dx, self.dy, self.interval, self.tol], dtype=np.float64),
+            "shape": np.array([self.nx, self.ny, self.failed, self.lifted, self.unresolved, self.pruned],
+                              dtype=np.int64),
+            "edge_ids": self.edge_ids,
+            "offsets": self.offsets,
+            "codes": self.codes,
+            "lo": self.lo,
+            "step": self.step,
+        } | {f"patch_{k}": v for k, v in (self.patches or CellPatches.empty()).to_arrays().items()}
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> EZMap:
+        """Inverse of :meth:`to_arrays`."""
+        missing = {"version", "grid", "shape", "edge_ids", "offsets", "codes", "lo", "step"} - set(arrays)
+        if missing:
+            raise ValueError(f"e-map arrays lack {sorted(missing)}, got {sorted(arrays)}")
+        version = int(np.asarray(arrays["version"]).ravel()[0])
+        if not 1 <= version <= FORMAT_VERSION:
+            raise ValueError(f"e-map format version {version} is not supported (this zmap reads 1..{FORMAT_VERSION})")
+        g = np.asarray(arrays["grid"], dtype=np.float64).ravel()
+        s = np.asarray(arrays["shape"], dtype=np.int64).ravel()
+        patches = None
+        if version >= 2:
+            patches = CellPatches.from_arrays({k[len("patch_"):]: v for k, v in arrays.items()
+                                               if k.startswith("patch_")})
+            patches = patches if patches.n_patches else None
+        return cls(g[0], g[1], g[2], g[3], int(s[0]), int(s[1]), g[4], g[5], arrays["edge_ids"], arrays["offsets"],
+                   arrays["codes"], arrays["lo"], arrays["step"], failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0,
+                   patches=patches, unresolved=int(s[4]) if s.size > 4 else 0, pruned=int(s[5]) if s.size > 5 else 0)
+
+
+def sub_grid(base: ZMap, cell: int, m: int, z: np.ndarray | None = None) -> ZMap:
+    """The ``m x m`` sub-grid over base cell ``cell`` (base frame); heights ``z`` or zeros."""
+    ci, cj = divmod(int(cell), base.ny - 1)
+    zz = np.zeros((m + 1, m + 1)) if z is None else z
+    return ZMap(base.x0 + ci * base.dx, base.y0 + cj * base.dy, base.dx / m, base.dy / m, zz, base.angle,
+                base.origin)
+
+
+def all_edges(sub: ZMap, interval: float) -> tuple[np.ndarray, np.ndarray]:
+    """Edge ids and CSR offsets of an e-map with points on every edge of ``sub``."""
+    nx, ny = sub.shape
+    E = edge_count(nx, ny)
+    ids = np.arange(E, dtype=np.int64)
+    counts = np.where(ids < (nx - 1) * ny, _n_points(sub.dx, interval), _n_points(sub.dy, interval))
+    offsets = np.zeros(E + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    return ids, offsets
+
+
+@dataclass(eq=False)
+class CellPatches:
+    """Finer EZ-maps over single base cells (levels, lattices and storage: see :mod:`zmap.refine.patch`).
+
+    Parameters
+    ----------
+    cells : ndarray of shape (K,), int64
+        Sorted flat ids ``i * (ny - 1) + j`` of the patched base cells.
+    level : ndarray of shape (K,), int16
+        Sub-cells per base interval ``m`` of each patch (EZ sub-grid), or ``-n`` for a
+        dense lattice of ``n`` intervals per side.
+    node_off, code_off, edge_off : ndarray of shape (K+1,), int64
+        CSR offsets of each patch's sub-grid heights, e-point codes and sub-edges.
+    nodes : ndarray, float64
+        Sub-grid heights, ``(m+1) x (m+1)`` per EZ patch in C order (NaN = no surface);
+        none for a lattice.
+    codes : ndarray, uint16
+        E-point heights of every sub-edge (e-map coding, see :mod:`zmap.refine.ez`), or
+        the ``(n+1) x (n+1)`` lattice heights in C order.
+    lo, step : ndarray, float32
+        Per sub-edge (one per lattice) offset and quantum of the codes.
+    """
+
+    cells: np.ndarray
+    level: np.ndarray
+    node_off: np.ndarray
+    nodes: np.ndarray
+    code_off: np.ndarray
+    codes: np.ndarray
+    edge_off: np.ndarray
+    lo: np.ndarray
+    step: np.ndarray
+    _maps: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self.cells = np.ascontiguousarray(self.cells, dtype=np.int64)
+        self.level = np.ascontiguousarray(self.level, dtype=np.int16)
+        for name in ("node_off", "code_off", "edge_off"):
+            setattr(self, name, np.ascontiguousarray(getattr(self, name), dtype=np.int64))
+        self.nodes = np.ascontiguousarray(self.nodes, dtype=np.float64)
+        self.codes = np.ascontiguousarray(self.codes, dtype=np.uint16)
+        self.lo = np.ascontiguousarray(self.lo, dtype=np.float32)
+        self.step = np.ascontiguousarray(self.step, dtype=np.float32)
+        K = self.cells.shape[0]
+        if self.level.shape != (K,) or any(getattr(self, n).shape != (K + 1,)
+                                           for n in ("node_off", "code_off", "edge_off")):
+            raise ValueError(f"cell patches: level must have shape ({K},) and the offsets ({K + 1},)")
+        if K and (np.any(np.diff(self.cells) <= 0) or np.any(self.level == 0)):
+            raise ValueError("cell patches: cells must be strictly increasing and levels non-zero")
+        m = self.level.astype(np.int64)
+        ez, n = m > 0, -m
+        if (not np.array_equal(np.diff(self.node_off), np.where(ez, (m + 1) ** 2, 0))
+                or self.node_off[-1] != self.nodes.size
+                or not np.array_equal(np.diff(self.edge_off), np.where(ez, 2 * m * (m + 1), 1))
+                or self.edge_off[-1] != self.lo.size or self.lo.shape != self.step.shape or self.code_off[0] != 0
+                or self.code_off[-1] != self.codes.size or np.any(np.diff(self.code_off) < 0)
+                or not np.array_equal(np.diff(self.code_off)[~ez], (n[~ez] + 1) ** 2)):
+            raise ValueError("cell patches: offsets do not match the levels and array sizes")
+
+    @classmethod
+    def empty(cls) -> CellPatches:
+        z = np.zeros(0)
+        zero = np.zeros(1, dtype=np.int64)
+        return cls(np.zeros(0, np.int64), np.zeros(0, np.int16), zero, z, zero, np.zeros(0, np.uint16), zero,
+                   np.zeros(0, np.float32), np.zeros(0, np.float32))
+
+    @classmethod
+    def pack(cls, per_cell: dict[int, tuple]) -> CellPatches:
+        """Patches from ``{cell: (m, nodes, codes, lo, step)}``."""
+        if not per_cell:
+            return cls.empty()
+        keys = sorted(per_cell)
+        parts = [per_cell[k] for k in keys]
+        off = lambda sizes: np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        return cls(np.array(keys, dtype=np.int64), np.array([p[0] for p in parts], dtype=np.int16),
+                   off([p[1].size for p in parts]), np.concatenate([p[1].ravel() for p in parts]),
+                   off([p[2].size for p in parts]), np.concatenate([p[2] for p in parts]),
+                   off([p[3].size for p in parts]), np.concatenate([p[3] for p in parts]),
+                   np.concatenate([p[4] for p in parts]))
+
+    def unpack(self) -> dict[int, tuple]:
+        """Inverse of :meth:`pack`."""
+        return {int(c): (int(self.level[k]),
+                         self.nodes[self.node_off[k]:self.node_off[k + 1]].reshape(max(int(self.level[k]) + 1, 0), -1),
+                         self.codes[self.code_off[k]:self.code_off[k + 1]],
+                         self.lo[self.edge_off[k]:self.edge_off[k + 1]],
+                         self.step[self.edge_off[k]:self.edge_off[k + 1]]) for k, c in enumerate(self.cells)}
+
+    @property
+    def n_patches(self) -> int:
+        return int(self.cells.shape[0])
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes stored (every array)."""
+        return int(sum(a.nbytes for a in (self.cells, self.level, self.node_off, self.nodes, self.code_off,
+                                           self.codes, self.edge_off, self.lo, self.step)))
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        return {"cells": self.cells, "level": self.level, "node_off": self.node_off, "nodes": self.nodes,
+                "code_off": self.code_off, "codes": self.codes, "edge_off": self.edge_off, "lo": self.lo,
+                "step": self.step}
+
+    @classmethod
+    def from_arrays(cls, a: dict[str, np.ndarray]) -> CellPatches:
+        return cls(a["cells"], a["level"], a["node_off"], a["nodes"], a["code_off"], a["codes"], a["edge_off"],
+                   a["lo"], a["step"])
+
+    # ---- evaluation -----------------------------------------------------------------------
+
+    def _patch_maps(self, k: int, base: ZMap, interval: float, tol: float):
+        """The sub-grid ZMap and EZMap of EZ patch ``k``."""
+        m = int(self.level[k])
+        sub = sub_grid(base, int(self.cells[k]), m, self.nodes[self.node_off[k]:self.node_off[k + 1]].reshape(m + 1, m + 1))
+        ids, offsets = all_edges(sub, interval)
+        ez = EZMap(sub.x0, sub.y0, sub.dx, sub.dy, m + 1, m + 1, interval, tol, ids, offsets,
+                   self.codes[self.code_off[k]:self.code_off[k + 1]], self.lo[self.edge_off[k]:self.edge_off[k + 1]],
+                   self.step[self.edge_off[k]:self.edge_off[k + 1]])
+        return sub, ez
+
+    def _stacks(self, base: ZMap, interval: float, tol: float) -> dict[int, dict]:
+        """Per EZ level, the patches' sub-grids and evaluation tables stacked (built once).
+
+        Every patch of a level has the same sub-edges, points and cells, so one kernel
+        call evaluates them all (:func:`zmap.refine._ez_kernels.patch_kernel`).
+        """
+        key = (id(base), base.z.ctypes.data, interval, tol)
+        if self._maps.get("key") == key:
+            return self._maps["stacks"]
+        stacks = {}
+        for m in np.unique(self.level[self.level > 0]):
+            index = np.flatnonzero(self.level == m)
+            maps = [self._patch_maps(int(k), base, interval, tol) for k in index]
+            tabs = [ez._tables(sub) for sub, ez in maps]
+            sub0, ez0 = maps[0]
+            st = {name: np.ascontiguousarray(np.stack([t[name] for t in tabs]))
+                  for name in ("brk_kind", "brk_t", "nb", "bk", "bt", "pts", "arc")}
+            st.update(index=index, zs=np.ascontiguousarray(np.stack([sub.z for sub, _ in maps])),
+                      x0s=np.array([sub.x0 for sub, _ in maps]), y0s=np.array([sub.y0 for sub, _ in maps]),
+                      dx=sub0.dx, dy=sub0.dy, edge_ids=ez0.edge_ids, offsets=ez0.offsets,
+                      ecell_ids=tabs[0]["ecell_ids"], slots=tabs[0]["slots"],
+                      codes=np.ascontiguousarray(np.stack([ez.codes for _, ez in maps])),
+                      lo=np.ascontiguousarray(np.stack([ez.lo for _, ez in maps])),
+                      step=np.ascontiguousarray(np.stack([ez.step for _, ez in maps])))
+            stacks[int(m)] = st
+        self._maps = {"key": key, "stacks": stacks}
+        return stacks
+
+    def evaluate(self, base: ZMap, interval: float, tol: float, x: np.ndarray, y: np.ndarray,
+                 out: np.ndarray) -> None:
+        """Overwrite ``out`` where a point lies in a patched cell and its patch has a height.
+
+        ``x``, ``y``, ``out``: flat float64 arrays, world xy.
+        """
+        from . import _ez_kernels as _k
+
+        if not self.n_patches or x.size == 0:
+            return
+        lx, ly = base.world_to_local(x, y)
+        i = np.floor((lx - base.x0) / base.dx).astype(np.int64)
+        j = np.floor((ly - base.y0) / base.dy).astype(np.int64)
+        # points on the map's far edges belong to the last cell, as in the kernels
+        i = np.where(i == base.nx - 1, base.nx - 2, i)
+        j = np.where(j == base.ny - 1, base.ny - 2, j)
+        inside = (i >= 0) & (i <= base.nx - 2) & (j >= 0) & (j <= base.ny - 2)
+        cid = np.where(inside, i * (base.ny - 1) + j, -1)
+        pos = np.minimum(np.searchsorted(self.cells, cid), self.n_patches - 1)
+        hit = np.flatnonzero(inside & (self.cells[pos] == cid))
+        if hit.size == 0:
+            return
+        k = pos[hit]
+        level = self.level[k]
+        h = np.full(hit.size, np.nan)
+        lat = level < 0
+        if lat.any():
+            h[lat] = self._lattice(k[lat], base, lx[hit[lat]], ly[hit[lat]])
+        if not lat.all():
+            c, s_ = math.cos(base.angle), math.sin(base.angle)
+            for m, st in self._stacks(base, interval, tol).items():
+                sel = np.flatnonzero(level == m)
+                if sel.size == 0:
+                    continue
+                ks = np.searchsorted(st["index"], k[sel])
+                hs = np.empty(sel.size)
+                kernel = _k.patch_kernel if sel.size >= SERIAL_BELOW else _k.patch_kernel_serial
+                kernel(st["zs"], st["x0s"], st["y0s"], st["dx"], st["dy"], c, s_, base.origin[0], base.origin[1],
+                       np.ascontiguousarray(x[hit[sel]]), np.ascontiguousarray(y[hit[sel]]), ks, st["edge_ids"],
+                       st["offsets"], st["codes"], st["lo"], st["step"], st["brk_kind"], st["brk_t"], st["ecell_ids"],
+                       st["slots"], st["nb"], st["bk"], st["bt"], st["pts"], st["arc"], hs)
+                h[sel] = hs
+        ok = ~np.isnan(h)
+        out[hit[ok]] = h[ok]
+
+    def _lattice(self, k: np.ndarray, base: ZMap, lx: np.ndarray, ly: np.ndarray) -> np.ndarray:
+        """Bilinear heights in lattice patches ``k`` (one per point) at local xy; NaN on a
+        missing corner."""
+        n = -self.level[k].astype(np.int64)
+        ci, cj = np.divmod(self.cells[k], base.ny - 1)
+        u = np.clip((lx - base.x0 - ci * base.dx) / base.dx * n, 0.0, n)
+        v = np.clip((ly - base.y0 - cj * base.dy) / base.dy * n, 0.0, n)
+        i = np.minimum(u.astype(np.int64), n - 1)
+        j = np.minimum(v.astype(np.int64), n - 1)
+        fu, fv = u - i, v - j
+        at = self.code_off[k] + i * (n + 1) + j
+        lo = self.lo[self.edge_off[k]].astype(np.float64)
+        st = self.step[self.edge_off[k]].astype(np.float64)
+
+        def z(q):
+            cq = self.codes[q]
+            return np.where(cq == NAN_CODE, np.nan, lo + st * cq.astype(np.float64))
+
+        return ((1 - fu) * ((1 - fv) * z(at) + fv * z(at + 1))
+                + fu * ((1 - fv) * z(at + n + 1) + fv * z(at + n + 2)))
