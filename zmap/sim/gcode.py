@@ -92,7 +92,7 @@ _OWORD_HEAD = re.compile(
 _M99 = re.compile(r"M0*99(?![\d.])")
 #: default limits of one parse: blocks run again by loops and calls (beyond one pass through the
 #: file's lines, so a long plain program is never cut) and moves made
-MAX_BLOCKS = 200_000
+MAX_BLOCKS = 100_000
 MAX_MOVES = 20_000_000
 #: the work envelope: no machine coordinate, offset or arc centre beyond this (mm)
 MAX_COORD_MM = 1.0e6
