@@ -42,6 +42,7 @@ import math
 from typing import Callable
 
 from ..errors import ZMapError
+from ._arcs import arc_sweep
 
 __all__ = ["CompError", "CutterComp"]
 
@@ -99,9 +100,6 @@ def _find_turn(x1: float, y1: float, cx: float, cy: float, turn: int, x2: float,
     """Signed sweep of an arc with LinuxCNC's ``turn`` (+n CCW, -n CW, 0 none)."""
     if turn == 0:
         return 0.0
-    # imported here: zmap.sim.gcode imports this module at its top
-    from .gcode import arc_sweep
-
     return arc_sweep(x1, y1, x2, y2, cx, cy, turn > 0, abs(turn) - 1)
 
 
@@ -156,7 +154,7 @@ class CutterComp:
             raise ValueError(f"side={side!r} is not one of 'left', 'right'")
         radius = float(radius)
         if not math.isfinite(radius):
-            raise ValueError(f"radius must be a finite number of mm, got {radius!r}")
+            raise ValueError(f"radius must be a finite number of mm, got {radius}")
         if radius < 0.0:
             radius = -radius
             side = "right" if side == "left" else "left"
@@ -237,7 +235,8 @@ class CutterComp:
         (0, 1)
         """
         if kind not in (0, 1):
-            raise ValueError(f"kind={kind!r} is not one of 0 (rapid), 1 (feed)")
+            raise ValueError(f"kind={getattr(kind, 'item', lambda: kind)()!r} is not one of "
+                             "0 (rapid), 1 (feed)")
         px, py, pz = (float(v) for v in end)
         feed = _NAN if kind == 0 else float(feed)
         if self.radius == 0.0:

@@ -36,6 +36,8 @@ from typing import Any, Callable, Mapping, NamedTuple
 import numpy as np
 
 from ..errors import GCodeError
+from ._arcs import arc_sweep
+from .cutter_comp import CompError, CutterComp
 from .ngc import NgcError, OWord, Parameters, compact, program_structure, scan_line
 
 __all__ = [
@@ -166,46 +168,7 @@ def plane_axes(plane: int) -> tuple[int, int, int]:
     try:
         return _PLANE_AXES[int(plane)]
     except KeyError:
-        raise ValueError(f"plane={plane!r} is not one of 17, 18, 19") from None
-
-
-def arc_sweep(a0: float, b0: float, a1: float, b1: float, ca: float, cb: float,
-              ccw: bool, turns: int = 0) -> float:
-    """Signed swept angle of an arc (radians, positive counter-clockwise), as LinuxCNC.
-
-    Parameters
-    ----------
-    a0, b0, a1, b1 : float
-        Start and end in plane coordinates (mm).
-    ca, cb : float
-        Centre in plane coordinates (mm).
-    ccw : bool
-        True for G3, False for G2.
-    turns : int
-        Extra full turns (P word minus one).
-
-    Returns
-    -------
-    float
-        In ``(0, 2*pi*(turns+1)]`` for G3, in ``[-2*pi*(turns+1), 0)`` for G2; an arc whose
-        end angle equals its start angle is a full circle.
-
-    Examples
-    --------
-    >>> round(arc_sweep(1, 0, 0, 1, 0, 0, True), 6)
-    1.570796
-    >>> round(arc_sweep(1, 0, 1, 0, 0, 0, False), 6)
-    -6.283185
-    """
-    alpha = math.atan2(b0 - cb, a0 - ca)
-    beta = math.atan2(b1 - cb, a1 - ca)
-    if ccw:
-        if beta <= alpha:
-            beta += 2.0 * math.pi
-        return (beta - alpha) + turns * 2.0 * math.pi
-    if alpha <= beta:
-        alpha += 2.0 * math.pi
-    return (beta - alpha) - turns * 2.0 * math.pi
+        raise ValueError(f"plane={_plain(plane)!r} is not one of 17, 18, 19") from None
 
 
 class ToolChange(NamedTuple):
@@ -1067,8 +1030,6 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
     # 13. cutter radius compensation (G40, G41, G42, G41.1, G42.1)
     comp = st.comp
     comp_code = groups.get(7)
-    if comp_code is not None or comp is not None:
-        from .cutter_comp import CompError, CutterComp  # here: it imports arc_sweep from us
     if comp_code in (410, 420, 411, 421):
         if comp is not None:
             raise gerr(comp_code, "cutter compensation is already on (G40 first)")
@@ -1489,6 +1450,11 @@ def _cycle(st, words, widx, gk, s, lineno, motion, plane, pos, f, off, absolute,
         old_cc = clear_cc
         cur = list(pt(aa, bb, clear_cc))
     return cur, cycle_r, cycle_z, cycle_q
+
+
+def _plain(v: Any) -> Any:
+    """A numpy scalar as the Python number it holds (messages print 17, not np.int8(17))."""
+    return v.item() if isinstance(v, np.generic) else v
 
 
 def _gname(code: int) -> str:

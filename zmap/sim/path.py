@@ -141,7 +141,7 @@ def _check_positive(name: str, v: Any) -> float:
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a positive number, got {v!r}") from None
     if not (math.isfinite(f) and f > 0):
-        raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+        raise ValueError(f"{name} must be a positive finite number, got {f!r}")
     return f
 
 
@@ -272,13 +272,13 @@ def arc_chords(start: Any, end: Any, center: Any, plane: Any, sweep: Any, *,
     sw = np.asarray(sweep, dtype=np.float64).reshape(-1)
     bad = ~np.isin(pl, list(_PLANE_AXES))
     if bad.any():
-        raise ValueError(f"plane must be 17, 18 or 19, got {pl[bad][0]!r}")
+        raise ValueError(f"plane must be 17, 18 or 19, got {pl[bad][0].item()!r}")
     bad = ~(np.isfinite(s).all(axis=1) & np.isfinite(e).all(axis=1)
             & np.isfinite(c).all(axis=1) & np.isfinite(sw))
     if bad.any():
         i = int(np.argmax(bad))
         raise PathError("<arc_chords>", 0, f"arc {i} has a non-finite start, end, centre or "
-                        f"sweep: {s[i].tolist()}, {e[i].tolist()}, {c[i].tolist()}, {sw[i]!r}")
+                        f"sweep: {s[i].tolist()}, {e[i].tolist()}, {c[i].tolist()}, {float(sw[i])!r}")
     g = _ArcGeometry(s, e, c, pl, sw, tol)
     total = float(g.nseg.sum())
     if not total <= cap:
@@ -469,7 +469,7 @@ def _check_cap(v: Any) -> float:
     except (TypeError, ValueError):
         raise ValueError(f"max_positions must be a number >= 1, got {v!r}") from None
     if not f >= 1:
-        raise ValueError(f"max_positions must be a number >= 1, got {v!r}")
+        raise ValueError(f"max_positions must be a number >= 1, got {f!r}")
     return f
 
 
