@@ -127,7 +127,9 @@ def test_treap_smaller_than_both_traces():
 
 
 def test_empty_program_and_empty_rays():
-    run = simulate(np.zeros((0, 3)), (0, 0, -1, 1, 1, 0), tool="flat:1", pitch=0.5, history="treap")
+    with pytest.warns(UserWarning, match="no moves"):
+        run = simulate(np.zeros((0, 3)), (0, 0, -1, 1, 1, 0), tool="flat:1", pitch=0.5,
+                       history="treap")
     assert run.n_stages == 0
     assert run.reconstruct(0).same_as(run.stock)
     with pytest.raises(Exception, match="out of range 0..0"):
