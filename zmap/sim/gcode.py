@@ -31,7 +31,7 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, NamedTuple
+from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -91,6 +91,7 @@ _LINE_END = re.compile(r"\r*\n|\r")
 _OWORD_HEAD = re.compile(
     r"(?:N\d+(?:\.\d*)?)?O(?:<([^>]*)>|(\d+))(ENDSUB|ENDWHILE|ENDREPEAT|ENDIF|ELSEIF|ELSE|SUB|"
     r"CALL|DO|WHILE|IF|BREAK|CONTINUE|RETURN|REPEAT)?")
+_OWORD_EXPR_HEAD = re.compile(r"(?:N\d+(?:\.\d*)?)?O\[")
 _M99 = re.compile(r"M0*99(?![\d.])")
 #: default limits of one parse: blocks run again by loops and calls (beyond one pass through the
 #: file's lines, so a long plain program is never cut) and moves made
@@ -327,6 +328,9 @@ class _Interp:
         sysp["_INCREMENTAL"] = lambda: float(not self.absolute)
         sysp["_FEED"] = lambda: 0.0 if math.isnan(self.feed) else self.feed / self.scale()
         sysp[5410] = lambda: self.tool_diameter(self.tool) / self.scale()
+        # LinuxCNC's return value of the last subroutine: 0 until a return or endsub sets it
+        self.params.globals["_VALUE"] = 0.0
+        self.params.globals["_VALUE_RETURNED"] = 0.0
         for cs in range(9):  # #5221-#5229 G54 ... #5381-#5389 G59.3 (X Y Z of each)
             for i in range(3):
                 sysp[5221 + 20 * cs + i] = (lambda cs=cs, i=i: self.offsets[cs][i] / self.scale())
@@ -379,6 +383,7 @@ def parse(
     block_delete: bool = True,
     max_blocks: int = MAX_BLOCKS,
     max_moves: int = MAX_MOVES,
+    subroutine_path: str | os.PathLike | Sequence[str | os.PathLike] | None = None,
 ) -> Program:
     """Read a 3-axis milling program into moves in millimetres.
 
@@ -404,6 +409,11 @@ def parse(
         pass through a loop or a subroutine counts) and moves made. A program beyond
         either stops with GCodeError at the block
         that crossed it, before memory runs out (an endless ``while`` loop, ``L1000000000``).
+    subroutine_path : str, path-like or sequence of them, keyword-only
+        Folders searched first for ``<name>.ngc`` when ``O<name> call`` names a subroutine
+        the program does not define (LinuxCNC's ``[RS274NGC]SUBROUTINE_PATH``; a string may
+        list several, separated by ``:``). Relative folders are taken from the program's
+        folder. The program's folder and the folders below it are searched after them.
 
     Returns
     -------
@@ -448,7 +458,9 @@ def parse(
     st = _Interp(fname, table)
     warnings: list[str] = []
     src = _Source.from_lines(lines, fname, block_delete, lenient, warnings)
-    _Runner(st, src, lenient, warnings, max_blocks, max_moves).run()
+    runner = _Runner(st, src, lenient, warnings, max_blocks, max_moves)
+    runner.sub_dirs = _subroutine_dirs(subroutine_path, fname)
+    runner.run()
     if st.comp is not None:
         st.comp.flush()
 
@@ -478,6 +490,25 @@ def parse(
     )
 
 
+
+
+def _subroutine_dirs(path: Any, fname: str) -> list[Path]:
+    """The folders of ``parse(subroutine_path=...)``, relative ones from the program's folder."""
+    if path is None:
+        return []
+    if isinstance(path, (str, os.PathLike)):
+        items = str(path).split(":") if isinstance(path, str) else [path]
+    else:
+        items = list(path)
+    base = Path(fname).parent if os.path.isfile(fname) else Path.cwd()
+    out = []
+    for item in items:
+        if not isinstance(item, (str, os.PathLike)):
+            raise TypeError(f"subroutine_path must hold folder names, got {item!r}")
+        if str(item):
+            d = Path(item)
+            out.append(d if d.is_absolute() else base / d)
+    return out
 
 
 class _LimitError(GCodeError):
@@ -547,6 +578,12 @@ class _Source:
                 if m:
                     label = f"<{m.group(1)}>" if m.group(1) is not None else str(int(m.group(2)))
                     self.owords[idx] = OWord(label, m.group(3) or "", (), cols[0])
+                elif _OWORD_EXPR_HEAD.match(c):
+                    # O[expression]: LinuxCNC's computed label (the runner evaluates it); the
+                    # text pairs statements that share it
+                    label, kw = _bracketed_label(c)
+                    if label is not None:
+                        self.owords[idx] = OWord(label, kw, (), cols[0])
             if "M" in s and "99" in s and _M99.search(compact(s)[0]):
                 m99.append(idx)
         while True:
@@ -561,6 +598,19 @@ class _Source:
                 warnings.append(str(err))
                 del self.owords[e.pos]
                 self.lines[e.pos] = None
+
+
+def _bracketed_label(c: str) -> tuple[str | None, str]:
+    """``("[expr]", keyword)`` of a compact ``O[expr] keyword`` line (None if unbalanced)."""
+    i = c.index("[")
+    depth = 0
+    for k in range(i, len(c)):
+        depth += (c[k] == "[") - (c[k] == "]")
+        if depth == 0:
+            m = re.match(r"ENDSUB|ENDWHILE|ENDREPEAT|ENDIF|ELSEIF|ELSE|SUB|CALL|DO|WHILE|IF|BREAK|"
+                         r"CONTINUE|RETURN|REPEAT", c[k + 1:])
+            return c[i:k + 1], (m.group() if m else "")
+    return None, ""
 
 
 @dataclass
@@ -587,7 +637,8 @@ class _Runner:
         self.max_blocks = max_blocks
         self.max_moves = max_moves
         st.max_moves = max_moves
-        self.files: dict[str, _Source] = {}
+        self.files: dict[str, _Source | None] = {}
+        self.sub_dirs: list[Path] = []
 
     def run(self) -> None:
         st = self.st
@@ -680,33 +731,51 @@ class _Runner:
         _block(st, _plain_words(src.name, lineno, s), s, lineno)
 
     def _find(self, src: _Source, label: str, i: int) -> tuple[_Source, int]:
-        """The source and line index of subroutine ``label`` (this file, the main file, or
-        ``<name>.ngc`` beside the main file)."""
-        for cand in (src, self.main):
+        """The source and line index of subroutine ``label``: defined in this file, the main
+        file or a file already read, else in ``<name>.ngc`` (LinuxCNC's find_ngc_file): in a
+        folder of ``subroutine_path``, beside the main file, or in a folder below it."""
+        for cand in (src, self.main, *(f for f in self.files.values() if f is not None)):
             idx = cand.structure.subs.get(label)
             if idx is not None:
                 return cand, idx
-        if label.startswith("<"):
-            name = label[1:-1].lower()
-            if name in self.files:
-                cand = self.files[name]
-            else:
+        if not label.startswith("P"):
+            name = label.strip("<>").lower()  # LinuxCNC reads the line in lower case
+            if name not in self.files:
+                path = self._sub_file(name)
                 cand = None
-                base = Path(self.main.name).parent
-                for fname in (f"{name}.ngc", f"{name}.NGC", f"{label[1:-1]}.ngc"):
-                    path = base / fname
-                    if self.main.name != "<string>" and path.is_file():
-                        text = path.read_text(encoding="utf-8", errors="replace")
-                        lines = _LINE_END.split(text.lstrip("\ufeff"))
-                        cand = _Source.from_lines(lines, str(path), True, self.lenient,
-                                                  self.warnings)
-                        break
+                if path is not None:
+                    text = path.read_text(encoding="utf-8", errors="replace")
+                    lines = _LINE_END.split(text.lstrip("\ufeff"))
+                    cand = _Source.from_lines(lines, str(path), True, self.lenient,
+                                              self.warnings)
                 self.files[name] = cand
+            cand = self.files[name]
             if cand is not None and label in cand.structure.subs:
                 return cand, cand.structure.subs[label]
         shown = f"O{label}" if not label.startswith("P") else f"program O{label[1:]}"
         raise GCodeError(src.name, i, 1, shown, f"{shown} is not defined"
-                         + (" in the file or beside it" if label.startswith("<") else ""))
+                         + ("" if label.startswith("P") else
+                            " in the file, nor in a file beside it or in subroutine_path"))
+
+    def _sub_file(self, name: str) -> Path | None:
+        """``<name>.ngc`` in the subroutine folders, beside the main file, or below it."""
+        fname = f"{name}.ngc"
+        dirs = list(self.sub_dirs)
+        if self.main.name != "<string>" and os.path.isfile(self.main.name):
+            dirs.append(Path(self.main.name).parent)
+        for d in dirs:
+            for cand in (d / fname, d / fname.upper()):
+                if cand.is_file():
+                    return cand
+        if len(dirs) > len(self.sub_dirs):  # LinuxCNC's findFile: the folders below, in turn
+            root = dirs[-1]
+            for top, subdirs, files in os.walk(root):
+                subdirs[:] = sorted(x for x in subdirs if not x.startswith("."))
+                if len(Path(top).relative_to(root).parts) >= 4:
+                    subdirs[:] = []
+                if top != str(root) and fname in files:
+                    return Path(top) / fname
+        return None
 
     def _oword(self, src: _Source, i: int, ow: OWord, frames: list[_Frame],
                repeats: dict[tuple[int, int], int], jumped: bool) -> tuple[_Source, int, bool]:
@@ -730,11 +799,12 @@ class _Runner:
             return args[0] != 0.0
 
         if kw == "CALL":
-            tsrc, tidx = self._find(src, ow.label, i + 1)
+            label = line.oword.label if line.oword is not None else ow.label  # O[expr]: evaluated
+            tsrc, tidx = self._find(src, label, i + 1)
             if len(frames) >= 100:
                 raise GCodeError(src.name, i + 1, ow.col, word, "subroutine calls nested "
                                                                 "more than 100 deep")
-            frames.append(_Frame(src, i + 1, "sub", tidx, 1, ow.label))
+            frames.append(_Frame(src, i + 1, "sub", tidx, 1, label))
             st.params.push(args)
             return tsrc, tidx + 1, False
         if kw in ("ENDSUB", "RETURN"):
@@ -743,9 +813,9 @@ class _Runner:
                                  f"{kw.lower()} without a call in progress")
             f = frames.pop()
             st.params.pop()
+            # LinuxCNC's read_o: a value sets #<_value> and #<_value_returned>; none clears both
             st.params.set("<_VALUE_RETURNED>", 1.0 if args else 0.0)
-            if args:
-                st.params.set("<_VALUE>", args[0])
+            st.params.set("<_VALUE>", args[0] if args else 0.0)
             return f.source, f.return_idx, False
         if kw == "WHILE":
             if i in S.start:  # the while that closes a do-loop
@@ -780,6 +850,10 @@ class _Runner:
         if kw in ("BREAK", "CONTINUE"):
             loop = S.loop[i]
             lkw = src.owords[loop].keyword
+            if lkw == "REPEAT":  # LinuxCNC's convert_control_functions accepts while/do only
+                raise GCodeError(src.name, i + 1, ow.col, word,
+                                 f"{kw.lower()} works in while and do loops only, not in "
+                                 f"repeat O{ow.label}")
             if kw == "BREAK":
                 return src, S.end[loop] + 1, False
             return src, (loop if lkw == "WHILE" else S.end[loop]), False
@@ -1050,14 +1124,15 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
         else:
             if "D" not in words:
                 raise gerr(comp_code, f"{_gname(comp_code)} needs a D word (the diameter)")
-            if words["D"] < 0:
-                raise werr("D", "D (diameter) must not be negative")
-            radius = words["D"] * f / 2.0
+            radius = words["D"] * f / 2.0  # negative: the other side, as LinuxCNC
         used.add("D")
         pos0 = list(st.pos)
         pos0[2] -= tlo - st.tlo
-        comp = CutterComp("left" if comp_code in (410, 411) else "right", radius, tuple(pos0),
-                          st.rows.append)
+        side = "left" if comp_code in (410, 411) else "right"
+        if radius < 0:  # LinuxCNC: a negative radius (D or table) cuts on the other side
+            radius = -radius
+            side = "right" if side == "left" else "left"
+        comp = CutterComp(side, radius, tuple(pos0), st.rows.append)
     elif comp_code == 400 and comp is not None:
         try:
             comp.flush()

@@ -304,10 +304,19 @@ class _Compiler:
         if name == "EXISTS":
             k = j + 1
             if k < len(c) and c[k] == "#":
-                key, k2 = self.parameter(k)
-                if k2 < len(c) and c[k2] == "]" and isinstance(key, str):
-                    return (lambda P: 1.0 if P.exists(key) else 0.0), k2 + 1
-            raise NgcError(i, name, "EXISTS needs a named parameter: EXISTS[#<name>]")
+                if c.startswith("#<", k):
+                    key, k2 = self.parameter(k)
+                    if k2 < len(c) and c[k2] == "]":
+                        return (lambda P: 1.0 if P.exists(key) else 0.0), k2 + 1
+                else:  # a numbered parameter exists when its number is in range (LinuxCNC)
+                    number, k2 = self.value(k + 1)
+                    if k2 < len(c) and c[k2] == "]":
+                        def exists(P: Parameters) -> float:
+                            v = number(P)
+                            n = round(v)
+                            return 1.0 if abs(v - n) <= 1e-4 and 1 <= n <= MAX_PARAMETER else 0.0
+                        return exists, k2 + 1
+            raise NgcError(i, name, "EXISTS needs a parameter: EXISTS[#<name>] or EXISTS[#n]")
         a, j = self.expression(j)
         word = self.c[i:j][:40]
         if name == "ATAN":
@@ -444,7 +453,8 @@ def evaluate(expr: str, params: Parameters | None = None) -> float:
 class _CompiledLine(NamedTuple):
     words: tuple[tuple[str, Value, int], ...]  # letter, value, source column
     assigns: tuple[tuple[Any, Value, int, str], ...]  # key (name or number function), value, pos, text
-    oword: tuple[str, str, tuple[Value, ...], int] | None  # label, keyword, arguments, column
+    # label (text, or a Value for O[expr]), keyword, arguments, column
+    oword: tuple[Any, str, tuple[Value, ...], int] | None
     cols: tuple[int, ...]
 
 
@@ -496,6 +506,12 @@ def scan_line(s: str, params: Parameters) -> Line:
         out = Line()
         if cl.oword is not None:
             label, keyword, args, col = cl.oword
+            if not isinstance(label, str):
+                v = label(params)
+                if abs(v - round(v)) > 1e-4 or v < 0:
+                    raise NgcError(0, _head(s), f"O-word number {v:.6g} is not a non-negative "
+                                                 f"integer")
+                label = str(int(round(v)))
             out.oword = OWord(label, keyword, tuple(a(params) for a in args), col)
             return out
         out.words = [Word(letter, v(params), col) for letter, v, col in cl.words]
@@ -514,14 +530,22 @@ def scan_line(s: str, params: Parameters) -> Line:
         raise
 
 
+def _head(s: str) -> str:
+    """The first characters of a line's compact text (the word named in a message)."""
+    return compact(s)[0][:20]
+
+
 def _compile_oword(cp: _Compiler, i: int, cols: tuple[int, ...]) -> tuple:
     c = cp.c
     j = i + 1
+    label: str | Value
     if j < len(c) and c[j] == "<":
         m = _NAME.match(c, j)
         if not m or not m.group(1):
             raise NgcError(i, c[i:i + 20], "O-word name without a closing '>'")
         label, j = "<" + m.group(1) + ">", m.end()
+    elif j < len(c) and c[j] == "[":  # O[expression]: a number computed when the line runs
+        label, j = cp.expression(j)
     else:
         m = re.compile(r"\d+").match(c, j)
         if not m:
