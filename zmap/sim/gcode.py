@@ -1107,9 +1107,9 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
     if comp_code in (410, 420, 411, 421):
         if comp is not None:
             raise gerr(comp_code, "cutter compensation is already on (G40 first)")
-        if plane != 17:
-            raise gerr(comp_code, f"cutter compensation in the G{plane} plane is not supported "
-                                  "(G17 only)")
+        if plane == 19:  # LinuxCNC: "radius compensation only in XY or XZ plane"
+            raise gerr(comp_code, "cutter compensation in the G19 plane is not supported "
+                                  "(G17 and G18 only, as LinuxCNC)")
         if comp_code in (410, 420):
             d = tool
             if "D" in words:
@@ -1132,7 +1132,11 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
         if radius < 0:  # LinuxCNC: a negative radius (D or table) cuts on the other side
             radius = -radius
             side = "right" if side == "left" else "left"
-        comp = CutterComp(side, radius, tuple(pos0), st.rows.append)
+        if plane == 18:  # the XY engine in the (Z, X, Y) frame: G18 is right-handed as G17
+            comp = CutterComp(side, radius, (pos0[2], pos0[0], pos0[1]),
+                              _g18_rows(st.rows.append))
+        else:
+            comp = CutterComp(side, radius, tuple(pos0), st.rows.append)
     elif comp_code == 400 and comp is not None:
         try:
             comp.flush()
@@ -1240,15 +1244,14 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
                 else:
                     if g53:
                         raise gerr(530, "G53 with cutter compensation on")
-                    if plane != 17:
-                        raise gerr(motion, f"G{plane} plane with cutter compensation on "
-                                           "(G17 only)")
+                    cend, ccen = tuple(end), (row[4], row[5])
+                    if plane == 18:  # to the (Z, X, Y) frame of the engine
+                        cend, ccen = (end[2], end[0], end[1]), (row[6], row[4])
                     try:
                         if motion in (0, 10):
-                            comp.straight(row[0], tuple(end), feed_v, tool, lineno)
+                            comp.straight(row[0], cend, feed_v, tool, lineno)
                         else:
-                            comp.arc(motion == 30, tuple(end), (row[4], row[5]), row[8], feed_v,
-                                     tool, lineno)
+                            comp.arc(motion == 30, cend, ccen, row[8], feed_v, tool, lineno)
                     except CompError as e:
                         raise _err(file, lineno, gk.get(motion), _gname(motion), str(e)) from None
                 new_pos = end
@@ -1297,6 +1300,13 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
     st.m99 = mgroups.get(10) == 99
     if ended:
         st.ended = True
+
+
+def _g18_rows(append: Callable[[tuple], None]) -> Callable[[tuple], None]:
+    """Rows of the compensation engine run in the (Z, X, Y) frame, back in X Y Z, plane 18."""
+    def emit(r: tuple) -> None:
+        append((r[0], r[2], r[3], r[1], r[5], r[6], r[4], 18) + tuple(r[8:]))
+    return emit
 
 
 def _check_envelope(point, words: dict, werr, gerr, motion: int) -> None:

@@ -122,3 +122,19 @@ def test_negative_compensation_diameter_cuts_on_the_other_side():
     np.testing.assert_array_equal(neg.moves["end"], pos.moves["end"])
     np.testing.assert_array_equal(neg.moves["kind"], pos.moves["kind"])
     assert neg.moves["end"][1].tolist() == [-0.25, -2, 0]  # right of a -Y move is -X
+
+
+def test_compensation_in_the_g18_plane_is_the_g17_one_with_z_x_for_x_y():
+    # tests/interp/inside-corners: the same outline in G17 (X, Y) and in G18 (Z, X) gives the
+    # same compensated numbers, Z for X and X for Y
+    g17 = parse("G21 G17 G0 X0 Y0\nG41.1 D1\nG1 F100 X5 Y1\nG3 X8 Y4 I3 J0\nG1 Y8\nG40\nG1 X0\n")
+    g18 = parse("G21 G18 G0 Z0 X0\nG41.1 D1\nG1 F100 Z5 X1\nG3 Z8 X4 K3 I0\nG1 X8\nG40\nG1 Z0\n")
+    np.testing.assert_array_equal(g17.moves["kind"], g18.moves["kind"])
+    np.testing.assert_allclose(g18.moves["end"][:, [2, 0, 1]], g17.moves["end"], atol=1e-12)
+    arcs = g17.moves["kind"] >= 2
+    np.testing.assert_allclose(g18.moves["center"][arcs][:, [2, 0]],
+                               g17.moves["center"][arcs][:, [0, 1]], atol=1e-12)
+    np.testing.assert_allclose(g18.moves["sweep"], g17.moves["sweep"], atol=1e-12)
+    assert set(g18.moves["plane"].tolist()) == {18}
+    with pytest.raises(GCodeError, match="G19 plane"):
+        parse("G21 G19 G0 Y0 Z0\nG41.1 D1\nG1 F100 Y5\n")
