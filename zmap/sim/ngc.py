@@ -625,6 +625,10 @@ def program_structure(owords: dict[int, OWord], m99_lines: list[int]) -> Structu
                 raise fail(idx, ow, f"subprogram O{ow.label} has no M99")
             st.end[idx] = nxt
         elif kw == "SUB":
+            outer = next((o for _, o in stack if o.keyword == "SUB"), None)
+            if outer is not None:  # LinuxCNC: NCE_NESTED_SUBROUTINE_DEFN
+                raise fail(idx, ow, f"subroutine O{ow.label} is defined inside subroutine "
+                                    f"O{outer.label} (nested definitions are not allowed)")
             if ow.label in st.subs and not st.subs[ow.label] in st.fanuc:
                 raise fail(idx, ow, f"subroutine O{ow.label} is defined twice")
             st.subs[ow.label] = idx

@@ -138,3 +138,15 @@ def test_compensation_in_the_g18_plane_is_the_g17_one_with_z_x_for_x_y():
     assert set(g18.moves["plane"].tolist()) == {18}
     with pytest.raises(GCodeError, match="G19 plane"):
         parse("G21 G19 G0 Y0 Z0\nG41.1 D1\nG1 F100 Y5\n")
+
+
+def test_nested_subroutine_definition_is_an_error(tmp_path):
+    # tests/interp/nested-sub-error: a sub defined inside another sub (here in its own file)
+    (tmp_path / "nested.ngc").write_text(
+        "o<nested> sub\no100 sub\nG0 X#1\no100 endsub\no100 call [4]\no<nested> endsub\n")
+    main = tmp_path / "main.ngc"
+    main.write_text("o<nested> call [7]\nM2\n")
+    with pytest.raises(GCodeError, match="nested") as info:
+        parse(main)
+    assert (info.value.file, info.value.line, info.value.word) == (
+        str(tmp_path / "nested.ngc"), 2, "O100")
