@@ -21,8 +21,10 @@ finished rows to a callback in the reader's row format. It reproduces rs274ngc's
 * **Z-only moves** (no XY change) keep the tool's XY and are held back with the previous move,
   so a later inside corner moves them too.
 
-Only the G17 (XY) plane is handled. Problems raise :class:`CompError`; the reader turns it
-into :class:`zmap.errors.GCodeError` at the current block.
+The engine works in the XY plane; the reader runs G18 compensation through it in the (Z, X)
+frame, as LinuxCNC's results for G18 are the G17 ones with the axes renamed. Problems raise
+:class:`CompError`; the reader turns it into :class:`zmap.errors.GCodeError` at the current
+block.
 
 Examples
 --------
