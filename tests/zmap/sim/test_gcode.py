@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from zmap.errors import GCodeError
+from zmap.sim.canon import expected_moves, program_moves
 from zmap.sim.gcode import MOVE_DTYPE, Program, arc_sweep, parse
 from zmap.sim.tools import Cutter
 
@@ -137,8 +138,8 @@ def test_linuxcnc_expected_g17_g99_g81():
     mine = _my_moves(parse(DATA / "g17-g99-g81.ngc"))
     assert len(expected) == 37
     assert mine == expected
-    full = _canon_full(DATA / "g17-g99-g81.expected")
-    np.testing.assert_allclose([m[1] for m in _my_full(parse(DATA / "g17-g99-g81.ngc"))],
+    full = expected_moves(DATA / "g17-g99-g81.expected")
+    np.testing.assert_allclose([m[1] for m in program_moves(parse(DATA / "g17-g99-g81.ngc"))],
                                [e[1] for e in full], rtol=0, atol=0.5e-4 + 1e-9)
 
 
@@ -147,42 +148,14 @@ def test_linuxcnc_expected_g17_g99_g81():
 def test_linuxcnc_expected_parameters_subroutines_and_compensation(name, table, count):
     # O-word loops and ifs, # parameters and expressions, M98/M99 and G42 with the .tbl
     # (read in inches, as LinuxCNC's standalone rs274 does): every move as LinuxCNC prints it
-    expected = _canon_full(DATA / f"{name}.expected")
+    expected = expected_moves(DATA / f"{name}.expected")
     prog = parse(DATA / f"{name}.ngc", tool_table=DATA / table if table else None)
-    mine = _my_full(prog)
+    mine = program_moves(prog)
     assert len(expected) == count
     assert [m[0] for m in mine] == [e[0] for e in expected]  # move kinds, arc directions
     # the reference prints 4 decimals: equal within its rounding
     np.testing.assert_allclose(np.concatenate([m[1] for m in mine]),
                                np.concatenate([e[1] for e in expected]), rtol=0, atol=0.5e-4 + 1e-9)
-
-
-def _canon_full(path: Path) -> list[tuple[str, list[float]]]:
-    """Every move of an rs274 -g listing: kind (arcs with their turns) and its numbers."""
-    out = []
-    for raw in path.read_text().splitlines():
-        m = re.search(r"\b(STRAIGHT_TRAVERSE|STRAIGHT_FEED|ARC_FEED)\((.*)\)\s*$", raw)
-        if m:
-            a = [float(v) for v in m.group(2).split(",")]
-            if m.group(1) == "ARC_FEED":  # first end, second end, centre, rotation, axis end
-                out.append((f"ARC {int(a[4])}", [a[0], a[1], a[5], a[2], a[3]]))
-            else:
-                out.append((m.group(1), a[:3]))
-    return out
-
-
-def _my_full(prog: Program) -> list[tuple[str, list[float]]]:
-    scale = 25.4 if prog.units_input == "inch" else 1.0
-    out = []
-    for m in prog.moves:
-        e, c = m["end"] / scale, m["center"] / scale
-        if m["kind"] >= 2:
-            a, b, n = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}[int(m["plane"])]
-            rot = (1 if m["kind"] == 3 else -1) * (int(m["turns"]) + 1)
-            out.append((f"ARC {rot}", [e[a], e[b], e[n], c[a], c[b]]))
-        else:
-            out.append(("STRAIGHT_TRAVERSE" if m["kind"] == 0 else "STRAIGHT_FEED", list(e)))
-    return out
 
 
 # ---------------------------------------------------------------- syntax ---------------------
