@@ -2,11 +2,17 @@
 
 ``from zmap.mesh import triangulate, TriMesh, write_stl`` works; submodules load on first
 use, so ``import zmap.mesh`` imports neither pyvista nor numba.
+
+The functions ``triangulate`` and ``decimate`` share their names with the modules that
+hold them; the package keeps the function under that name even after the module has
+been imported (``from zmap.mesh.triangulate import ...`` reaches the module).
 """
 
 from __future__ import annotations
 
 import importlib
+import sys
+import types
 from typing import Any
 
 _WHERE = {
@@ -23,5 +29,19 @@ __all__ = list(_WHERE)
 
 def __getattr__(name: str) -> Any:
     if name in _WHERE:
-        return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+        value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+        globals()[name] = value
+        return value
     raise AttributeError(f"module 'zmap.mesh' has no attribute {name!r}")
+
+
+class _Package(types.ModuleType):
+    """The package module: importing submodule ``triangulate`` must not hide function ``triangulate``."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if isinstance(value, types.ModuleType) and _WHERE.get(name) == name:
+            return  # the import system binding the submodule: keep the public function's name free
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
