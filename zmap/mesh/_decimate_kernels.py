@@ -1,0 +1,739 @@
+"""Numba kernels of :mod:`zmap.mesh.decimate` (no validation, flat arrays only).
+
+The region refinement is a port of Delatin (mapbox/delatin, ISC licence; Garland and
+Heckbert's greedy insertion with Delaunay legalisation) over integer node coordinates,
+with two changes: the region's border nodes are never candidates (the border vertices are
+given, shared with the neighbours, inserted first by splitting hull edges) and the
+recursion of the edge legalisation is an explicit stack.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["refine_line", "refine_kernel", "full_kernel", "measure_kernel", "remesh_regions",
+           "region_has_nan", "changed_regions", "rays_to_regions", "assemble"]
+
+
+@njit(cache=True, inline="always")
+def _orient(ax, ay, bx, by, cx, cy):
+    return (bx - cx) * (ay - cy) - (by - cy) * (ax - cx)
+
+
+@njit(cache=True, inline="always")
+def _incircle(ax, ay, bx, by, cx, cy, px, py):
+    dx = ax - px
+    dy = ay - py
+    ex = bx - px
+    ey = by - py
+    fx = cx - px
+    fy = cy - py
+    ap = dx * dx + dy * dy
+    bp = ex * ex + ey * ey
+    cp = fx * fx + fy * fy
+    return dx * (ey * cp - bp * fy) - dy * (ex * cp - bp * fx) + ap * (ex * fy - ey * fx) < 0
+
+
+# ---- 1D border polylines ------------------------------------------------------------------
+
+@njit(cache=True)
+def refine_line(h, tol, keep):
+    """Mark in ``keep`` the nodes of the polyline ``h`` kept so that every node is within
+    ``tol`` of the linear interpolation between kept nodes (greedy worst-node insertion)."""
+    n = h.shape[0]
+    for k in range(n):
+        keep[k] = False
+    if n == 0:
+        return
+    keep[0] = True
+    keep[n - 1] = True
+    stack = np.empty(2 * n + 2, dtype=np.int64)
+    sp = 0
+    stack[0] = 0
+    stack[1] = n - 1
+    sp = 2
+    while sp > 0:
+        b = stack[sp - 1]
+        a = stack[sp - 2]
+        sp -= 2
+        if b - a < 2:
+            continue
+        ha = h[a]
+        hb = h[b]
+        inv = 1.0 / (b - a)
+        worst = -1.0
+        m = -1
+        for k in range(a + 1, b):
+            e = abs(ha + (hb - ha) * ((k - a) * inv) - h[k])
+            if e > worst:
+                worst = e
+                m = k
+        if worst > tol:
+            keep[m] = True
+            stack[sp] = a
+            stack[sp + 1] = m
+            stack[sp + 2] = m
+            stack[sp + 3] = b
+            sp += 4
+
+
+# ---- Delatin state helpers ---------------------------------------------------------------
+# st: [n_vertices, n_triangles, queue length, pending length]
+
+@njit(cache=True)
+def _q_swap(q, qerr, qidx, i, j):
+    ti = q[i]
+    tj = q[j]
+    q[i] = tj
+    q[j] = ti
+    e = qerr[i]
+    qerr[i] = qerr[j]
+    qerr[j] = e
+    qidx[tj] = i
+    qidx[ti] = j
+
+
+@njit(cache=True)
+def _q_up(q, qerr, qidx, j):
+    while j > 0:
+        i = (j - 1) >> 1
+        if not qerr[j] > qerr[i]:
+            break
+        _q_swap(q, qerr, qidx, i, j)
+        j = i
+
+
+@njit(cache=True)
+def _q_down(q, qerr, qidx, i0, n):
+    i = i0
+    while True:
+        j1 = 2 * i + 1
+        if j1 >= n:
+            break
+        j2 = j1 + 1
+        j = j1
+        if j2 < n and qerr[j2] > qerr[j1]:
+            j = j2
+        if not qerr[j] > qerr[i]:
+            break
+        _q_swap(q, qerr, qidx, i, j)
+        i = j
+    return i > i0
+
+
+@njit(cache=True)
+def _q_push(q, qerr, qidx, st, t, err):
+    i = st[2]
+    qidx[t] = i
+    q[i] = t
+    qerr[i] = err
+    st[2] = i + 1
+    _q_up(q, qerr, qidx, i)
+
+
+@njit(cache=True)
+def _q_pop(q, qerr, qidx, st):
+    n = st[2] - 1
+    _q_swap(q, qerr, qidx, 0, n)
+    _q_down(q, qerr, qidx, 0, n)
+    t = q[n]
+    st[2] = n
+    qidx[t] = -1
+    return t
+
+
+@njit(cache=True)
+def _q_remove(q, qerr, qidx, st, t):
+    i = qidx[t]
+    if i < 0:
+        return  # pending (its slot is rewritten at once by the caller)
+    n = st[2] - 1
+    if n != i:
+        _q_swap(q, qerr, qidx, i, n)
+        if not _q_down(q, qerr, qidx, i, n):
+            _q_up(q, qerr, qidx, i)
+    st[2] = n
+    qidx[t] = -1
+
+
+@njit(cache=True)
+def _add_tri(tri, he, qidx, pend, inpend, st, a, b, c, ab, bc, ca, e):
+    if e < 0:
+        e = 3 * st[1]
+        st[1] += 1
+    t = e // 3
+    tri[e] = a
+    tri[e + 1] = b
+    tri[e + 2] = c
+    he[e] = ab
+    he[e + 1] = bc
+    he[e + 2] = ca
+    if ab >= 0:
+        he[ab] = e
+    if bc >= 0:
+        he[bc] = e + 1
+    if ca >= 0:
+        he[ca] = e + 2
+    qidx[t] = -1
+    if not inpend[t]:
+        inpend[t] = True
+        pend[st[3]] = t
+        st[3] += 1
+    return e
+
+
+@njit(cache=True)
+def _legalize(a_start, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack):
+    stack[0] = a_start
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        a = stack[sp]
+        b = he[a]
+        if b < 0:
+            continue
+        a0 = a - a % 3
+        b0 = b - b % 3
+        al = a0 + (a + 1) % 3
+        ar = a0 + (a + 2) % 3
+        bl = b0 + (b + 2) % 3
+        br = b0 + (b + 1) % 3
+        p0 = tri[ar]
+        pr = tri[a]
+        pl = tri[al]
+        p1 = tri[bl]
+        if not _incircle(vx[p0], vy[p0], vx[pr], vy[pr], vx[pl], vy[pl], vx[p1], vy[p1]):
+            continue
+        hal = he[al]
+        har = he[ar]
+        hbl = he[bl]
+        hbr = he[br]
+        _q_remove(q, qerr, qidx, st, a0 // 3)
+        _q_remove(q, qerr, qidx, st, b0 // 3)
+        t0 = _add_tri(tri, he, qidx, pend, inpend, st, p0, p1, pl, -1, hbl, hal, a0)
+        t1 = _add_tri(tri, he, qidx, pend, inpend, st, p1, p0, pr, t0, har, hbr, b0)
+        if sp + 2 > stack.shape[0]:
+            return False
+        stack[sp] = t1 + 2
+        stack[sp + 1] = t0 + 1
+        sp += 2
+    return True
+
+
+@njit(cache=True)
+def _collinear(pn, a, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack):
+    a0 = a - a % 3
+    al = a0 + (a + 1) % 3
+    ar = a0 + (a + 2) % 3
+    p0 = tri[ar]
+    pr = tri[a]
+    pl = tri[al]
+    hal = he[al]
+    har = he[ar]
+    b = he[a]
+    ok = True
+    if b < 0:
+        t0 = _add_tri(tri, he, qidx, pend, inpend, st, pn, p0, pr, -1, har, -1, a0)
+        t1 = _add_tri(tri, he, qidx, pend, inpend, st, p0, pn, pl, t0, -1, hal, -1)
+        ok &= _legalize(t0 + 1, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+        ok &= _legalize(t1 + 2, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+        return ok
+    b0 = b - b % 3
+    bl = b0 + (b + 2) % 3
+    br = b0 + (b + 1) % 3
+    p1 = tri[bl]
+    hbl = he[bl]
+    hbr = he[br]
+    _q_remove(q, qerr, qidx, st, b0 // 3)
+    t0 = _add_tri(tri, he, qidx, pend, inpend, st, p0, pr, pn, har, -1, -1, a0)
+    t1 = _add_tri(tri, he, qidx, pend, inpend, st, pr, p1, pn, hbr, -1, t0 + 1, b0)
+    t2 = _add_tri(tri, he, qidx, pend, inpend, st, p1, pl, pn, hbl, -1, t1 + 1, -1)
+    t3 = _add_tri(tri, he, qidx, pend, inpend, st, pl, p0, pn, hal, t0 + 2, t2 + 1, -1)
+    ok &= _legalize(t0, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+    ok &= _legalize(t1, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+    ok &= _legalize(t2, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+    ok &= _legalize(t3, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+    return ok
+
+
+@njit(cache=True)
+def _candidate(z, i0, j0, W, H, t, tri, vx, vy, cand, q, qerr, qidx, st):
+    """Rasterise triangle t; push it with its worst interior (non-border) node."""
+    a = tri[3 * t]
+    b = tri[3 * t + 1]
+    c = tri[3 * t + 2]
+    p0x = vx[a]
+    p0y = vy[a]
+    p1x = vx[b]
+    p1y = vy[b]
+    p2x = vx[c]
+    p2y = vy[c]
+    minx = int(min(p0x, p1x, p2x))
+    miny = int(min(p0y, p1y, p2y))
+    maxx = int(max(p0x, p1x, p2x))
+    maxy = int(max(p0y, p1y, p2y))
+    fminx = float(minx)
+    fminy = float(miny)
+    w00 = _orient(p1x, p1y, p2x, p2y, fminx, fminy)
+    w01 = _orient(p2x, p2y, p0x, p0y, fminx, fminy)
+    w02 = _orient(p0x, p0y, p1x, p1y, fminx, fminy)
+    a01 = p1y - p0y
+    b01 = p0x - p1x
+    a12 = p2y - p1y
+    b12 = p1x - p2x
+    a20 = p0y - p2y
+    b20 = p2x - p0x
+    area = _orient(p0x, p0y, p1x, p1y, p2x, p2y)
+    z0 = z[i0 + int(p0x), j0 + int(p0y)] / area
+    z1 = z[i0 + int(p1x), j0 + int(p1y)] / area
+    z2 = z[i0 + int(p2x), j0 + int(p2y)] / area
+    maxerr = 0.0
+    mx = 0
+    my = 0
+    for y in range(miny, maxy + 1):
+        dx = 0
+        if w00 < 0 and a12 != 0:
+            dx = max(dx, int(np.floor(-w00 / a12)))
+        if w01 < 0 and a20 != 0:
+            dx = max(dx, int(np.floor(-w01 / a20)))
+        if w02 < 0 and a01 != 0:
+            dx = max(dx, int(np.floor(-w02 / a01)))
+        w0 = w00 + a12 * dx
+        w1 = w01 + a20 * dx
+        w2 = w02 + a01 * dx
+        inside_row = y > 0 and y < H - 1
+        was = False
+        for x in range(minx + dx, maxx + 1):
+            if w0 >= 0 and w1 >= 0 and w2 >= 0:
+                was = True
+                if inside_row and x > 0 and x < W - 1:
+                    zz = z0 * w0 + z1 * w1 + z2 * w2
+                    d = abs(zz - z[i0 + x, j0 + y])
+                    if d > maxerr:
+                        maxerr = d
+                        mx = x
+                        my = y
+            elif was:
+                break
+            w0 += a12
+            w1 += a20
+            w2 += a01
+        w00 += b12
+        w01 += b20
+        w02 += b01
+    if (mx == p0x and my == p0y) or (mx == p1x and my == p1y) or (mx == p2x and my == p2y):
+        maxerr = 0.0
+    cand[2 * t] = mx
+    cand[2 * t + 1] = my
+    _q_push(q, qerr, qidx, st, t, maxerr)
+
+
+@njit(cache=True)
+def _flush(z, i0, j0, W, H, tri, vx, vy, cand, q, qerr, qidx, pend, inpend, st):
+    for k in range(st[3]):
+        t = pend[k]
+        inpend[t] = False
+        _candidate(z, i0, j0, W, H, t, tri, vx, vy, cand, q, qerr, qidx, st)
+    st[3] = 0
+
+
+@njit(cache=True)
+def refine_kernel(z, i0, j0, W, H, tol, side0, side1, side2, side3, vout, tout):
+    """Greedy refinement of the region z[i0:i0+W, j0:j0+H] to vertical error ``tol``.
+
+    side0..side3: sorted positions of the border vertices (corners excluded) on the sides
+    y=0 (x), x=W-1 (y), y=H-1 (x), x=0 (y). Writes vertex node offsets (x*H + y, local)
+    into ``vout`` and counter-clockwise triangles (local vertex indices) into ``tout``;
+    returns (n_vertices, n_triangles), or (-1, -1) if a work array overflowed.
+    """
+    nmax = W * H
+    tmax = 2 * nmax + 8
+    vx = np.empty(nmax, dtype=np.float64)
+    vy = np.empty(nmax, dtype=np.float64)
+    tri = np.empty(3 * tmax, dtype=np.int32)
+    he = np.empty(3 * tmax, dtype=np.int32)
+    cand = np.zeros(2 * tmax, dtype=np.int32)
+    q = np.empty(tmax, dtype=np.int32)
+    qerr = np.empty(tmax, dtype=np.float64)
+    qidx = np.full(tmax, -1, dtype=np.int32)
+    pend = np.empty(tmax, dtype=np.int32)
+    inpend = np.zeros(tmax, dtype=np.bool_)
+    stack = np.empty(6 * tmax + 64, dtype=np.int32)
+    st = np.zeros(4, dtype=np.int64)
+    x1 = W - 1
+    y1 = H - 1
+    # corners p0 (0,0), p1 (x1,0), p2 (0,y1), p3 (x1,y1)
+    vx[0] = 0.0
+    vy[0] = 0.0
+    vx[1] = x1
+    vy[1] = 0.0
+    vx[2] = 0.0
+    vy[2] = y1
+    vx[3] = x1
+    vy[3] = y1
+    st[0] = 4
+    t0 = _add_tri(tri, he, qidx, pend, inpend, st, 3, 0, 2, -1, -1, -1, -1)
+    _add_tri(tri, he, qidx, pend, inpend, st, 0, 3, 1, t0, -1, -1, -1)
+    ok = True
+    for s in range(4):
+        if s == 0:
+            pos = side0
+            start = 0
+            end = 1
+        elif s == 1:
+            pos = side1
+            start = 1
+            end = 3
+        elif s == 2:
+            pos = side2
+            start = 2
+            end = 3
+        else:
+            pos = side3
+            start = 0
+            end = 2
+        prev = start
+        for k in range(pos.shape[0]):
+            p = pos[k]
+            n = st[0]
+            if s == 0:
+                vx[n] = p
+                vy[n] = 0.0
+            elif s == 1:
+                vx[n] = x1
+                vy[n] = p
+            elif s == 2:
+                vx[n] = p
+                vy[n] = y1
+            else:
+                vx[n] = 0.0
+                vy[n] = p
+            st[0] = n + 1
+            # the hull edge prev-end holds the new point
+            e = -1
+            for h in range(3 * st[1]):
+                if he[h] < 0:
+                    u = tri[h]
+                    v = tri[h - h % 3 + (h + 1) % 3]
+                    if (u == prev and v == end) or (u == end and v == prev):
+                        e = h
+                        break
+            if e < 0:
+                return -1, -1
+            ok &= _collinear(n, e, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+            prev = n
+    _flush(z, i0, j0, W, H, tri, vx, vy, cand, q, qerr, qidx, pend, inpend, st)
+    while st[2] > 0 and qerr[0] > tol:
+        if st[0] >= nmax:
+            break
+        t = _q_pop(q, qerr, qidx, st)
+        e0 = 3 * t
+        e1 = e0 + 1
+        e2 = e0 + 2
+        p0 = tri[e0]
+        p1 = tri[e1]
+        p2 = tri[e2]
+        ax = vx[p0]
+        ay = vy[p0]
+        bx = vx[p1]
+        by = vy[p1]
+        cx = vx[p2]
+        cy = vy[p2]
+        px = float(cand[2 * t])
+        py = float(cand[2 * t + 1])
+        pn = st[0]
+        vx[pn] = px
+        vy[pn] = py
+        st[0] = pn + 1
+        if _orient(ax, ay, bx, by, px, py) == 0:
+            ok &= _collinear(pn, e0, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+        elif _orient(bx, by, cx, cy, px, py) == 0:
+            ok &= _collinear(pn, e1, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+        elif _orient(cx, cy, ax, ay, px, py) == 0:
+            ok &= _collinear(pn, e2, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+        else:
+            h0 = he[e0]
+            h1 = he[e1]
+            h2 = he[e2]
+            a0 = _add_tri(tri, he, qidx, pend, inpend, st, p0, p1, pn, h0, -1, -1, e0)
+            a1 = _add_tri(tri, he, qidx, pend, inpend, st, p1, p2, pn, h1, -1, a0 + 1, -1)
+            a2 = _add_tri(tri, he, qidx, pend, inpend, st, p2, p0, pn, h2, a0 + 2, a1 + 1, -1)
+            ok &= _legalize(a0, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+            ok &= _legalize(a1, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+            ok &= _legalize(a2, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+        _flush(z, i0, j0, W, H, tri, vx, vy, cand, q, qerr, qidx, pend, inpend, st)
+    if not ok:
+        return -1, -1
+    nv = st[0]
+    nt = st[1]
+    for v in range(nv):
+        vout[v] = int(vx[v]) * H + int(vy[v])
+    for t in range(nt):
+        a = tri[3 * t]
+        b = tri[3 * t + 1]
+        c = tri[3 * t + 2]
+        s2 = (vx[b] - vx[a]) * (vy[c] - vy[a]) - (vy[b] - vy[a]) * (vx[c] - vx[a])
+        tout[t, 0] = a
+        if s2 < 0:
+            tout[t, 1] = c
+            tout[t, 2] = b
+        else:
+            tout[t, 1] = b
+            tout[t, 2] = c
+    return nv, nt
+
+
+@njit(cache=True)
+def full_kernel(z, i0, j0, W, H, vout, tout):
+    """Two counter-clockwise triangles per cell whose four corners are finite; vertices are
+    the nodes those cells use (local offsets x*H + y). Returns (n_vertices, n_triangles)."""
+    ids = np.full(W * H, -1, dtype=np.int64)
+    nv = 0
+    nt = 0
+    for x in range(W - 1):
+        for y in range(H - 1):
+            if (np.isnan(z[i0 + x, j0 + y]) or np.isnan(z[i0 + x + 1, j0 + y])
+                    or np.isnan(z[i0 + x + 1, j0 + y + 1]) or np.isnan(z[i0 + x, j0 + y + 1])):
+                continue
+            a = x * H + y
+            b = (x + 1) * H + y
+            c = (x + 1) * H + y + 1
+            d = x * H + y + 1
+            for o in (a, b, c, d):
+                if ids[o] < 0:
+                    ids[o] = nv
+                    vout[nv] = o
+                    nv += 1
+            tout[nt, 0] = ids[a]
+            tout[nt, 1] = ids[b]
+            tout[nt, 2] = ids[c]
+            tout[nt + 1, 0] = ids[a]
+            tout[nt + 1, 1] = ids[c]
+            tout[nt + 1, 2] = ids[d]
+            nt += 2
+    return nv, nt
+
+
+# ---- the error measure -------------------------------------------------------------------
+
+@njit(cache=True)
+def measure_kernel(z, vi, vj, faces, vz):
+    """Max over nodes of |mesh height - z| (exact integer barycentrics); a node that is a
+    vertex of its triangle counts its vertex height. NaN nodes inside a face give inf."""
+    worst = 0.0
+    for f in range(faces.shape[0]):
+        a = faces[f, 0]
+        b = faces[f, 1]
+        c = faces[f, 2]
+        ax = vi[a]
+        ay = vj[a]
+        bx = vi[b]
+        by = vj[b]
+        cx = vi[c]
+        cy = vj[c]
+        area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+        if area == 0:
+            continue
+        for x in range(min(ax, bx, cx), max(ax, bx, cx) + 1):
+            for y in range(min(ay, by, cy), max(ay, by, cy) + 1):
+                wa = (bx - x) * (cy - y) - (by - y) * (cx - x)
+                wb = (cx - x) * (ay - y) - (cy - y) * (ax - x)
+                wc = (ax - x) * (by - y) - (ay - y) * (bx - x)
+                if area > 0:
+                    if wa < 0 or wb < 0 or wc < 0:
+                        continue
+                else:
+                    if wa > 0 or wb > 0 or wc > 0:
+                        continue
+                h = z[x, y]
+                if np.isnan(h):
+                    return np.inf
+                if wb == 0 and wc == 0:
+                    m = vz[a]
+                elif wa == 0 and wc == 0:
+                    m = vz[b]
+                elif wa == 0 and wb == 0:
+                    m = vz[c]
+                else:
+                    m = (wa * vz[a] + wb * vz[b] + wc * vz[c]) / area
+                d = abs(m - h)
+                if d > worst:
+                    worst = d
+    return worst
+
+
+# ---- whole maps and local updates ---------------------------------------------------------
+
+@njit(cache=True)
+def region_has_nan(z, r, todo, out):
+    """out[bi, bj] = region (bi, bj) of ``todo`` holds a NaN node (borders included)."""
+    nx, ny = z.shape
+    for k in range(todo.shape[0]):
+        bi = todo[k, 0]
+        bj = todo[k, 1]
+        i0 = bi * r
+        j0 = bj * r
+        i1 = min(i0 + r, nx - 1)
+        j1 = min(j0 + r, ny - 1)
+        f = False
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                if np.isnan(z[i, j]):
+                    f = True
+                    break
+            if f:
+                break
+        out[bi, bj] = f
+
+
+@njit(cache=True)
+def changed_regions(a, b, r, nrx, nry, hit):
+    """hit[bi, bj] |= some node of region (bi, bj) (borders included) differs between a and b."""
+    nx, ny = a.shape
+    for i in range(nx):
+        for j in range(ny):
+            u = a[i, j]
+            v = b[i, j]
+            if u == v or (np.isnan(u) and np.isnan(v)):
+                continue
+            bi_lo = (i - 1) // r if i > 0 else 0
+            bi_hi = min(i // r, nrx - 1)
+            bj_lo = (j - 1) // r if j > 0 else 0
+            bj_hi = min(j // r, nry - 1)
+            for bi in range(bi_lo, bi_hi + 1):
+                for bj in range(bj_lo, bj_hi + 1):
+                    hit[bi, bj] = True
+
+
+@njit(cache=True)
+def _line_keep(z, tol, fixed, i0, j0, di, dj, n, keep, h):
+    for k in range(n):
+        h[k] = z[i0 + k * di, j0 + k * dj]
+    if fixed:
+        for k in range(n):
+            keep[k] = True
+    else:
+        refine_line(h[:n], tol, keep)
+
+
+@njit(cache=True)
+def _side(keep, n):
+    c = 0
+    for k in range(1, n - 1):
+        if keep[k]:
+            c += 1
+    out = np.empty(c, dtype=np.int64)
+    c = 0
+    for k in range(1, n - 1):
+        if keep[k]:
+            out[c] = k
+            c += 1
+    return out
+
+
+@njit(cache=True)
+def remesh_regions(z, r, tol, full, dense, todo, vpool, tpool, nv, nt):
+    """Mesh the regions listed in ``todo`` (pairs bi, bj) into the pools.
+
+    A region is meshed in full (two triangles per valid cell) when ``full`` is set or it is
+    marked ``dense`` (it holds a NaN node, or waits for its periodic decimation); a border
+    side shared with a dense region keeps every node. Otherwise
+    each side is refined as a polyline to ``tol`` (the same answer from both regions that
+    share it) and the interior by :func:`refine_kernel`. Returns the number of regions
+    whose work arrays overflowed (meshed in full instead).
+    """
+    nx, ny = z.shape
+    nrx, nry = dense.shape
+    keep = np.empty(r + 1, dtype=np.bool_)
+    h = np.empty(r + 1, dtype=np.float64)
+    bad = 0
+    for k in range(todo.shape[0]):
+        bi = todo[k, 0]
+        bj = todo[k, 1]
+        reg = bi * nry + bj
+        i0 = bi * r
+        j0 = bj * r
+        W = min(i0 + r, nx - 1) - i0 + 1
+        H = min(j0 + r, ny - 1) - j0 + 1
+        if full or dense[bi, bj]:
+            a, b = full_kernel(z, i0, j0, W, H, vpool[reg], tpool[reg])
+            nv[reg] = a
+            nt[reg] = b
+            continue
+        # side y=0 (shared with region bj-1), x=W-1 (bi+1), y=H-1 (bj+1), x=0 (bi-1)
+        fx0 = bj > 0 and dense[bi, bj - 1]
+        _line_keep(z, tol, fx0, i0, j0, 1, 0, W, keep, h)
+        s0 = _side(keep, W)
+        fx1 = bi + 1 < nrx and dense[bi + 1, bj]
+        _line_keep(z, tol, fx1, i0 + W - 1, j0, 0, 1, H, keep, h)
+        s1 = _side(keep, H)
+        fx2 = bj + 1 < nry and dense[bi, bj + 1]
+        _line_keep(z, tol, fx2, i0, j0 + H - 1, 1, 0, W, keep, h)
+        s2 = _side(keep, W)
+        fx3 = bi > 0 and dense[bi - 1, bj]
+        _line_keep(z, tol, fx3, i0, j0, 0, 1, H, keep, h)
+        s3 = _side(keep, H)
+        a, b = refine_kernel(z, i0, j0, W, H, tol, s0, s1, s2, s3, vpool[reg], tpool[reg])
+        if a < 0:
+            bad += 1
+            a, b = full_kernel(z, i0, j0, W, H, vpool[reg], tpool[reg])
+        nv[reg] = a
+        nt[reg] = b
+    return bad
+
+
+@njit(cache=True)
+def rays_to_regions(rays, ny, r, nrx, nry, hit):
+    """hit[bi, bj] = True for every region whose nodes (borders included) hold one of ``rays``
+    (ray = i*ny + j)."""
+    for k in range(rays.shape[0]):
+        i = rays[k] // ny
+        j = rays[k] - i * ny
+        bi_lo = (i - 1) // r if i > 0 else 0
+        bi_hi = min(i // r, nrx - 1)
+        bj_lo = (j - 1) // r if j > 0 else 0
+        bj_hi = min(j // r, nry - 1)
+        for bi in range(bi_lo, bi_hi + 1):
+            for bj in range(bj_lo, bj_hi + 1):
+                hit[bi, bj] = True
+
+
+@njit(cache=True)
+def assemble(vpool, tpool, nv, nt, r, nry, nx, ny, ids):
+    """Global mesh of all regions: vertex node ids (i*ny + j) and faces. ``ids`` (nx*ny,
+    int32) is scratch, returned filled with -1."""
+    nreg = nv.shape[0]
+    tv = 0
+    tt = 0
+    for reg in range(nreg):
+        tv += nv[reg]
+        tt += nt[reg]
+    nodes = np.empty(tv, dtype=np.int64)
+    faces = np.empty((tt, 3), dtype=np.int32)
+    local = np.empty(vpool.shape[1], dtype=np.int32)
+    n = 0
+    f = 0
+    for reg in range(nreg):
+        bi = reg // nry
+        bj = reg - bi * nry
+        i0 = bi * r
+        j0 = bj * r
+        H = min(j0 + r, ny - 1) - j0 + 1
+        for v in range(nv[reg]):
+            o = vpool[reg, v]
+            x = o // H
+            g = (i0 + x) * ny + j0 + (o - x * H)
+            if ids[g] < 0:
+                ids[g] = n
+                nodes[n] = g
+                n += 1
+            local[v] = ids[g]
+        for t in range(nt[reg]):
+            faces[f, 0] = local[tpool[reg, t, 0]]
+            faces[f, 1] = local[tpool[reg, t, 1]]
+            faces[f, 2] = local[tpool[reg, t, 2]]
+            f += 1
+    for k in range(n):
+        ids[nodes[k]] = -1
+    return nodes[:n], faces
