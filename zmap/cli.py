@@ -87,6 +87,9 @@ def info(path: str) -> None:
 from .sim.commands import replay_cmd, simulate_cmd  # noqa: E402  (sim commands)
 cli.add_command(simulate_cmd)  # sim commands
 cli.add_command(replay_cmd)  # sim commands
+# view command (zmap/view/commands.py): pyvista and trame load only when it runs
+from .view.commands import view_cmd  # noqa: E402  (view command)
+cli.add_command(view_cmd)  # view command
 # cad commands (cad_io/commands.py): convert, refine, report; they import OCP and the sampler only when run
 from cad_io.commands import convert_cmd, refine_cmd, report_cmd  # noqa: E402  (cad commands)
 cli.add_command(convert_cmd)  # cad commands

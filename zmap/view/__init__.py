@@ -1,0 +1,22 @@
+"""Local web viewer of a simulation run: the stock in 3D with a stage slider (pyvista + trame).
+
+``zmap view RUN.zsim`` serves it on 127.0.0.1; :func:`make_viewer` builds the same app in
+Python. Nothing here is imported by ``import zmap``: pyvista and trame load when a viewer is
+made.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["Viewer", "make_viewer", "stage_caption"]
+
+_LAZY = {"Viewer": "app", "make_viewer": "app", "stage_caption": "app"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
