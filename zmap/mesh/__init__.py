@@ -20,7 +20,7 @@ _WHERE = {
     "TriMesh": "triangulate", "triangulate": "triangulate",
     "write_stl": "export", "write_ply": "export", "write_vtp": "export", "write_gltf": "export",
     # --- local decimation (zmap/mesh/decimate.py, zmap/mesh/local.py): the other helper's names go here ---
-    "LocalMesh": "local", "decimate": "decimate", "refine_region": "decimate",
+    "LocalMesh": "local", "decimate": "decimate", "refine_region": "decimate", "max_error": "decimate",
     # --- end of local decimation ---
 }
 
