@@ -328,51 +328,44 @@ def triangulate(source: Any, *, grid: tuple[float, float, float, float] | None =
 
     valid = np.isfinite(z)
     cell = valid[:-1, :-1] & valid[1:, :-1] & valid[1:, 1:] & valid[:-1, 1:]
+    # pc[i + 1, j + 1] = cell (i, j) is kept; a frame of False around it
+    pc = np.zeros((nx + 1, ny + 1), dtype=bool)
+    pc[1:-1, 1:-1] = cell
+    sw, se, nw, ne = pc[:-1, :-1], pc[1:, :-1], pc[:-1, 1:], pc[1:, 1:]  # the 4 cells around each node
+    used = sw | se | nw | ne
+    if closed:
+        # Nodes where two cells meet only at a corner: the cell that has the node as its
+        # corner 'a' (cells SW + NE) or its corner 'd' (cells SE + NW) gets a second vertex.
+        pinch_a = sw & ne & ~se & ~nw
+        pinch_d = se & nw & ~sw & ~ne
+    else:
+        pinch_a = pinch_d = np.zeros((nx, ny), dtype=bool)
+    pinched = pinch_a | pinch_d
+
+    # Vertex ids: used nodes in node order, then the second vertices of pinched nodes.
+    nodes = np.flatnonzero(used.ravel())
+    copies = np.flatnonzero(pinched.ravel())
+    id_plain = np.full(nx * ny, -1, dtype=np.int64)
+    id_plain[nodes] = np.arange(len(nodes))
+    id_copy = id_plain.copy()
+    id_copy[copies] = len(nodes) + np.arange(len(copies))
+    id_a = np.where(pinch_a.ravel(), id_copy, id_plain).reshape(nx, ny)  # vertex of a node as a cell's corner a
+    id_d = np.where(pinch_d.ravel(), id_copy, id_plain).reshape(nx, ny)  # ... as corner d
+    id_plain = id_plain.reshape(nx, ny)                                   # ... as corner b or c
+
     ci, cj = np.nonzero(cell)
-    ci = ci.astype(np.int64)
-    cj = cj.astype(np.int64)
-    a = ci * ny + cj
-    b = a + ny
-    c = b + 1
-    d = a + 1
+    top_faces = np.empty((2 * len(ci), 3), dtype=np.int64)
+    A, B, C, D = id_a[ci, cj], id_plain[ci + 1, cj], id_plain[ci + 1, cj + 1], id_d[ci, cj + 1]
+    top_faces[0::2, 0], top_faces[0::2, 1], top_faces[0::2, 2] = A, B, C
+    top_faces[1::2, 0], top_faces[1::2, 1], top_faces[1::2, 2] = A, C, D
 
-    n_nodes = nx * ny
-    src = np.arange(n_nodes, dtype=np.int64)  # grid node of each (possibly doubled) vertex id
-    if closed and cell.size:
-        # Nodes where two cells meet only at a corner: the cell with the node as its low
-        # corner 'a' (pattern SW+NE) or its corner 'd' (pattern NW+SE) gets a second vertex.
-        pc = np.zeros((nx + 1, ny + 1), dtype=bool)  # pc[i, j] = cell (i-1, j-1) is valid
-        pc[1:-1, 1:-1] = cell
-        sw, se, nw, ne = pc[:-1, :-1], pc[1:, :-1], pc[:-1, 1:], pc[1:, 1:]
-        pinch_a = sw & ne & ~se & ~nw   # node (i, j): cells (i-1, j-1) and (i, j)
-        pinch_d = se & nw & ~sw & ~ne   # node (i, j): cells (i, j-1) and (i-1, j)
-        pinched = np.flatnonzero((pinch_a | pinch_d).ravel())
-        if len(pinched):
-            copy_of = np.full(n_nodes, -1, dtype=np.int64)
-            copy_of[pinched] = n_nodes + np.arange(len(pinched))
-            src = np.concatenate([src, pinched])
-            pa = pinch_a.ravel()[a]
-            a = np.where(pa, copy_of[a], a)
-            pd_ = pinch_d.ravel()[d]
-            d = np.where(pd_, copy_of[d], d)
-
-    tri = np.empty((2 * len(a), 3), dtype=np.int64)
-    tri[0::2, 0], tri[0::2, 1], tri[0::2, 2] = a, b, c
-    tri[1::2, 0], tri[1::2, 1], tri[1::2, 2] = a, c, d
-
-    used = np.zeros(len(src), dtype=bool)
-    used[tri.ravel()] = True
-    ids = np.flatnonzero(used)
-    remap = np.full(len(src), -1, dtype=np.int64)
-    remap[ids] = np.arange(len(ids))
-    top_faces = remap[tri]
-    nodes = src[ids]
-    ni, nj = nodes // ny, nodes % ny
+    src = np.concatenate([nodes, copies])
+    ni, nj = src // ny, src % ny
     lx, ly = x0 + ni * dx, y0 + nj * dy
     wx, wy = to_world(lx, ly) if to_world is not None else (lx, ly)
-    top_z = z.ravel()[nodes]
+    top_z = z.ravel()[src]
     verts = np.column_stack([wx, wy, top_z]).astype(np.float64)
-    pdata = {name: arr.ravel()[nodes] for name, arr in extra.items()}
+    pdata = {name: arr.ravel()[src] for name, arr in extra.items()}
 
     if not closed:
         return TriMesh(verts, top_faces.astype(np.int32), pdata)
@@ -391,14 +384,18 @@ def triangulate(source: Any, *, grid: tuple[float, float, float, float] | None =
         return TriMesh(verts, top_faces.astype(np.int32), pdata)
     if bottom > top_z.min():
         raise ValueError(f"bottom={bottom!r} is above the lowest height {float(top_z.min())!r}")
+
+    # Boundary edges u -> v, directed as in their cell (counter-clockwise: a->b->c->d).
+    above, below = pc[1:-1, 1:], pc[1:-1, :-1]      # x-edge (i, j)-(i+1, j): cells (i, j) and (i, j-1)
+    i1, j1 = np.nonzero(above & ~below)             # bottom edge a -> b of cell (i, j)
+    i2, j2 = np.nonzero(below & ~above)             # top edge c -> d of cell (i, j-1)
+    right, left = pc[1:, 1:-1], pc[:-1, 1:-1]       # y-edge (i, j)-(i, j+1): cells (i, j) and (i-1, j)
+    i3, j3 = np.nonzero(right & ~left)              # left edge d -> a of cell (i, j)
+    i4, j4 = np.nonzero(left & ~right)              # right edge b -> c of cell (i-1, j)
+    u = np.concatenate([id_a[i1, j1], id_plain[i2 + 1, j2], id_d[i3, j3 + 1], id_plain[i4, j4]])
+    v = np.concatenate([id_plain[i1 + 1, j1], id_d[i2, j2], id_a[i3, j3], id_plain[i4, j4 + 1]])
     n = len(verts)
-    # Boundary edges: directed top edges whose reverse is not a top edge.
-    e = np.stack([top_faces, np.roll(top_faces, -1, axis=1)], axis=2).reshape(-1, 2)
-    fwd = e[:, 0] * n + e[:, 1]
-    rev = e[:, 1] * n + e[:, 0]
-    bnd = e[~np.isin(rev, fwd)]
-    u, v = bnd[:, 0], bnd[:, 1]
-    walls = np.empty((2 * len(bnd), 3), dtype=np.int64)
+    walls = np.empty((2 * len(u), 3), dtype=np.int64)
     walls[0::2, 0], walls[0::2, 1], walls[0::2, 2] = v, u, u + n
     walls[1::2, 0], walls[1::2, 1], walls[1::2, 2] = v, u + n, v + n
     cap = top_faces[:, [0, 2, 1]] + n

@@ -131,6 +131,11 @@ def test_random_closed_mesh_is_watertight_with_prism_volume(seed):
     assert m.is_watertight()
     assert m.volume() == pytest.approx(vol, rel=1e-12, abs=1e-12)
     assert m.bounds()[2] == -4.0
+    # one wall quad per boundary edge of the open top (edges whose reverse no face uses)
+    top = triangulate(z, grid=(1.0, -1.0, 0.6, 0.4))
+    directed = set(map(tuple, top.edges().tolist()))
+    boundary = sum((v, u) not in directed for u, v in directed)
+    assert m.n_faces == 2 * top.n_faces + 2 * boundary
     # the bottom cap faces down
     v, f = m.vertices, m.faces
     n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
