@@ -167,7 +167,8 @@ class TriMesh:
         --------
         >>> import numpy as np
         >>> z = np.ones((4, 4))
-        >>> triangulate(z, grid=(0, 0, 1, 1)).is_watertight(), triangulate(z, grid=(0, 0, 1, 1), closed=True).is_watertight()
+        >>> top, solid = triangulate(z, grid=(0, 0, 1, 1)), triangulate(z, grid=(0, 0, 1, 1), closed=True)
+        >>> top.is_watertight(), solid.is_watertight()
         (False, True)
         """
         e = self.edges()
@@ -283,7 +284,7 @@ def triangulate(source: Any, *, grid: tuple[float, float, float, float] | None =
         a DexelWorkpiece, else the lowest height minus 1 mm. Must not be above any height.
     point_data : dict of str to ndarray of shape (nx, ny), optional
         Scalars on the grid nodes (e.g. ``{"deviation": dz}``) carried to the vertices;
-        bottom vertices of a closed mesh get NaN.
+        bottom vertices of a closed mesh get NaN (0 for integer data).
 
     Returns
     -------

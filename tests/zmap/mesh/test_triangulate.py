@@ -62,7 +62,7 @@ def test_random_open_mesh_against_brute_force(seed):
     vol, area, cells = _prism_reference(z, 0.7, 1.3, 0.0)
     assert m.n_faces == 2 * cells
     assert m.area() == pytest.approx(area, rel=1e-12)
-    # no duplicate vertex, every vertex used, and only nodes whose four cells ... have a face
+    # no duplicate vertex, and every vertex used by a face
     assert len(np.unique(m.vertices, axis=0)) == m.n_vertices
     assert np.array_equal(np.unique(m.faces), np.arange(m.n_vertices))
     assert np.isfinite(m.vertices).all()
@@ -112,7 +112,8 @@ def test_mesh_is_read_only_and_reports_sizes():
 # ---- closed meshes -------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("shape,dx,dy,h", [((2, 2), 1.0, 1.0, 3.0), ((6, 4), 0.3, 0.7, 2.5), ((11, 13), 0.26, 0.26, 12.0)])
+@pytest.mark.parametrize("shape,dx,dy,h", [((2, 2), 1.0, 1.0, 3.0), ((6, 4), 0.3, 0.7, 2.5),
+                                           ((11, 13), 0.26, 0.26, 12.0)])
 def test_constant_height_volume_is_area_times_height(shape, dx, dy, h):
     m = triangulate(np.full(shape, h), grid=(-5.0, 7.0, dx, dy), closed=True, bottom=0.0)
     assert m.is_watertight()
