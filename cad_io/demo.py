@@ -48,9 +48,10 @@ def run_demo(out_dir: str | Path) -> list[Path]:
         name = path.name.split(".")[0]
         written.append(zm.save(out / f"{name}.zmap.npz"))
         fig, ax = plt.subplots(figsize=(6.5, 5))
-        plot_zmap(zm, title=f"{path.name}, grid {grid:g} mm: {100 * s['share_jacobian']:.1f} % Jacobian, "
+        plot_zmap(zm, title=f"{path.name}: heights, grid {grid:g} mm\n{100 * s['share_jacobian']:.1f} % Jacobian, "
                             f"{100 * s['share_facet']:.1f} % facet", ax=ax)
-        written.append(atomic_write(out / f"{name}.png", lambda tmp, fig=fig: fig.savefig(tmp, dpi=110, format="png")))
+        written.append(atomic_write(out / f"{name}.png", lambda tmp, fig=fig: fig.savefig(tmp, dpi=110, format="png",
+                                                                                        bbox_inches="tight")))
         plt.close(fig)
         print(f"   {path.name}: {len(part.faces)} faces, {zm.nx} x {zm.ny} points, "
               f"jacobian {100 * s['share_jacobian']:.1f} %, facet {100 * s['share_facet']:.1f} %, "

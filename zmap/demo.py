@@ -1,7 +1,7 @@
 """The main job on bundled data, run by ``make demo``: ``python -m zmap.demo OUT_DIR``.
 
 Writes under OUT_DIR: the Table 1 reproduction (markdown and CSV), the Fig. 5 error maps,
-a master z-map of an analytic die surface with its shaded picture, and, where the feature
+a master z-map of an analytic die surface with its shaded picture and 3D view, and, where the feature
 is installed, the steps of the other features (STEP conversion, NC simulation).
 """
 
@@ -59,9 +59,13 @@ def run(out_dir: str | Path) -> list[Path]:
     bump = zmap_of(get("gaussian"), 0.5, margin=0)
     written.append(bump.save(out / "gaussian.zmap.npz"))
     fig, ax = plt.subplots(figsize=(6, 5))
-    plot_zmap(bump, title="gaussian bump, grid 0.5 mm", ax=ax)
-    written.append(atomic_write(out / "gaussian.png", lambda tmp: fig.savefig(tmp, dpi=110, format="png")))
+    plot_zmap(bump, title="gaussian bump, grid 0.5 mm: shaded heights", ax=ax)
+    written.append(atomic_write(out / "gaussian.png",
+                                lambda tmp: fig.savefig(tmp, dpi=110, format="png", bbox_inches="tight")))
     plt.close(fig)
+    from .plot3d import zmap_3d
+
+    written.append(zmap_3d(bump, out / "gaussian_3d.png", title="gaussian bump, grid 0.5 mm: heights (3D view)"))
 
     # Features that live in their own subpackages add their demo step here.
     for module, title in (("cad_io.demo", "STEP to master z-map (paper 004 §2.1)"), ("zmap.sim.demo", "NC simulation with history (papers 000, 001)"),):
@@ -71,6 +75,16 @@ def run(out_dir: str | Path) -> list[Path]:
         t = _step(title)
         written.extend(mod.run_demo(out))
         print(f"   {time.perf_counter() - t:.1f} s")
+
+    if (out / "demo_pocket.zsim") in written:
+        _step("3D view of the simulated stock (pyvista, off-screen)")
+        from .plot3d import stock_3d
+        from .sim.demo import DEMO_PROGRAM
+        from .sim.session import Run
+
+        run = Run.load(out / "demo_pocket.zsim")
+        written.append(stock_3d(run, "1/2", out / "demo_pocket_half_3d.png", name="demo_pocket.zsim",
+                                program=DEMO_PROGRAM))
 
     print("wrote:")
     for p in written:

@@ -64,20 +64,47 @@ def hillshade(z: np.ndarray, dx: float, dy: float, *, azimuth: float = 315.0, al
     return np.clip(shade, 0.0, 1.0)
 
 
-def plot_zmap(zm: ZMap, *, title: str = "", ax=None):
-    """Shaded top view of a z-map, coloured by height."""
+def plot_zmap(zm: ZMap, *, title: str = "", ax=None, colorbar: bool = True, cmap: str = "viridis"):
+    """Shaded top view of a z-map, coloured by height, with axes in mm and a colour bar.
+
+    Parameters
+    ----------
+    zm : ZMap — heights in mm; NaN cells are left transparent.
+    title : str — default the map's ``meta["source"]`` (or "z-map") and its grid.
+    ax : matplotlib Axes, optional — drawn into; a new figure otherwise.
+    colorbar : bool — add a colour bar "height (mm)" beside ``ax``.
+    cmap : str — colour map.
+
+    Returns
+    -------
+    The Axes.
+    """
     import matplotlib.pyplot as plt
-    from matplotlib.colors import LightSource
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import LightSource, Normalize
 
     if ax is None:
         _, ax = plt.subplots(figsize=(6, 5))
     z = np.ma.masked_invalid(zm.z.T)
+    finite = np.isfinite(zm.z)
+    lo, hi = (float(zm.z[finite].min()), float(zm.z[finite].max())) if finite.any() else (0.0, 1.0)
+    if hi <= lo:
+        lo, hi = lo - 0.5, hi + 0.5
     ls = LightSource(azdeg=315, altdeg=45)
-    filled = np.where(np.isfinite(zm.z.T), zm.z.T, np.nanmin(zm.z) if np.isfinite(zm.z).any() else 0.0)
-    rgb = ls.shade(filled, cmap=plt.get_cmap("viridis"), dx=zm.dx, dy=zm.dy, vert_exag=1.0, blend_mode="soft")
+    filled = np.where(np.isfinite(zm.z.T), zm.z.T, lo)
+    rgb = ls.shade(filled, cmap=plt.get_cmap(cmap), dx=zm.dx, dy=zm.dy, vert_exag=1.0, blend_mode="soft",
+                   vmin=lo, vmax=hi)
     rgb[..., 3] = np.where(z.mask, 0.0, 1.0)
     ax.imshow(rgb, origin="lower", extent=(zm.x0 - zm.dx / 2, zm.x1 + zm.dx / 2, zm.y0 - zm.dy / 2, zm.y1 + zm.dy / 2))
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
-    ax.set_title(title or zm.meta.get("source", ""))
+    if colorbar:
+        from mpl_toolkits.axes_grid1 import make_axes_locatable
+
+        cax = make_axes_locatable(ax).append_axes("right", size="4%", pad=0.12)  # as tall as the map
+        ax.figure.colorbar(ScalarMappable(norm=Normalize(lo, hi), cmap=cmap), cax=cax, label="height (mm)")
+    if not title:
+        grid = f"{zm.dx:g} mm" if zm.dx == zm.dy else f"{zm.dx:g} x {zm.dy:g} mm"
+        title = f"{zm.meta.get('source') or 'z-map'}: heights, grid {grid}"
+    ax.set_title(title)
     return ax

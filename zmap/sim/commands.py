@@ -91,51 +91,84 @@ def simulate_cmd(program, stock, tool, tools_path, project, pitch, history, leni
 @click.command("replay")
 @click.argument("run_path", metavar="RUN.zsim", type=click.Path(dir_okay=False))
 @click.option("--stage", default=None, metavar="K", help="Stage: integer, 'end' or fraction like 1/2.")
-@click.option("--png", type=click.Path(dir_okay=False), default=None, help="Shaded top view of --stage.")
+@click.option("--png", type=click.Path(dir_okay=False), default=None,
+              help="Picture of --stage: top view (or --3d view) with axes in mm, colour bar and title.")
+@click.option("--3d", "view3d", is_flag=True, help="With --png: a 3D view of the stock (pyvista, off-screen).")
 @click.option("--animate", "span", default=None, metavar="S1:S2", help="Stages to animate, e.g. 0:end, end:1/2.")
 @click.option("--gif", type=click.Path(dir_okay=False), default=None, help="Animated GIF of --animate.")
-@click.option("--frames", type=int, default=60, show_default=True, help="Frames in the GIF.")
+@click.option("--frames", type=int, default=60, show_default=True, help="Frames in the GIF (at most).")
 @click.option("--fps", type=float, default=12.0, show_default=True)
-@click.option("--scale", type=int, default=1, show_default=True, help="Pixels per ray in images.")
-def replay_cmd(run_path, stage, png, span, gif, frames, fps, scale) -> None:
+@click.option("--scale", type=int, default=1, show_default=True, help="About this many pixels per ray in images.")
+@click.option("--program", type=click.Path(dir_okay=False), default=None,
+              help="G-code file of the run: titles then quote each stage's line.")
+@click.option("--progress/--no-progress", default=True, show_default=True)
+def replay_cmd(run_path, stage, png, view3d, span, gif, frames, fps, scale, program, progress) -> None:
     """Show a saved run at a stage (PNG) or between two stages (GIF), or print its summary."""
     import numpy as np
 
-    from .render import save_gif, save_png, shade
+    from .render import StageFigure, program_lines, save_gif, save_png, stage_line, stage_title
     from .session import Run
 
-    run = Run.load(run_path)
+    _need_file(program)
     if png and stage is None:
         raise click.UsageError("--png needs --stage")
+    if view3d and not png:
+        raise click.UsageError("--3d needs --png")
     if gif and span is None:
         raise click.UsageError("--gif needs --animate S1:S2")
-    stock_top = run.stock.top()
-    fin = np.isfinite(stock_top)
-    lo = float(np.nanmin(run.final.top())) if np.isfinite(run.final.top()).any() else 0.0
-    zrange = (min(lo, float(stock_top[fin].min()) if fin.any() else lo),
-              float(stock_top[fin].max()) if fin.any() else 1.0)
+    run = Run.load(run_path)
+    name = os.path.basename(str(run_path))
+    lines = program_lines(program)
+
+    def title(k: int) -> str:
+        return stage_title(name, k, run.n_stages, stage_line(run, k), lines)
+
     if stage is not None:
         k = run.stage(stage)
-        img = run.display(k)
-        if png:
-            save_png(png, shade(img, run.stock.pitch, zrange), scale)
+        if png and view3d:
+            from ..plot3d import stock_3d
+
+            stock_3d(run, k, png, name=name, program=program)
+            click.echo(f"stage {k}/{run.n_stages} (3D) -> {png}")
+        elif png:
+            fig = StageFigure.for_run(run, scale=scale)
+            save_png(png, fig.frame(run.display(k), title(k)))
+            fig.close()
             click.echo(f"stage {k}/{run.n_stages} -> {png}")
         else:
+            img = run.display(k)
             f = np.isfinite(img)
-            click.echo(f"stage {k}/{run.n_stages}: top {np.nanmin(img) if f.any() else float('nan'):.4f} .. "
+            click.echo(f"{title(k)}: top {np.nanmin(img) if f.any() else float('nan'):.4f} .. "
                        f"{np.nanmax(img) if f.any() else float('nan'):.4f} mm, {int(f.sum())} rays with material")
     if span is not None:
         m = re.fullmatch(r"\s*([^:]+)\s*:\s*([^:]+)\s*", span)
         if not m:
             raise click.BadParameter(f"{span!r} is not S1:S2", param_hint="--animate")
         s1, s2 = run.stage(m.group(1)), run.stage(m.group(2))
+        # at most --frames stages, evenly spread, both ends included, none twice
         nfr = max(2, int(frames))
-        step = max(1, abs(s2 - s1) // (nfr - 1))
-        imgs = [shade(img, run.stock.pitch, zrange) for _, img in run.animate(s1, s2, step)]
+        stages = [int(v) for v in dict.fromkeys(np.rint(np.linspace(s1, s2, min(nfr, abs(s2 - s1) + 1))).astype(int))]
+        click.echo(f"stages {s1}..{s2}: {len(stages)} frames" + (f" -> {gif}" if gif else ""))
         if gif:
-            save_gif(gif, imgs, fps, scale)
-            click.echo(f"stages {s1}..{s2} ({len(imgs)} frames) -> {gif}")
-        else:
-            click.echo(f"stages {s1}..{s2}: {len(imgs)} frames")
+            fig = StageFigure.for_run(run, scale=scale)
+            bar = None
+            if progress:
+                from tqdm import tqdm
+
+                bar = tqdm(total=len(stages), unit="frame", desc="replay", leave=False)
+
+            def pictures():
+                for k in stages:
+                    yield fig.frame(run.display(k), title(k))
+                    if bar is not None:
+                        bar.update(1)
+
+            try:
+                save_gif(gif, pictures(), fps)
+            finally:
+                if bar is not None:
+                    bar.close()
+                fig.close()
+            click.echo(f"wrote {gif} ({len(stages)} frames)")
     if stage is None and span is None:
         click.echo(json.dumps({"file": str(run_path), "n_stages": run.n_stages, **run.summary}, indent=2))

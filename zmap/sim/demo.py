@@ -3,8 +3,8 @@
 ``run_demo(out_dir)`` simulates ``data/demo_pocket.nc`` (made by ``data/make_demo_program.py``)
 on a 40 x 30 x 10 mm block with the tools of ``data/tools.toml`` and an Interval Treap
 history, saves the run, and writes shaded top views at stage 1/2 and at the end and a GIF
-of the first tool's last layer, all through the same code as ``zmap simulate`` and
-``zmap replay``.
+of the first tool's last layer (axes in mm, colour bar "height (mm)", stage and G-code line
+in each title), all through the same code as ``zmap simulate`` and ``zmap replay``.
 """
 
 from __future__ import annotations
@@ -36,9 +36,7 @@ def run_demo(out_dir: str | os.PathLike = "out", *, echo=print) -> list[Path]:
     list of Path
         The run file, the two pictures and the GIF, in that order.
     """
-    import numpy as np
-
-    from .render import save_gif, save_png, shade
+    from .render import StageFigure, program_lines, save_gif, save_png, stage_line, stage_title
     from .session import Run, simulate
 
     out = Path(out_dir)
@@ -54,15 +52,21 @@ def run_demo(out_dir: str | os.PathLike = "out", *, echo=print) -> list[Path]:
     run = simulate(program, DEMO_STOCK, tools=DEMO_TOOLS, pitch=0.26, history="treap")
     zsim = run.save(out / "demo_pocket.zsim")
     run = Run.load(zsim)  # replay from the file, as `zmap replay` does
-    top0 = run.stock.top()
-    zrange = (float(np.nanmin(run.final.top())), float(np.nanmax(top0)))
-    half = run.stage("1/2")
-    p_half = save_png(out / "demo_pocket_half.png", shade(run.display(half), run.stock.pitch, zrange), 3)
-    p_end = save_png(out / "demo_pocket_end.png", shade(run.display("end"), run.stock.pitch, zrange), 3)
+    # one figure and one colour range for every picture, as `zmap replay` draws them
+    fig = StageFigure.for_run(run, scale=3)
+    lines = program_lines(program)
+
+    def title(k: int) -> str:
+        return stage_title(zsim.name, k, run.n_stages, stage_line(run, k), lines)
+
+    half, end = run.stage("1/2"), run.stage("end")
+    p_half = save_png(out / "demo_pocket_half.png", fig.frame(run.display(half), title(half)))
+    p_end = save_png(out / "demo_pocket_end.png", fig.frame(run.display(end), title(end)))
     s1, s2 = run.stage("1/4"), run.stage("1/2")
     step = max(1, (s2 - s1) // 40)
-    frames = [shade(img, run.stock.pitch, zrange) for _, img in run.animate(s1, s2, step)]
-    p_gif = save_gif(out / "demo_pocket.gif", frames, fps=12, scale=2)
+    frames = [fig.frame(img, title(k)) for k, img in run.animate(s1, s2, step)]
+    fig.close()
+    p_gif = save_gif(out / "demo_pocket.gif", frames, fps=12)
     result = [Path(zsim), Path(p_half), Path(p_end), Path(p_gif)]
     if echo is not None:
         s = run.summary
