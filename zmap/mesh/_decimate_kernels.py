@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["refine_line", "refine_kernel", "full_kernel", "measure_kernel", "remesh_regions",
-           "region_has_nan", "changed_regions", "rays_to_regions", "assemble"]
+           "region_has_nan", "changed_regions", "rays_to_regions", "assemble", "cover_counts"]
 
 
 @njit(cache=True, inline="always")
@@ -258,8 +258,9 @@ def _collinear(pn, a, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack):
 
 
 @njit(cache=True)
-def _candidate(z, i0, j0, W, H, t, tri, vx, vy, cand, q, qerr, qidx, st):
-    """Rasterise triangle t; push it with its worst interior (non-border) node."""
+def _candidate(z, i0, j0, NX, NY, t, tri, vx, vy, cand, q, qerr, qidx, st):
+    """Rasterise triangle t; push it with its worst interior (non-border) node. Internal x
+    runs along j (the contiguous axis of z), internal y along i."""
     a = tri[3 * t]
     b = tri[3 * t + 1]
     c = tri[3 * t + 2]
@@ -285,9 +286,9 @@ def _candidate(z, i0, j0, W, H, t, tri, vx, vy, cand, q, qerr, qidx, st):
     a20 = p0y - p2y
     b20 = p2x - p0x
     area = _orient(p0x, p0y, p1x, p1y, p2x, p2y)
-    z0 = z[i0 + int(p0x), j0 + int(p0y)] / area
-    z1 = z[i0 + int(p1x), j0 + int(p1y)] / area
-    z2 = z[i0 + int(p2x), j0 + int(p2y)] / area
+    z0 = z[i0 + int(p0y), j0 + int(p0x)] / area
+    z1 = z[i0 + int(p1y), j0 + int(p1x)] / area
+    z2 = z[i0 + int(p2y), j0 + int(p2x)] / area
     maxerr = 0.0
     mx = 0
     my = 0
@@ -302,14 +303,15 @@ def _candidate(z, i0, j0, W, H, t, tri, vx, vy, cand, q, qerr, qidx, st):
         w0 = w00 + a12 * dx
         w1 = w01 + a20 * dx
         w2 = w02 + a01 * dx
-        inside_row = y > 0 and y < H - 1
+        inside_row = y > 0 and y < NY - 1
+        zrow = i0 + y
         was = False
         for x in range(minx + dx, maxx + 1):
             if w0 >= 0 and w1 >= 0 and w2 >= 0:
                 was = True
-                if inside_row and x > 0 and x < W - 1:
+                if inside_row and x > 0 and x < NX - 1:
                     zz = z0 * w0 + z1 * w1 + z2 * w2
-                    d = abs(zz - z[i0 + x, j0 + y])
+                    d = abs(zz - z[zrow, j0 + x])
                     if d > maxerr:
                         maxerr = d
                         mx = x
@@ -330,11 +332,11 @@ def _candidate(z, i0, j0, W, H, t, tri, vx, vy, cand, q, qerr, qidx, st):
 
 
 @njit(cache=True)
-def _flush(z, i0, j0, W, H, tri, vx, vy, cand, q, qerr, qidx, pend, inpend, st):
+def _flush(z, i0, j0, NX, NY, tri, vx, vy, cand, q, qerr, qidx, pend, inpend, st):
     for k in range(st[3]):
         t = pend[k]
         inpend[t] = False
-        _candidate(z, i0, j0, W, H, t, tri, vx, vy, cand, q, qerr, qidx, st)
+        _candidate(z, i0, j0, NX, NY, t, tri, vx, vy, cand, q, qerr, qidx, st)
     st[3] = 0
 
 
@@ -343,10 +345,13 @@ def refine_kernel(z, i0, j0, W, H, tol, side0, side1, side2, side3, vout, tout):
     """Greedy refinement of the region z[i0:i0+W, j0:j0+H] to vertical error ``tol``.
 
     side0..side3: sorted positions of the border vertices (corners excluded) on the sides
-    y=0 (x), x=W-1 (y), y=H-1 (x), x=0 (y). Writes vertex node offsets (x*H + y, local)
-    into ``vout`` and counter-clockwise triangles (local vertex indices) into ``tout``;
-    returns (n_vertices, n_triangles), or (-1, -1) if a work array overflowed.
+    i=0 (positions in j), j=H-1 (in i), i=W-1 (in j), j=0 (in i). Writes vertex node
+    offsets (i*H + j, local) into ``vout`` and triangles counter-clockwise in (i, j) (local
+    vertex indices) into ``tout``; returns (n_vertices, n_triangles), or (-1, -1) if a
+    work array overflowed. Internally x runs along j (contiguous in memory), y along i.
     """
+    NX = H
+    NY = W
     nmax = W * H
     tmax = 2 * nmax + 8
     vx = np.empty(nmax, dtype=np.float64)
@@ -361,8 +366,8 @@ def refine_kernel(z, i0, j0, W, H, tol, side0, side1, side2, side3, vout, tout):
     inpend = np.zeros(tmax, dtype=np.bool_)
     stack = np.empty(6 * tmax + 64, dtype=np.int32)
     st = np.zeros(4, dtype=np.int64)
-    x1 = W - 1
-    y1 = H - 1
+    x1 = NX - 1
+    y1 = NY - 1
     # corners p0 (0,0), p1 (x1,0), p2 (0,y1), p3 (x1,y1)
     vx[0] = 0.0
     vy[0] = 0.0
@@ -423,7 +428,7 @@ def refine_kernel(z, i0, j0, W, H, tol, side0, side1, side2, side3, vout, tout):
                 return -1, -1
             ok &= _collinear(n, e, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
             prev = n
-    _flush(z, i0, j0, W, H, tri, vx, vy, cand, q, qerr, qidx, pend, inpend, st)
+    _flush(z, i0, j0, NX, NY, tri, vx, vy, cand, q, qerr, qidx, pend, inpend, st)
     while st[2] > 0 and qerr[0] > tol:
         if st[0] >= nmax:
             break
@@ -462,18 +467,18 @@ def refine_kernel(z, i0, j0, W, H, tol, side0, side1, side2, side3, vout, tout):
             ok &= _legalize(a0, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
             ok &= _legalize(a1, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
             ok &= _legalize(a2, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
-        _flush(z, i0, j0, W, H, tri, vx, vy, cand, q, qerr, qidx, pend, inpend, st)
+        _flush(z, i0, j0, NX, NY, tri, vx, vy, cand, q, qerr, qidx, pend, inpend, st)
     if not ok:
         return -1, -1
     nv = st[0]
     nt = st[1]
     for v in range(nv):
-        vout[v] = int(vx[v]) * H + int(vy[v])
+        vout[v] = int(vy[v]) * H + int(vx[v])
     for t in range(nt):
         a = tri[3 * t]
         b = tri[3 * t + 1]
         c = tri[3 * t + 2]
-        s2 = (vx[b] - vx[a]) * (vy[c] - vy[a]) - (vy[b] - vy[a]) * (vx[c] - vx[a])
+        s2 = (vy[b] - vy[a]) * (vx[c] - vx[a]) - (vx[b] - vx[a]) * (vy[c] - vy[a])
         tout[t, 0] = a
         if s2 < 0:
             tout[t, 1] = c
@@ -661,19 +666,19 @@ def remesh_regions(z, r, tol, full, dense, todo, vpool, tpool, nv, nt):
             nv[reg] = a
             nt[reg] = b
             continue
-        # side y=0 (shared with region bj-1), x=W-1 (bi+1), y=H-1 (bj+1), x=0 (bi-1)
-        fx0 = bj > 0 and dense[bi, bj - 1]
-        _line_keep(z, tol, fx0, i0, j0, 1, 0, W, keep, h)
-        s0 = _side(keep, W)
-        fx1 = bi + 1 < nrx and dense[bi + 1, bj]
-        _line_keep(z, tol, fx1, i0 + W - 1, j0, 0, 1, H, keep, h)
-        s1 = _side(keep, H)
-        fx2 = bj + 1 < nry and dense[bi, bj + 1]
-        _line_keep(z, tol, fx2, i0, j0 + H - 1, 1, 0, W, keep, h)
-        s2 = _side(keep, W)
-        fx3 = bi > 0 and dense[bi - 1, bj]
-        _line_keep(z, tol, fx3, i0, j0, 0, 1, H, keep, h)
-        s3 = _side(keep, H)
+        # side i=0 (shared with region bi-1), j=H-1 (bj+1), i=W-1 (bi+1), j=0 (bj-1)
+        fx0 = bi > 0 and dense[bi - 1, bj]
+        _line_keep(z, tol, fx0, i0, j0, 0, 1, H, keep, h)
+        s0 = _side(keep, H)
+        fx1 = bj + 1 < nry and dense[bi, bj + 1]
+        _line_keep(z, tol, fx1, i0, j0 + H - 1, 1, 0, W, keep, h)
+        s1 = _side(keep, W)
+        fx2 = bi + 1 < nrx and dense[bi + 1, bj]
+        _line_keep(z, tol, fx2, i0 + W - 1, j0, 0, 1, H, keep, h)
+        s2 = _side(keep, H)
+        fx3 = bj > 0 and dense[bi, bj - 1]
+        _line_keep(z, tol, fx3, i0, j0, 1, 0, W, keep, h)
+        s3 = _side(keep, W)
         a, b = refine_kernel(z, i0, j0, W, H, tol, s0, s1, s2, s3, vpool[reg], tpool[reg])
         if a < 0:
             bad += 1
@@ -737,3 +742,39 @@ def assemble(vpool, tpool, nv, nt, r, nry, nx, ny, ids):
     for k in range(n):
         ids[nodes[k]] = -1
     return nodes[:n], faces
+
+
+@njit(cache=True)
+def cover_counts(vi, vj, faces, px, py, ny1, cell_off, cell_pts, count):
+    """count[p] = number of faces whose xy shadow holds point p (node units); the points are
+    bucketed by cell (cell = floor(px) * ny1 + floor(py), CSR ``cell_off``/``cell_pts``)."""
+    ncell = cell_off.shape[0] - 1
+    nx1 = ncell // ny1
+    for f in range(faces.shape[0]):
+        a = faces[f, 0]
+        b = faces[f, 1]
+        c = faces[f, 2]
+        ax = float(vi[a])
+        ay = float(vj[a])
+        bx = float(vi[b])
+        by = float(vj[b])
+        cx = float(vi[c])
+        cy = float(vj[c])
+        area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+        if area == 0:
+            continue
+        for ci in range(int(min(ax, bx, cx)), min(int(max(ax, bx, cx)), nx1)):
+            for cj in range(int(min(ay, by, cy)), min(int(max(ay, by, cy)), ny1)):
+                cell = ci * ny1 + cj
+                for k in range(cell_off[cell], cell_off[cell + 1]):
+                    p = cell_pts[k]
+                    x = px[p]
+                    y = py[p]
+                    wa = (bx - x) * (cy - y) - (by - y) * (cx - x)
+                    wb = (cx - x) * (ay - y) - (cy - y) * (ax - x)
+                    wc = (ax - x) * (by - y) - (ay - y) * (bx - x)
+                    if area > 0:
+                        if wa >= 0 and wb >= 0 and wc >= 0:
+                            count[p] += 1
+                    elif wa <= 0 and wb <= 0 and wc <= 0:
+                        count[p] += 1

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["refine_region", "decimate", "max_error"]
+__all__ = ["refine_region", "decimate", "max_error", "crack_rays"]
 
 
 def _grid(source: Any) -> tuple[np.ndarray, float, float, float, float]:
@@ -207,6 +207,51 @@ def max_error(mesh: Any, source: Any) -> float:
     return _measure(z, nodes, faces)
 
 
+def crack_rays(mesh: Any, source: Any, n: int = 10_000, *, seed: int = 0) -> int:
+    """Vertical rays through random points of the domain that miss the mesh or hit it twice.
+
+    ``n`` points uniform over the map's xy extent (seeded); each should lie in exactly one
+    face's xy shadow (a hole or a crack: none; an overlap: two or more). For a map with
+    NaN nodes, points in cells with a NaN corner are left out (those cells are holes).
+
+    Returns
+    -------
+    int
+        Misses plus overlaps (0 for a crack-free mesh).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> z = np.fromfunction(lambda i, j: np.sin(i / 4) * j / 9, (40, 30))
+    >>> crack_rays(decimate(z, 0.01, region=8), z, 2000)
+    0
+    """
+    from . import _decimate_kernels as K
+
+    z, x0, y0, dx, dy = _grid(source)
+    nx, ny = z.shape
+    if nx < 2 or ny < 2 or n <= 0:
+        return 0
+    rng = np.random.default_rng(seed)
+    px = rng.uniform(0, nx - 1, int(n))
+    py = rng.uniform(0, ny - 1, int(n))
+    ci = np.minimum(px.astype(np.int64), nx - 2)
+    cj = np.minimum(py.astype(np.int64), ny - 2)
+    bad_cell = (np.isnan(z[:-1, :-1]) | np.isnan(z[1:, :-1]) | np.isnan(z[:-1, 1:])
+                | np.isnan(z[1:, 1:]))
+    ok = ~bad_cell[ci, cj]
+    px, py, ci, cj = px[ok], py[ok], ci[ok], cj[ok]
+    cell = ci * (ny - 1) + cj
+    order = np.argsort(cell, kind="stable").astype(np.int64)
+    off = np.zeros((nx - 1) * (ny - 1) + 1, dtype=np.int64)
+    np.cumsum(np.bincount(cell, minlength=(nx - 1) * (ny - 1)), out=off[1:])
+    nodes, faces = _node_faces(mesh, z, (x0, y0, dx, dy))
+    vi, vj = np.divmod(nodes, ny)
+    count = np.zeros(len(px), dtype=np.int64)
+    K.cover_counts(vi, vj, np.ascontiguousarray(faces), px, py, ny - 1, off, order, count)
+    return int(np.sum(count != 1))
+
+
 def decimate(zmap_or_array: Any, allowance: float, *, region: int = 64) -> Any:
     """Decimated triangle mesh of a whole map, every node within ``allowance`` vertically.
 
@@ -289,7 +334,7 @@ def refine_region(z: Any, x0: float = 0.0, y0: float = 0.0, dx: float = 1.0, dy:
     else:
         if boundary is None:
             sides = []
-            for h in (z[:, 0], z[-1, :], z[:, -1], z[0, :]):
+            for h in (z[0, :], z[:, -1], z[-1, :], z[:, 0]):
                 keep = np.zeros(len(h), dtype=np.bool_)
                 K.refine_line(np.ascontiguousarray(h), tol, keep)
                 sides.append(np.flatnonzero(keep[1:-1]).astype(np.int64) + 1)
@@ -298,7 +343,7 @@ def refine_region(z: Any, x0: float = 0.0, y0: float = 0.0, dx: float = 1.0, dy:
             if b.shape != z.shape:
                 raise ValueError(f"boundary must have the shape of z {z.shape}, got {b.shape}")
             sides = [np.flatnonzero(m[1:-1]).astype(np.int64) + 1
-                     for m in (b[:, 0], b[-1, :], b[:, -1], b[0, :])]
+                     for m in (b[0, :], b[:, -1], b[-1, :], b[:, 0])]
         nv, nt = K.refine_kernel(z, 0, 0, nx, ny, tol, *sides, vout, tout)
         if nv < 0:  # pragma: no cover
             raise RuntimeError("the refinement overflowed its work arrays")
