@@ -67,6 +67,10 @@ def stage_caption(run: Any, stage: int, program_lines: list[str] | None) -> str:
 class Viewer:
     """The state behind one viewer page: a run, optional design, the pyvista scene.
 
+    The stock is drawn as the decimated mesh of :class:`zmap.mesh.LocalMesh` (paper 003):
+    every node of the stock's top within ``allowance`` of its true height, and moving to a
+    stage re-meshes only the regions the tool touched in between.
+
     Parameters
     ----------
     run : zmap.sim.session.Run
@@ -76,47 +80,37 @@ class Viewer:
         design height, mm; blue below the design: gouge, red above: stock left).
     program : path, optional
         The G-code file, to show the text of each stage's line.
+    allowance : float
+        Vertical error allowed in the drawn mesh, mm (0: every ray's height exactly).
+    region : int
+        Region size of the local re-meshing, in rays.
     """
 
-    def __init__(self, run: Any, *, design: Any = None, program: str | os.PathLike | None = None):
+    def __init__(self, run: Any, *, design: Any = None, program: str | os.PathLike | None = None,
+                 allowance: float = 0.01, region: int = 16):
         import pyvista as pv
 
-        _quiet_vtk()
+        from ..mesh import LocalMesh
 
+        _quiet_vtk()
         self.run = run
         self.design = design
         self.program_lines = (Path(program).read_text(errors="replace").splitlines()
                               if program is not None else None)
-        s = run.stock
-        self.x = s.x0 + s.pitch * np.arange(s.nx)
-        self.y = s.y0 + s.pitch * np.arange(s.ny)
-        have = s.cnt > 0
-        self.bottom = float(s.near[have, 0].min()) if have.any() else 0.0
-        gx, gy = np.meshgrid(self.x, self.y, indexing="ij")
-        self.design_z = None
-        if design is not None:
-            h = design.height(gx.ravel(), gy.ravel()) if hasattr(design, "height") else None
-            if h is None:
-                from ..interpolate import bezier
-
-                h = bezier(design, gx.ravel(), gy.ravel())
-            self.design_z = np.asarray(h, dtype=np.float64).reshape(gx.shape)
-        z0 = self._heights(run.n_stages)
-        self.grid = pv.StructuredGrid(gx, gy, z0)
+        self.local = LocalMesh(run, allowance=allowance, region=region)
+        self.local.goto(run.n_stages)
         self.scalar_name = "deviation (mm)" if design is not None else "height (mm)"
-        self.grid[self.scalar_name] = self._scalars(z0).ravel(order="F")
+        self.poly = self._polydata()
         self.plotter = pv.Plotter(off_screen=True, window_size=(900, 650))
+        values = self.poly[self.scalar_name]
         if design is not None:
-            dev = self._scalars(z0)
-            c = float(np.nanpercentile(np.abs(dev), 99)) if np.isfinite(dev).any() else 0.1
-            clim = (-max(c, 1e-3), max(c, 1e-3))
-            cmap = "RdBu_r"
+            c = float(np.nanpercentile(np.abs(values), 99)) if values.size else 0.1
+            clim, cmap = (-max(c, 1e-3), max(c, 1e-3)), "RdBu_r"
         else:
-            clim = (self.bottom, float(np.nanmax(z0)) if np.isfinite(z0).any() else self.bottom + 1)
-            if clim[1] <= clim[0]:
-                clim = (clim[0], clim[0] + 1.0)
-            cmap = "viridis"
-        self.plotter.add_mesh(self.grid, scalars=self.scalar_name, cmap=cmap, clim=clim,
+            stock_top = np.nanmax(run.display(0)) if run.stock.cnt.any() else 0.0
+            lo = float(np.nanmin(values)) if values.size else stock_top - 1.0
+            clim, cmap = (min(lo, stock_top - 1e-3), float(stock_top)), "viridis"
+        self.plotter.add_mesh(self.poly, scalars=self.scalar_name, cmap=cmap, clim=clim,
                               scalar_bar_args={"title": self.scalar_name, "vertical": True})
         self.plotter.show_grid(xtitle="x (mm)", ytitle="y (mm)", ztitle="z (mm)")
         self.plotter.add_text(self._title(), font_size=10, name="title")
@@ -124,28 +118,37 @@ class Viewer:
 
     def _title(self) -> str:
         kind = "deviation from the design" if self.design is not None else "stock"
-        return f"simulated {kind}, {self.run.summary.get('history', self.run.history)} history"
+        return (f"simulated {kind} (mesh within {self.local.allowance:g} mm), "
+                f"{self.run.summary.get('history', self.run.history)} history")
 
-    def _heights(self, stage: int) -> np.ndarray:
-        z = np.array(self.run.display(stage), dtype=np.float64)
-        return np.where(np.isfinite(z), z, self.bottom)  # no material: the stock bottom
+    def _polydata(self) -> Any:
+        poly = self.local.mesh.to_pyvista()
+        z = np.asarray(poly.points[:, 2], dtype=np.float64)
+        if self.design is None:
+            poly[self.scalar_name] = z
+        else:
+            x, y = poly.points[:, 0], poly.points[:, 1]
+            if hasattr(self.design, "height"):
+                h = self.design.height(x, y)
+            else:
+                from ..interpolate import bezier
 
-    def _scalars(self, z: np.ndarray) -> np.ndarray:
-        return z if self.design_z is None else z - self.design_z
+                h = bezier(self.design, x, y)
+            poly[self.scalar_name] = z - np.asarray(h, dtype=np.float64)
+        return poly
 
     def show_stage(self, stage: int) -> str:
-        """Move the scene to ``stage``; return its caption."""
+        """Move the scene to ``stage`` (re-meshing the touched regions); return its caption."""
         k = self.run.stage(int(stage))
-        z = self._heights(k)
-        pts = self.grid.points
-        pts[:, 2] = z.ravel(order="F")
-        self.grid.points = pts
-        self.grid[self.scalar_name] = self._scalars(z).ravel(order="F")
-        return stage_caption(self.run, k, self.program_lines)
+        info = self.local.goto(k)
+        self.poly.copy_from(self._polydata(), deep=True)
+        return (stage_caption(self.run, k, self.program_lines)
+                + f" ({info['regions_touched']} regions re-meshed, {info['triangles']} triangles, "
+                  f"{info['ms']:.1f} ms)")
 
 
 def make_viewer(run: Any, *, design: Any = None, program: str | os.PathLike | None = None,
-                name: str = "zmap-view") -> tuple[Any, Viewer]:
+                allowance: float = 0.01, name: str = "zmap-view") -> tuple[Any, Viewer]:
     """Build the trame server of a viewer page (not started). Returns ``(server, viewer)``.
 
     Start it with ``server.start(host="127.0.0.1", port=..., open_browser=False)``.
@@ -156,7 +159,7 @@ def make_viewer(run: Any, *, design: Any = None, program: str | os.PathLike | No
     from trame.widgets import html
     from trame.widgets import vuetify3 as v
 
-    viewer = Viewer(run, design=design, program=program)
+    viewer = Viewer(run, design=design, program=program, allowance=allowance)
     n = run.n_stages
     server = get_server(name, client_type="vue3")
     state, ctrl = server.state, server.controller

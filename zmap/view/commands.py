@@ -16,10 +16,12 @@ __all__ = ["view_cmd"]
                    "is then coloured by its deviation (mm).")
 @click.option("--program", type=click.Path(dir_okay=False), default=None,
               help="G-code file of the run: the caption quotes each stage's line.")
+@click.option("--allowance", type=float, default=0.01, show_default=True,
+              help="Vertical error allowed in the drawn stock mesh, mm (0: exact).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to serve on.")
 @click.option("--port", type=int, default=0, help="Port (default: a free one).")
 @click.option("--browser/--no-browser", default=True, show_default=True, help="Open a browser tab.")
-def view_cmd(run_path, design, program, host, port, browser) -> None:
+def view_cmd(run_path, design, program, allowance, host, port, browser) -> None:
     """Serve a 3D view of RUN.zsim with a stage slider, play and rewind, in the browser."""
     from ..sim.session import Run
     from .app import free_port, make_viewer
@@ -40,7 +42,7 @@ def view_cmd(run_path, design, program, host, port, browser) -> None:
             from ..grid import ZMap
 
             model = ZMap.load(design)
-    server, _ = make_viewer(run, design=model, program=program)
+    server, _ = make_viewer(run, design=model, program=program, allowance=allowance)
     port = port or free_port(host)
     click.echo(f"zmap view: {run_path}, {run.n_stages} stages, at http://{host}:{port}/ "
                "(Ctrl-C stops it)", err=True)

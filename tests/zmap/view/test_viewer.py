@@ -36,14 +36,15 @@ def test_caption_names_stage_line_and_code(pocket_run):
 
 
 def test_scene_follows_the_stage(pocket_run):
-    viewer = Viewer(pocket_run)
-    s = pocket_run.stock
-    top0 = viewer.grid.points[:, 2].copy()
-    np.testing.assert_allclose(top0.reshape(s.nx, s.ny, order="F"),
-                               np.nan_to_num(pocket_run.display("end"), nan=viewer.bottom))
-    viewer.show_stage(0)
-    assert np.all(viewer.grid.points[:, 2] == 0.0)  # the uncut box top
-    assert np.all(viewer.grid["height (mm)"] == 0.0)
+    viewer = Viewer(pocket_run, allowance=0.01)
+    assert viewer.local.max_error() <= 0.01  # the drawn stock is within the allowance
+    assert viewer.poly.n_points < 0.5 * np.isfinite(pocket_run.display("end")).sum()
+    caption = viewer.show_stage(0)
+    assert caption.startswith("stage 0 /") and "regions re-meshed" in caption
+    assert np.all(viewer.poly.points[:, 2] == 0.0)  # the uncut box top
+    assert np.all(viewer.poly["height (mm)"] == 0.0)
+    viewer.show_stage(pocket_run.n_stages)
+    assert viewer.poly.points[:, 2].min() < -5  # the pocket is back
     with pytest.raises(StageError):
         viewer.show_stage(pocket_run.n_stages + 1)
 
@@ -55,7 +56,7 @@ def test_deviation_from_a_design(pocket_run):
     design = ZMap(s.x0 - 1, s.y0 - 1, 0.5, 0.5, np.full((s.nx + 4, s.ny + 4), -2.0))
     viewer = Viewer(pocket_run, design=design)
     viewer.show_stage(0)
-    np.testing.assert_allclose(viewer.grid["deviation (mm)"], 2.0)  # the box top is 2 mm above
+    np.testing.assert_allclose(viewer.poly["deviation (mm)"], 2.0)  # the box top is 2 mm above
 
 
 def _chromium() -> str | None:
@@ -105,23 +106,21 @@ def test_page_in_headless_chromium(tmp_path, pocket_run):
                                    f"document.querySelector('#caption').innerText.includes('stage {n} / {n}')",
                                    timeout=60_000)
             view = page.locator("#view")
-            before = _settled(view)
+            y0 = _share_when(view, lambda y: y > 0.01)  # the first picture has arrived
             page.locator("#stage-slider [role=slider], [role=slider]").first.focus()
             page.keyboard.press("Home")  # the slider to stage 0
             page.wait_for_function("document.querySelector('#caption').innerText.startsWith('stage 0 /')",
                                    timeout=30_000)
-            after = _settled(view)
+            # the uncut top is the colour bar's top colour (yellow): at stage 0 it covers the
+            # whole box, at the end the pocket and holes are cut out of it (pictures come as
+            # JPEG: compare areas, not pixels)
+            y1 = _share_when(view, lambda y: y > 1.3 * y0)
             page.locator("#end").click()
             page.wait_for_function(f"document.querySelector('#caption').innerText.includes('stage {n} / {n}')",
                                    timeout=30_000)
-            back = _settled(view)
+            y2 = _share_when(view, lambda y: abs(y - y0) < 0.1 * y0)
+            page.screenshot(path=str(tmp_path / "page.png"))
             b.close()
-        (tmp_path / "before.png").write_bytes(before)
-        (tmp_path / "after.png").write_bytes(after)
-        # the uncut top is the colour bar's top colour (yellow): at stage 0 it covers the whole
-        # box, at the end the pocket and holes are cut out of it (pictures come as JPEG: compare
-        # areas, not pixels)
-        y0, y1, y2 = (_top_colour_share(_pixels(x)) for x in (before, after, back))
         assert y1 > 1.3 * y0, (y0, y1)
         assert abs(y2 - y0) < 0.1 * y0, (y0, y2)
     finally:
@@ -132,16 +131,17 @@ def test_page_in_headless_chromium(tmp_path, pocket_run):
             proc.kill()
 
 
-def _settled(locator, tries: int = 80) -> bytes:
-    """A screenshot of the view once a picture has arrived (some stock colour is shown) and
-    two in a row agree: the server renders and sends pictures after each change."""
-    last = locator.screenshot()
-    for _ in range(tries):
-        time.sleep(0.25)
-        shot = locator.screenshot()
-        if shot == last and _top_colour_share(_pixels(shot)) > 0.01:
-            return shot
-        last = shot
+def _share_when(locator, done, seconds: float = 30.0) -> float:
+    """Top-colour share of the view once ``done(share)`` holds for two screenshots in a row
+    (the server renders after each change and sends the picture), or the last one."""
+    t = time.monotonic()
+    last = None
+    while time.monotonic() - t < seconds:
+        y = _top_colour_share(_pixels(locator.screenshot()))
+        if done(y) and last is not None and done(last):
+            return y
+        last = y
+        time.sleep(0.2)
     return last
 
 
