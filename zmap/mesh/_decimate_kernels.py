@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["refine_line", "refine_kernel", "full_kernel", "measure_kernel", "remesh_regions",
-           "region_has_nan", "changed_regions", "rays_to_regions", "assemble", "cover_counts"]
+           "region_has_nan", "changed_regions", "rays_to_regions", "assemble", "cover_counts", "keep_changed"]
 
 
 @njit(cache=True, inline="always")
@@ -778,3 +778,31 @@ def cover_counts(vi, vj, faces, px, py, ny1, cell_off, cell_pts, count):
                             count[p] += 1
                     elif wa <= 0 and wb <= 0 and wc <= 0:
                         count[p] += 1
+
+
+@njit(cache=True)
+def keep_changed(a, b, r, hit):
+    """Clear hit[bi, bj] where no node of the region (borders included) differs between
+    ``a`` and ``b`` (NaN equal to NaN): history events below the top surface."""
+    nx, ny = a.shape
+    nrx, nry = hit.shape
+    for bi in range(nrx):
+        for bj in range(nry):
+            if not hit[bi, bj]:
+                continue
+            i0 = bi * r
+            j0 = bj * r
+            i1 = min(i0 + r, nx - 1)
+            j1 = min(j0 + r, ny - 1)
+            same = True
+            for i in range(i0, i1 + 1):
+                for j in range(j0, j1 + 1):
+                    u = a[i, j]
+                    v = b[i, j]
+                    if u != v and not (np.isnan(u) and np.isnan(v)):
+                        same = False
+                        break
+                if not same:
+                    break
+            if same:
+                hit[bi, bj] = False

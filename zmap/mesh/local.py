@@ -8,9 +8,10 @@ Which rays a stage range touched comes from the run's history, not from comparin
 every time-element (time-trace), Z-element creation or deletion (z-trace) or treap node
 (Interval Treap) carries its stage and its ray, so the events with a stage in
 ``(min(a, b), max(a, b)]`` name the rays; they are sorted by stage once, and a range is two
-binary searches. A run without history (``history='none'``) falls back to comparing the
-two display images node by node. The z-trace and the treap also record changes below the
-top surface: such a region is re-meshed for nothing, with the same result.
+binary searches. The z-trace and the treap also record changes below the top surface, so
+the regions those rays fall in are then checked against the display images and skipped
+when their heights did not change. A run without history (``history='none'``) falls back
+to comparing the two display images node by node.
 """
 
 from __future__ import annotations
@@ -166,6 +167,7 @@ class LocalMesh:
         lo, hi = min(a, b), max(a, b)
         i, j = np.searchsorted(stage, [lo, hi], side="right")
         K.rays_to_regions(rays[i:j], reg.ny, reg.r, reg.nrx, reg.nry, hit)
+        K.keep_changed(reg.z, z_new, reg.r, hit)  # events below the top surface change nothing
         return hit
 
     def goto(self, stage: Any) -> dict:

@@ -172,3 +172,15 @@ def test_bad_allowance_names_the_value(bad):
 def test_bad_region_names_the_value(bad):
     with pytest.raises(ValueError, match=f"region.*{bad!r}"):
         decimate(np.zeros((4, 4)), 0.01, region=bad)
+
+
+def test_crack_rays_counts_holes_and_overlaps():
+    from zmap.mesh.decimate import crack_rays as cr
+    from zmap.mesh.triangulate import TriMesh
+
+    z = walls(33)
+    m = decimate(z, 0.01, region=8)
+    assert cr(m, z, 3000) == 0
+    holed = TriMesh(m.vertices, m.faces[1:])
+    doubled = TriMesh(m.vertices, np.concatenate([m.faces, m.faces[:1]]))
+    assert cr(holed, z, 3000) > 0 and cr(doubled, z, 3000) > 0
