@@ -9,14 +9,16 @@ maximum vertical error at every node, measured (:func:`zmap.mesh.decimate.max_er
 applied to pydelatin's mesh, whose heights are float32). ``crack_rays``: random vertical rays (100,000) through the
 domain that miss the mesh or hit it twice. ``region_ms_die_median``: re-meshing one 64 x 64
 region of the die (its sides included), median over the 256 regions, and pydelatin's time
-for the same regions.
+for the same regions. ``decimatepro_*``: the paper's own method (VTK DecimatePro per
+region, region borders kept), with its measured vertical error.
 
 ``local_update_ms``: a real run, flower_mold.nc with the stock and tools of its .camotics
 project (rays at 0.26 mm, treap history), followed by :class:`zmap.mesh.LocalMesh`
 (64 x 64 regions, allowance 0.01 mm) in stage ranges of ``--step`` positions from the
 stock to the end: the median time of re-meshing the regions a range touched (ranges that
 touched none left out), beside the regions per update and the time per region; reading
-the run's display image is reported apart (``local_display_ms``).
+the run's display image is reported apart (``local_display_ms``). ``local_end_region_*``:
+re-meshing one region of the finished part, ours and pydelatin's (median of the 16).
 
 Usage: ``python bench/mesh.py [--step N] [--no-real]``; prints one JSON object.
 """
@@ -124,6 +126,24 @@ def local_figures(step: int) -> dict:
             ms.append(c["ms"])
             regions.append(c["regions_touched"])
     ms_a, reg_a = np.array(ms), np.array(regions)
+    # the 16 regions of the finished part, one at a time: ours and pydelatin's
+    reg = lm._reg
+    dense = np.zeros((reg.nrx, reg.nry), dtype=np.bool_)
+    ours, theirs = [], []
+    try:
+        from pydelatin import Delatin
+    except ImportError:
+        Delatin = None
+    for one in reg.all_regions():
+        one = one[None, :]
+        _, t = best(lambda: K.remesh_regions(reg.z, REGION, reg.tol, False, dense, one, reg.vpool,
+                                             reg.tpool, reg.nv, reg.nt), 3)
+        ours.append(1000 * t)
+        i0, j0 = int(one[0, 0]) * REGION, int(one[0, 1]) * REGION
+        sub = np.ascontiguousarray(reg.z[i0:i0 + REGION + 1, j0:j0 + REGION + 1].T)
+        if Delatin is not None and sub.shape[0] > 1 and sub.shape[1] > 1 and not np.isnan(sub).any():
+            _, t = best(lambda: Delatin(sub, max_error=ALLOWANCE), 3)
+            theirs.append(1000 * t)
     back = lm.goto(run.n_stages // 2)
     return {
         "local_update_ms": round(float(np.median(ms_a)), 4),
@@ -137,6 +157,8 @@ def local_figures(step: int) -> dict:
         "local_triangles_end": int(lm.updates[-2]["triangles"]),
         "local_backwards_to_half": {k: back[k] for k in ("regions_touched", "triangles", "ms")},
         "local_max_err": round(lm.max_error(), 6),
+        "local_end_region_ms_median": round(float(np.median(ours)), 4),
+        "local_end_region_pydelatin_ms_median": round(float(np.median(theirs)), 4) if theirs else None,
     }
 
 
@@ -156,6 +178,17 @@ def main(argv=None) -> dict:
         "region_ms_die_median": region_ms(zm),
     }
     result.update(pydelatin_figures(zm))
+    try:
+        from zmap.mesh.decimate import decimate_pro
+
+        t = time.perf_counter()
+        mp = decimate_pro(zm, ALLOWANCE, region=REGION)
+        result.update({"decimatepro_triangles": int(mp.n_faces),
+                       "decimatepro_max_err": round(max_error(mp, zm), 6),
+                       "decimatepro_seconds": round(time.perf_counter() - t, 3),
+                       "decimatepro_crack_rays": crack_rays(mp, zm, 100_000, seed=1)})
+    except ImportError:
+        result["decimatepro"] = "VTK not installed"
     if not args.no_real:
         result.update(local_figures(args.step))
     checks = {"max_err<=allowance": result["max_err"] <= ALLOWANCE, "crack_rays==0": result["crack_rays"] == 0}

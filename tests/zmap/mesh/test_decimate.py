@@ -184,3 +184,16 @@ def test_crack_rays_counts_holes_and_overlaps():
     holed = TriMesh(m.vertices, m.faces[1:])
     doubled = TriMesh(m.vertices, np.concatenate([m.faces, m.faces[:1]]))
     assert cr(holed, z, 3000) > 0 and cr(doubled, z, 3000) > 0
+
+
+def test_decimate_pro_the_papers_method_is_crack_free_but_not_bounded():
+    pytest.importorskip("vtkmodules")
+    from zmap.mesh.decimate import crack_rays as cr
+    from zmap.mesh.decimate import decimate_pro
+
+    z = walls(65)
+    m = decimate_pro(z, 0.01, region=16)
+    assert m.n_faces < 2 * 64 * 64 and cr(m, z, 3000) == 0
+    err = max_error(m, z)
+    assert 0.0 < err < 5.0  # the plane-distance criterion does not bound the vertical error
+    assert decimate_pro(z, 0.0, region=16).n_faces == 2 * 64 * 64
