@@ -21,6 +21,7 @@ _WHERE = {
     "write_stl": "export", "write_ply": "export", "write_vtp": "export", "write_gltf": "export",
     # --- local decimation (zmap/mesh/decimate.py, zmap/mesh/local.py): the other helper's names go here ---
     "LocalMesh": "local", "decimate": "decimate", "refine_region": "decimate", "max_error": "decimate",
+    "decimate_pro": "decimate", "crack_rays": "decimate",
     # --- end of local decimation ---
 }
 
