@@ -11,8 +11,10 @@ The map is split into square regions of ``region x region`` cells, meshed indepe
    until every node is within the allowance.
 
 Every node of the map is then within ``allowance`` of the mesh, measured vertically at the
-node (:func:`max_error` measures it). An allowance of 0 gives the full mesh (two
-triangles per cell), exact at every node.
+node (:func:`max_error` measures it). The kernels stop at the allowance less a rounding
+margin of 1e-11 * max(1000, max |z|) mm (1e-8 mm for heights up to a metre); an allowance
+of 0, or one below that margin, gives the full mesh (two triangles per cell), exact at
+every node.
 
 NaN nodes (no surface): a region that holds one is meshed in full over its valid cells
 (cells whose four corners are finite, two triangles each) and its sides keep every node,
