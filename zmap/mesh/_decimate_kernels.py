@@ -593,6 +593,18 @@ def region_has_nan(z, r, todo, out):
 
 
 @njit(cache=True)
+def _mark_regions(i, j, r, nrx, nry, hit):
+    """hit[bi, bj] = True for every region whose nodes (its borders included) hold node (i, j)."""
+    bi_lo = (i - 1) // r if i > 0 else 0
+    bi_hi = min(i // r, nrx - 1)
+    bj_lo = (j - 1) // r if j > 0 else 0
+    bj_hi = min(j // r, nry - 1)
+    for bi in range(bi_lo, bi_hi + 1):
+        for bj in range(bj_lo, bj_hi + 1):
+            hit[bi, bj] = True
+
+
+@njit(cache=True)
 def changed_regions(a, b, r, nrx, nry, hit):
     """hit[bi, bj] |= some node of region (bi, bj) (borders included) differs between a and b."""
     nx, ny = a.shape
@@ -602,13 +614,7 @@ def changed_regions(a, b, r, nrx, nry, hit):
             v = b[i, j]
             if u == v or (np.isnan(u) and np.isnan(v)):
                 continue
-            bi_lo = (i - 1) // r if i > 0 else 0
-            bi_hi = min(i // r, nrx - 1)
-            bj_lo = (j - 1) // r if j > 0 else 0
-            bj_hi = min(j // r, nry - 1)
-            for bi in range(bi_lo, bi_hi + 1):
-                for bj in range(bj_lo, bj_hi + 1):
-                    hit[bi, bj] = True
+            _mark_regions(i, j, r, nrx, nry, hit)
 
 
 @njit(cache=True)
@@ -695,13 +701,7 @@ def rays_to_regions(rays, ny, r, nrx, nry, hit):
     for k in range(rays.shape[0]):
         i = rays[k] // ny
         j = rays[k] - i * ny
-        bi_lo = (i - 1) // r if i > 0 else 0
-        bi_hi = min(i // r, nrx - 1)
-        bj_lo = (j - 1) // r if j > 0 else 0
-        bj_hi = min(j // r, nry - 1)
-        for bi in range(bi_lo, bi_hi + 1):
-            for bj in range(bj_lo, bj_hi + 1):
-                hit[bi, bj] = True
+        _mark_regions(i, j, r, nrx, nry, hit)
 
 
 @njit(cache=True)
