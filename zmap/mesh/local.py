@@ -73,7 +73,8 @@ class LocalMesh:
         Region size in cells, >= 2.
     period : int
         Decimation period in updates (paper 003, step 4): with ``period=1`` every
-        :meth:`goto` decimates the regions it touched; with ``period=p`` the touched
+        :meth:`goto` decimates the regions it touched; ``period=-1`` decimates once, when
+        the mesh is made, and touched regions stay meshed in full; with ``period=p`` the touched
         regions are meshed in full (and their seams kept dense, crack-free) until every
         p-th update, which decimates all of them.
 
@@ -99,8 +100,9 @@ class LocalMesh:
     def __init__(self, source: Any, *, allowance: float = 0.01, region: int = 64, period: int = 1):
         a = check_allowance(allowance)
         r = check_region(region)
-        if isinstance(period, bool) or not isinstance(period, (int, np.integer)) or period < 1:
-            raise ValueError(f"period must be an integer >= 1, got {period!r}")
+        if (isinstance(period, bool) or not isinstance(period, (int, np.integer))
+                or not (period >= 1 or period == -1)):
+            raise ValueError(f"period must be an integer >= 1, or -1 (decimate once), got {period!r}")
         self.allowance, self.region, self.period = a, r, int(period)
         self.updates: list[dict] = []
         self._count = 0
@@ -200,7 +202,7 @@ class LocalMesh:
             self._count += 1
             if self.period == 1:
                 n = reg.remesh(np.argwhere(hit).astype(np.int64))
-            elif self._count % self.period:
+            elif self.period == -1 or self._count % self.period:
                 pend = reg.pending | hit
                 n = reg.remesh(np.argwhere(hit).astype(np.int64), pend)
             else:

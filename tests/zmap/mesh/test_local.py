@@ -83,6 +83,19 @@ def test_periodic_decimation_stays_crack_free_and_exact(run):
     same_as_fresh(lm, run)  # after a periodic decimation: the same as meshing afresh
 
 
+def test_period_minus_one_decimates_only_once(run):
+    once = LocalMesh(run, allowance=0.01, region=8, period=-1)
+    every = LocalMesh(run, allowance=0.01, region=8, period=1)
+    x1 = run.stock.x0 + run.stock.pitch * (run.stock.nx - 1)
+    y1 = run.stock.y0 + run.stock.pitch * (run.stock.ny - 1)
+    for k in (20, 60, 119):
+        once.goto(k)
+        every.goto(k)
+        assert once.max_error() <= 0.01
+        assert crack_rays(once.mesh, (run.stock.x0, run.stock.y0), (x1, y1), n=1500) == 0
+    assert once.n_triangles > every.n_triangles  # touched regions stay in full
+
+
 def test_stage_out_of_range_is_the_runs_stage_error(run):
     lm = LocalMesh(run, region=8)
     with pytest.raises(StageError, match="out of range"):
@@ -94,7 +107,8 @@ def test_stage_out_of_range_is_the_runs_stage_error(run):
 @pytest.mark.parametrize("kw, word", [({"allowance": -1.0}, "allowance.*-1.0"),
                                       ({"allowance": float("nan")}, "allowance.*nan"),
                                       ({"region": 1}, "region.*1"),
-                                      ({"period": 0}, "period.*0")])
+                                      ({"period": 0}, "period.*0"),
+                                      ({"period": -2}, "period.*-2")])
 def test_bad_options_name_the_value(kw, word):
     with pytest.raises(ValueError, match=word):
         LocalMesh(walls(9), **kw)
