@@ -41,9 +41,12 @@ def _need_file(path: str | None) -> None:
 @click.option("--pitch", type=float, default=0.26, show_default=True, help="Ray pitch and DDA step, mm.")
 @click.option("--history", type=click.Choice(_HISTORIES), default="treap", show_default=True)
 @click.option("--lenient", is_flag=True, help="Skip unsupported G-code blocks with a warning count.")
+@click.option("--max-blocks", type=click.IntRange(min=0), default=None, metavar="N",
+              help="Blocks that loops and subroutine calls may run again (default 100000).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="RUN.zsim to write.")
 @click.option("--progress/--no-progress", default=True, show_default=True)
-def simulate_cmd(program, stock, tool, tools_path, project, pitch, history, lenient, output, progress) -> None:
+def simulate_cmd(program, stock, tool, tools_path, project, pitch, history, lenient, max_blocks, output,
+                 progress) -> None:
     """Simulate PROGRAM on a dexel stock, recording a history, and save the run."""
     import warnings
 
@@ -67,7 +70,8 @@ def simulate_cmd(program, stock, tool, tools_path, project, pitch, history, leni
         tools.update(load_tool_table(tools_path))
     if stock is None:
         raise click.UsageError("give --stock (or --camotics with a stock)")
-    prog = parse(program, lenient=lenient, tool_table=tools or None)
+    limits = {} if max_blocks is None else {"max_blocks": max_blocks}
+    prog = parse(program, lenient=lenient, tool_table=tools or None, **limits)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         run = simulate(prog, stock, tool=tool, tools=tools or None, pitch=pitch, history=history, progress=progress)

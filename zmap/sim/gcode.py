@@ -663,7 +663,8 @@ class _Runner:
             if executed > budget:
                 raise _LimitError(src.name, i + 1, 1, "block",
                                  f"more than {self.max_blocks} blocks executed (an endless "
-                                 f"loop?); parse(max_blocks=...) allows more")
+                                 f"loop?); parse(max_blocks=...) or zmap simulate "
+                                 f"--max-blocks allows more")
             st.file = src.name
             was_jumped, jumped = jumped, False
             snap = st.snapshot(src.special[i]) if self.lenient else None

@@ -134,3 +134,17 @@ def test_real_program_with_camotics_project(tmp_path, sample_data):
     assert run.n_stages > 50_000
     k = run.stage("1/2")
     assert np.array_equal(run.display(k), run.reconstruct(k).top(), equal_nan=True)
+
+
+def test_simulate_max_blocks_limits_loops(tmp_path, capsys):
+    prog = tmp_path / "loop.ngc"
+    prog.write_text("G21 G90 G0 X0 Y0 Z1\n#1=0\nO1 while [#1 LT 300]\nG1 X[#1/10] F100\n"
+                    "#1=[#1+1]\nO1 endwhile\nM2\n")
+    args = ["simulate", str(prog), "--stock", "box:50x10x5", "--tool", "flat:2", "--no-progress",
+            "-o", str(tmp_path / "l.zsim")]
+    assert main(args + ["--max-blocks", "100"]) == 1
+    err = capsys.readouterr().err
+    assert "loop.ngc:4:1" in err and "--max-blocks" in err and err.count("\n") == 1
+    assert not (tmp_path / "l.zsim").exists()
+    assert main(args + ["--max-blocks", "5000"]) == 0
+    assert (tmp_path / "l.zsim").exists()
