@@ -1,7 +1,8 @@
 """Local web viewer of a simulation run: the stock in 3D with a stage slider (pyvista + trame).
 
 ``zmap view RUN.zsim`` serves it on 127.0.0.1; :func:`make_viewer` builds the same app in
-Python. Nothing here is imported by ``import zmap``: pyvista and trame load when a viewer is
+Python, and :func:`serve` runs it in a child process for a notebook (an iframe of the same
+page). Nothing here is imported by ``import zmap``: pyvista and trame load when a viewer is
 made.
 """
 
@@ -9,9 +10,10 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["Viewer", "make_viewer", "stage_caption"]
+__all__ = ["Viewer", "make_viewer", "stage_caption", "serve", "ViewerProcess"]
 
-_LAZY = {"Viewer": "app", "make_viewer": "app", "stage_caption": "app"}
+_LAZY = {"Viewer": "app", "make_viewer": "app", "stage_caption": "app", "serve": "process",
+         "ViewerProcess": "process"}
 
 
 def __getattr__(name: str) -> Any:

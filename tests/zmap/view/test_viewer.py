@@ -156,3 +156,22 @@ def _pixels(png: bytes) -> np.ndarray:
     import matplotlib.image as mpimg
 
     return mpimg.imread(io.BytesIO(png), format="png")[..., :3].astype(np.float64) * 255
+
+
+def test_serve_in_a_child_process_for_notebooks(tmp_path, pocket_run):
+    import urllib.request
+
+    from zmap.errors import ZMapError
+    from zmap.view import serve
+
+    handle = serve(pocket_run.save(tmp_path / "pocket.zsim"))
+    try:
+        with urllib.request.urlopen(handle.url, timeout=10) as r:
+            assert r.status == 200
+        assert f'src="{handle.url}"' in handle._repr_html_()
+        assert "running" in repr(handle)
+    finally:
+        handle.stop()
+    assert "exited" in repr(handle)
+    with pytest.raises(ZMapError, match="nope.zsim"):
+        serve(tmp_path / "nope.zsim", timeout=20)
