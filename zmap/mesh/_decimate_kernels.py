@@ -571,16 +571,21 @@ def measure_kernel(z, vi, vj, faces, vz):
 # ---- whole maps and local updates ---------------------------------------------------------
 
 @njit(cache=True)
+def _region_box(bi, bj, r, nx, ny):
+    """First and last node (i0, j0, i1, j1) of region (bi, bj), its borders included."""
+    i0 = bi * r
+    j0 = bj * r
+    return i0, j0, min(i0 + r, nx - 1), min(j0 + r, ny - 1)
+
+
+@njit(cache=True)
 def region_has_nan(z, r, todo, out):
     """out[bi, bj] = region (bi, bj) of ``todo`` holds a NaN node (borders included)."""
     nx, ny = z.shape
     for k in range(todo.shape[0]):
         bi = todo[k, 0]
         bj = todo[k, 1]
-        i0 = bi * r
-        j0 = bj * r
-        i1 = min(i0 + r, nx - 1)
-        j1 = min(j0 + r, ny - 1)
+        i0, j0, i1, j1 = _region_box(bi, bj, r, nx, ny)
         f = False
         for i in range(i0, i1 + 1):
             for j in range(j0, j1 + 1):
@@ -663,10 +668,9 @@ def remesh_regions(z, r, tol, full, dense, todo, vpool, tpool, nv, nt):
         bi = todo[k, 0]
         bj = todo[k, 1]
         reg = bi * nry + bj
-        i0 = bi * r
-        j0 = bj * r
-        W = min(i0 + r, nx - 1) - i0 + 1
-        H = min(j0 + r, ny - 1) - j0 + 1
+        i0, j0, i1, j1 = _region_box(bi, bj, r, nx, ny)
+        W = i1 - i0 + 1
+        H = j1 - j0 + 1
         if full or dense[bi, bj]:
             a, b = full_kernel(z, i0, j0, W, H, vpool[reg], tpool[reg])
             nv[reg] = a
@@ -722,9 +726,8 @@ def assemble(vpool, tpool, nv, nt, r, nry, nx, ny, ids):
     for reg in range(nreg):
         bi = reg // nry
         bj = reg - bi * nry
-        i0 = bi * r
-        j0 = bj * r
-        H = min(j0 + r, ny - 1) - j0 + 1
+        i0, j0, _, j1 = _region_box(bi, bj, r, nx, ny)
+        H = j1 - j0 + 1
         for v in range(nv[reg]):
             o = vpool[reg, v]
             x = o // H
@@ -790,10 +793,7 @@ def keep_changed(a, b, r, hit):
         for bj in range(nry):
             if not hit[bi, bj]:
                 continue
-            i0 = bi * r
-            j0 = bj * r
-            i1 = min(i0 + r, nx - 1)
-            j1 = min(j0 + r, ny - 1)
+            i0, j0, i1, j1 = _region_box(bi, bj, r, nx, ny)
             same = True
             for i in range(i0, i1 + 1):
                 for j in range(j0, j1 + 1):
