@@ -263,7 +263,7 @@ def main() -> None:
                    "seconds": round(time.perf_counter() - t0, 1)}
         print(json.dumps(res))
         return
-    res = {"tol": a.tol, "points": a.points, "timeout_s": a.timeout, "parts": str(a.parts),
+    res = {"tol": a.tol, "points": a.points, "timeout_s": a.timeout, "parts_dir": str(a.parts),
            "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"), "parts": {}}
     paths = _parts(a.parts, a.only)
     for path in paths:  # table order, filled in as the parts finish
