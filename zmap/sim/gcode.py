@@ -275,6 +275,16 @@ def _read_source(source: str | os.PathLike, filename: str | None) -> tuple[str, 
     return source, filename if filename is not None else "<string>"
 
 
+def _split_lines(text: str) -> list[str]:
+    """Lines as an editor shows them: a UTF-8 BOM dropped, LF, CRLF, CR and ``\\r\\r\\n`` ends."""
+    if text.startswith("\ufeff"):
+        text = text[1:]
+    lines = _LINE_END.split(text)
+    if lines and lines[-1] == "":
+        lines.pop()
+    return lines
+
+
 class _Interp:
     """Modal state of the interpreter; moves are appended as float rows."""
 
@@ -448,17 +458,13 @@ def parse(
     else:
         table = dict(tool_table)
 
-    if text.startswith("\ufeff"):
-        text = text[1:]
-    lines = _LINE_END.split(text)
-    if lines and lines[-1] == "":
-        lines.pop()
+    lines = _split_lines(text)
     n_lines = len(lines)
 
     st = _Interp(fname, table)
     warnings: list[str] = []
     src = _Source.from_lines(lines, fname, block_delete, lenient, warnings)
-    runner = _Runner(st, src, lenient, warnings, max_blocks, max_moves)
+    runner = _Runner(st, src, lenient, warnings, max_blocks, max_moves, block_delete)
     runner.sub_dirs = _subroutine_dirs(subroutine_path, fname)
     runner.run()
     if st.comp is not None:
@@ -629,10 +635,11 @@ class _Runner:
     """Runs a program's lines through the interpreter, with O-word control flow and calls."""
 
     def __init__(self, st: _Interp, main: _Source, lenient: bool, warnings: list[str],
-                 max_blocks: int, max_moves: int):
+                 max_blocks: int, max_moves: int, block_delete: bool = True):
         self.st = st
         self.main = main
         self.lenient = lenient
+        self.block_delete = block_delete  # subroutine files read later follow the program
         self.warnings = warnings
         self.max_blocks = max_blocks
         self.max_moves = max_moves
@@ -745,10 +752,9 @@ class _Runner:
                 path = self._sub_file(name)
                 cand = None
                 if path is not None:
-                    text = path.read_text(encoding="utf-8", errors="replace")
-                    lines = _LINE_END.split(text.lstrip("\ufeff"))
-                    cand = _Source.from_lines(lines, str(path), True, self.lenient,
-                                              self.warnings)
+                    text, fname = _read_source(path, None)
+                    cand = _Source.from_lines(_split_lines(text), fname, self.block_delete,
+                                              self.lenient, self.warnings)
                 self.files[name] = cand
             cand = self.files[name]
             if cand is not None and label in cand.structure.subs:
