@@ -87,13 +87,28 @@ def _view_bounds(part: Part, axis: str) -> tuple[float, float, float, float]:
 
 
 def grid_shape(bounds: Sequence[float], dx: float, dy: float) -> tuple[int, int]:
-    """Grid points ``(nx, ny)`` over ``bounds = (x0, y0, x1, y1)``, at least 2 along each axis."""
+    """Grid points ``(nx, ny)`` that cover ``bounds = (x0, y0, x1, y1)``, at least 2 along each axis.
+
+    The last grid line is the first one at or beyond ``x1`` (``y1``), within 1e-9 of an
+    interval: ``x0 + (nx - 1) * dx >= x1``, so no part of the domain is left off the map
+    (a domain that is a whole number of intervals keeps its last line on ``x1``).
+
+    Examples
+    --------
+    >>> grid_shape((0.0, 0.0, 10.0, 5.0), 1.0, 1.0), grid_shape((0.0, 0.0, 10.2, 5.0), 1.0, 1.0)
+    ((11, 6), (12, 6))
+    """
     x0, y0, x1, y1 = (float(v) for v in bounds)
     if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x1 < x0 or y1 < y0:
         raise ValueError(f"bounds must be finite (x0, y0, x1, y1) with x1 >= x0 and y1 >= y0, got {tuple(bounds)}")
-    nx = max(2, int(math.floor((x1 - x0) / dx + 1e-9)) + 1)
-    ny = max(2, int(math.floor((y1 - y0) / dy + 1e-9)) + 1)
+    nx = max(2, int(math.ceil((x1 - x0) / dx - 1e-9)) + 1)
+    ny = max(2, int(math.ceil((y1 - y0) / dy - 1e-9)) + 1)
     return nx, ny
+
+
+def _centred(lo: float, hi: float, step: float, n: int) -> float:
+    """First grid line of ``n`` lines ``step`` apart centred on ``[lo, hi]`` (they cover it)."""
+    return 0.5 * (lo + hi) - 0.5 * (n - 1) * step
 
 
 def estimate_bytes(nx: int, ny: int) -> int:
@@ -430,7 +445,9 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
     bounds : (x0, y0, x1, y1), optional
         Domain in the view frame, mm; default the extents of the part's triangulation seen
         from ``axis`` (its bounding box without OCC's tolerance padding).
-        Grid points are ``x0 + i*dx``, ``y0 + j*dy`` up to ``x1``, ``y1``.
+        Grid points are ``x0 + i*dx``, ``y0 + j*dy`` up to the first line at or beyond
+        ``x1``, ``y1`` (:func:`grid_shape`), so the map covers the whole domain; on the
+        default domain the lines are centred on the part's extents instead.
     method : {'auto', 'jacobian', 'facet'}
         'auto': Jacobian inversion, facets where it fails; 'jacobian': inversion only
         (points where it fails stay empty unless another face covers them); 'facet':
@@ -505,9 +522,12 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
         if ext:
             e = np.array(ext)
             bounds = (float(e[:, 0].min()), float(e[:, 1].min()), float(e[:, 2].max()), float(e[:, 3].max()))
-            x0, y0 = bounds[0], bounds[1]
             nx, ny = grid_shape(bounds, dx, dy)
             need = _check_memory(nx, ny)
+        # the lines cover the part's extents, centred on them: a symmetric part gives a
+        # symmetric map (a whole number of intervals keeps the lines on the extents)
+        x0 = _centred(bounds[0], bounds[2], dx, nx)
+        y0 = _centred(bounds[1], bounds[3], dy, ny)
     window = (x0 - dx, y0 - dy, x0 + (nx - 1) * dx + dx, y0 + (ny - 1) * dy + dy)
     fs = _face_set(vpart, deflection, window)
     for msg in fs.msgs:

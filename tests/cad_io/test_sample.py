@@ -336,3 +336,31 @@ def test_steep_face_keeps_its_exact_heights(sample_data):
     z, face, method = sample_points(part, x, y, deflection=0.005)
     assert (method == 1).all()
     assert np.abs(z - RayCaster(part.shape)(x, y)[0]).max() <= 1e-6
+
+
+# ---- the map covers the whole domain (issue 14) -------------------------------------------------
+
+def test_grid_covers_the_domain_and_is_symmetric_on_a_symmetric_part(tmp_path):
+    """The last grid line is at or beyond the domain's end: a box of 10.3 x 7.3 mm centred on
+    the origin, grid 1 mm, gives a map over -5.5 .. 5.5 x -4 .. 4 (it stopped at 4.85 and
+    3.35 before: up to one interval of the part off the high sides), mirror-symmetric."""
+    cq = pytest.importorskip("cadquery")
+    from cad_io.sampler import grid_shape
+
+    assert grid_shape((0.0, 0.0, 10.0, 5.0), 1.0, 1.0) == (11, 6)
+    assert grid_shape((0.0, 0.0, 10.0 + 1e-12, 5.0), 1.0, 1.0) == (11, 6)
+    assert grid_shape((0.0, 0.0, 10.2, 5.01), 1.0, 1.0) == (12, 7)
+    path = tmp_path / "box.step"
+    cq.exporters.export(cq.Workplane().box(10.3, 7.3, 2.0), str(path))
+    part = read_step(path)
+    zm = sample(part, 1.0)
+    assert zm.shape == (12, 9)
+    np.testing.assert_allclose([zm.x0, zm.x1, zm.y0, zm.y1], [-5.5, 5.5, -4.0, 4.0], atol=1e-6)
+    inside = (np.abs(zm.x)[:, None] <= 5.15) & (np.abs(zm.y)[None, :] <= 3.65)
+    assert np.all(np.abs(zm.z[inside] - 1.0) < 1e-9)
+    assert np.all(np.isnan(zm.z[~inside]))
+    np.testing.assert_array_equal(np.isnan(zm.z), np.isnan(zm.z[::-1, ::-1]))
+    # explicit bounds keep their first line and run to the first line at or beyond x1, y1
+    zb = sample(part, 1.0, bounds=(-5.15, -3.65, 5.15, 3.65))
+    assert zb.shape == (12, 9) and zb.x0 == -5.15 and zb.x1 >= 5.15 and zb.y1 >= 3.65
+    assert np.isfinite(zb.z[-2, -2]) and np.isnan(zb.z[-1, -1])
