@@ -16,7 +16,7 @@ __all__ = ["compare", "Comparison", "Region", "first_offending", "design_heights
 _WHERE = {
     "compare": "deviation", "Comparison": "deviation", "Region": "deviation", "first_offending": "deviation",
     "design_heights": "deviation", "load_design": "deviation",
-    "collisions": "collisions", "Collision": "collisions", "Holder": "collisions", "load_holders": "collisions",
+    "collisions": "clash", "Collision": "clash", "Holder": "clash", "load_holders": "clash",
     "write_report": "report", "format_markdown": "report", "regions_csv": "report",
     "deviation_png": "report", "deviation_3d": "report",
 }

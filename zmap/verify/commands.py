@@ -60,7 +60,7 @@ def compare_cmd(run_path, design_path, stage, tol, offset, fmt, output, png, png
         click.echo(f"zmap: warning: {w.message}", err=True)
     hits = None
     if collisions:
-        from .collisions import COLLISION_KINDS, collisions as find
+        from .clash import COLLISION_KINDS, collisions as find
 
         kinds = [k for k in COLLISION_KINDS if not (no_holder and k == "holder")]
         hits = find(run, program, holders=holders, kinds=kinds)
