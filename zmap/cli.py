@@ -57,15 +57,20 @@ def accuracy(surfaces, grids, schemes, points, seed, fmt) -> None:
 
 
 @cli.command()
-@click.argument("path", type=click.Path(dir_okay=False))
+@click.argument("path", type=click.Path())
 def info(path: str) -> None:
-    """Describe a saved z-map (.zmap.npz): grid, domain, heights, memory, metadata."""
+    """Describe a saved z-map (.zmap.npz or a tiled .zarr store): grid, domain, heights, memory, metadata."""
     import json
 
     import numpy as np
 
     from .grid import ZMap
 
+    if os.path.isdir(path):  # tiled store (zmap/tiled): described from its metadata and tile markers
+        from .tiled import TiledZMap
+
+        click.echo("\n".join(TiledZMap.open(path, incomplete=True).describe()))
+        return
     zm = ZMap.load(path)
     z = zm.z
     filled = np.isfinite(z)
@@ -95,6 +100,9 @@ from cad_io.commands import convert_cmd, refine_cmd, report_cmd  # noqa: E402  (
 cli.add_command(convert_cmd)  # cad commands
 cli.add_command(refine_cmd)  # cad commands
 cli.add_command(report_cmd)  # cad commands
+# verify command (zmap/verify/commands.py): compare a run's stock with its design
+from .verify.commands import compare_cmd  # noqa: E402  (verify command)
+cli.add_command(compare_cmd)  # verify command
 
 
 def _one_line(exc: BaseException) -> str:
