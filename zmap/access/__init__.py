@@ -1,0 +1,35 @@
+"""Tool access directions from a visibility voxel map (paper 002, Tangelder, Vergeest et al.).
+
+The kernel-free half: the icosahedral direction set and its bitsets
+(:mod:`zmap.access.directions`), paint spreading, cylinder casting, the ball-end
+accessibility map with shank and holder, the 3-axis verdict and set-up selection
+(:mod:`zmap.access.voxelmap`). The voxelisation of a part's exact faces lives in
+:mod:`cad_io.access`. Submodules load on first use: ``import zmap.access`` compiles nothing.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_WHERE = {
+    "DirectionSet": "directions", "direction_set": "directions", "to_bool": "directions",
+    "from_bool": "directions", "count": "directions",
+    "VoxelMap": "voxelmap", "Tool": "voxelmap", "parse_tool": "voxelmap", "paint": "voxelmap",
+    "global_visibility": "voxelmap", "accessibility": "voxelmap", "three_axis": "voxelmap",
+    "set_cover": "voxelmap", "node_directions": "voxelmap", "AccessResult": "voxelmap",
+}
+
+__all__ = list(_WHERE)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'zmap.access' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
