@@ -1,0 +1,282 @@
+"""Drop-cutter: the cutter-location (CL) height of a flat, ball or bull cutter over a design.
+
+The CL height at an axis position ``(x, y)`` is the lowest tool-tip height at which the
+cutter touches the surface without entering it::
+
+    cl(x, y) = max over |u - (x, y)| <= R of  h(u) - envelope(|u - (x, y)|)
+
+(``envelope`` is the cutter's lower envelope, :meth:`zmap.sim.tools.Cutter.lower_envelope`).
+It is computed on the model given, with its own heights ``h``: a ``ZMap`` (its Bezier
+surface), a ``PrecisionModel`` (:meth:`~zmap.model.PrecisionModel.height`), a ``cad_io.Part``
+(exact top-most heights on the B-rep, :func:`cad_io.sampler.height_function`) or any
+``heights(x, y)`` callable. Three steps:
+
+1. a discrete drop over height samples of the model at ``pitch`` (a ZMap's own nodes), numba,
+   with a block-max pyramid that visits blocks best bound first and stops when no block can
+   beat the contact found (:mod:`zmap.cam._drop_kernels`);
+2. for every point, the paraboloid through the 3 x 3 samples around the best sample gives a
+   sub-sample contact, whose exact height is evaluated (a smooth contact is then within
+   ~1e-6 mm);
+3. points whose contact is not smooth (a wall or edge beside it: a height jump in the 3 x 3
+   samples, a sample without surface, the rim of the cutter, a neighbourhood that is not
+   concave) are finished by a pattern search on the exact heights (8 directions projected
+   onto the cutter's disk, step halved down to ``xtol``), which walks onto the edge.
+
+Every value returned is an exact contact height of a real surface point (so never above the
+true CL); what can be missed is a feature narrower than ``pitch`` between the samples.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable
+
+import numpy as np
+
+from ..errors import ZMapError
+
+__all__ = ["drop_cutter", "model_heights", "as_cutter"]
+
+_B = 8
+_MAX_SAMPLES = 200_000_000
+
+
+def as_cutter(cutter: Any) -> Any:
+    """A :class:`zmap.sim.tools.Cutter` from a Cutter or a spec like ``"ball:6"``."""
+    from ..sim.tools import Cutter, parse_tool_spec
+
+    if isinstance(cutter, str):
+        return parse_tool_spec(cutter)
+    if isinstance(cutter, Cutter):
+        return cutter
+    raise ValueError(f"cutter must be a Cutter or a spec like 'ball:6', got {cutter!r}")
+
+
+def model_heights(model: Any) -> tuple[Callable, Any, float | None]:
+    """``(heights(x, y), zmap or None, natural pitch or None)`` of a design model."""
+    from ..grid import ZMap
+    from ..model import PrecisionModel
+
+    if isinstance(model, ZMap):
+        if model.has_frame:
+            raise ValueError("drop_cutter takes z-maps without a local frame")
+        from ..interpolate import bezier
+
+        return (lambda x, y: bezier(model, x, y)), model, min(model.dx, model.dy)
+    if isinstance(model, PrecisionModel):
+        return model.height, None, min(model.base.dx, model.base.dy) / 4
+    if hasattr(model, "faces") and hasattr(model, "bbox"):  # cad_io.Part
+        from cad_io.sampler import height_function
+
+        b = model.bbox
+        return height_function(model), None, max(b[3] - b[0], b[4] - b[1]) / 400
+    if callable(model):
+        return model, None, None
+    raise ValueError("model must be a ZMap, a PrecisionModel, a cad_io Part or a heights(x, y) callable, "
+                     f"got {type(model).__name__}")
+
+
+def _contact(hf, cut, qx, qy, ux, uy):
+    """Exact contact height h(u) - envelope(|u - q|); -inf outside the disk or without surface."""
+    from . import _drop_kernels as K
+
+    d = np.hypot(ux - qx, uy - qy).ravel()
+    env = np.empty(d.size)
+    K.envelope_many(cut.code, cut.radius, cut.corner_radius, np.ascontiguousarray(d), env)
+    h = np.asarray(hf(ux.ravel(), uy.ravel()), dtype=np.float64)
+    g = h - env
+    g[~np.isfinite(g)] = -np.inf
+    return g.reshape(np.shape(ux))
+
+
+def _pattern_search(hf, cut, qx, qy, ux, uy, g, step, xtol, max_iter=400):
+    """Maximise the contact height around (ux, uy): compass steps in x, y and in polar
+    coordinates about the axis (radius and arc, alone and together: a contact sliding along
+    a curved edge needs the two at once), all kept on the cutter's disk; a step that finds
+    nothing better is halved, down to ``xtol``."""
+    R = cut.radius
+    s = np.full(qx.shape, float(step))
+    c8 = np.array([[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [-1, 1], [1, -1], [-1, -1]], dtype=np.float64)
+    cart = c8.copy()
+    cart[4:] *= 0.7071067811865476
+    # polar moves (dr, arc): the eight, and arcs with a small step inwards (an edge nearly
+    # square to the radius is followed by turning much and coming in a little)
+    pol = np.vstack([c8, [[-1 / 4, 1], [-1 / 4, -1], [-1 / 16, 1], [-1 / 16, -1], [-1 / 64, 1], [-1 / 64, -1],
+                          [-1 / 256, 1], [-1 / 256, -1]]])
+    act = np.flatnonzero(s > xtol)
+    it = 0
+    while act.size and it < max_iter:
+        it += 1
+        sa = s[act, None]
+        qxa, qya = qx[act, None], qy[act, None]
+        # cartesian candidates
+        cx1 = ux[act, None] + sa * cart[None, :, 0]
+        cy1 = uy[act, None] + sa * cart[None, :, 1]
+        # polar candidates about the axis: dr, and arc length r*dtheta
+        ox, oy = ux[act] - qx[act], uy[act] - qy[act]
+        r0 = np.hypot(ox, oy)
+        th0 = np.arctan2(oy, ox)
+        rr = np.clip(r0[:, None] + sa * pol[None, :, 0], 0.0, R)
+        th = th0[:, None] + sa * pol[None, :, 1] / np.maximum(r0[:, None], sa)
+        cx2 = qxa + rr * np.cos(th)
+        cy2 = qya + rr * np.sin(th)
+        cx = np.concatenate([cx1, cx2], axis=1)
+        cy = np.concatenate([cy1, cy2], axis=1)
+        ox, oy = cx - qxa, cy - qya
+        r = np.hypot(ox, oy)
+        over = r > R
+        f = np.where(over, R / np.where(over, r, 1.0), 1.0)
+        cx = qxa + ox * f
+        cy = qya + oy * f
+        gc = _contact(hf, cut, qxa, qya, cx, cy)
+        k = np.argmax(gc, axis=1)
+        gb = gc[np.arange(act.size), k]
+        better = gb > g[act]
+        a = act[better]
+        ux[a] = cx[better, k[better]]
+        uy[a] = cy[better, k[better]]
+        g[a] = gb[better]
+        s[act[~better]] *= 0.5
+        act = act[s[act] > xtol]
+    return ux, uy, g
+
+
+def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None = None,
+                xtol: float = 1e-7, return_contact: bool = False, refine: bool = True) -> Any:
+    """Cutter-location heights of a cutter dropped onto a design at axis positions (x, y).
+
+    Parameters
+    ----------
+    model : ZMap, PrecisionModel, cad_io.Part or callable ``heights(x, y)``
+        The design; NaN heights are "no surface" (the cutter falls past them).
+    cutter : Cutter or str — e.g. ``"ball:6"``, ``"flat:10"``, ``"bull:10:1"``.
+    x, y : array_like of float — axis positions in mm (broadcast together).
+    pitch : float, optional — spacing of the height samples of the discrete drop, mm; default:
+        a ZMap's own grid, a PrecisionModel's base grid / 4, a Part's extent / 400, and never
+        more than the cutter radius / 8. Features narrower than it may be missed.
+    xtol : float — mm, the final step of the pattern search on non-smooth contacts.
+    return_contact : bool — also return the contact points ``(cx, cy, cz)``.
+    refine : bool — steps 2 and 3 (exact heights); False: the discrete drop alone.
+
+    Returns
+    -------
+    cl : ndarray, float64, mm (shape of the broadcast x, y; a float for scalars) — tool-tip
+        heights; NaN where no surface lies under the cutter.
+    (cl, cx, cy, cz) with ``return_contact``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from zmap import ZMap
+    >>> step = ZMap.from_function(lambda x, y: np.where(x > 0.01, 2.0, 0.0), (-10, -10, 10, 10), 0.1)
+    >>> round(float(drop_cutter(step, "ball:6", -1.0, 0.0)), 3)   # 2 - (3 - sqrt(9 - 1.01**2))
+    1.825
+    """
+    from ..grid import ZMap
+    from . import _drop_kernels as K
+
+    cut = as_cutter(cutter)
+    xb, yb = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+    shape = xb.shape
+    qx = np.ascontiguousarray(xb.ravel())
+    qy = np.ascontiguousarray(yb.ravel())
+    if not (np.isfinite(qx).all() and np.isfinite(qy).all()):
+        raise ValueError("x and y must be finite axis positions in mm")
+    R = cut.radius
+    hf, zm, natural = model_heights(model)
+    if pitch is not None:
+        pitch = float(pitch)
+        if not (math.isfinite(pitch) and pitch > 0):
+            raise ValueError(f"pitch must be a positive number of mm, got {pitch!r}")
+    n = qx.size
+    if n == 0:
+        out = np.zeros(shape)
+        return (out, out.copy(), out.copy(), out.copy()) if return_contact else out
+    if zm is not None and pitch is None:
+        Z, x0, y0, dx, dy = np.ascontiguousarray(zm.z, dtype=np.float64), zm.x0, zm.y0, zm.dx, zm.dy
+    else:
+        p = pitch or min(natural or R / 8, R / 8)
+        lo_x, hi_x = qx.min() - R - p, qx.max() + R + p
+        lo_y, hi_y = qy.min() - R - p, qy.max() + R + p
+        nx = int(math.ceil((hi_x - lo_x) / p)) + 1
+        ny = int(math.ceil((hi_y - lo_y) / p)) + 1
+        if nx * ny > _MAX_SAMPLES:
+            raise ZMapError(f"drop_cutter would sample {nx} x {ny} heights at pitch {p:g} mm "
+                            f"(cap {_MAX_SAMPLES:.0e}): give a coarser pitch or fewer points")
+        x0, y0, dx, dy = lo_x, lo_y, p, p
+        X, Y = np.meshgrid(x0 + dx * np.arange(nx), y0 + dy * np.arange(ny), indexing="ij")
+        Z = np.ascontiguousarray(np.asarray(hf(X.ravel(), Y.ravel()), dtype=np.float64).reshape(nx, ny))
+    nx, ny = Z.shape
+    bm = np.empty(((nx + _B - 1) // _B, (ny + _B - 1) // _B))
+    K.block_max(Z, _B, bm)
+    val = np.empty(n)
+    oi = np.empty(n, dtype=np.int64)
+    oj = np.empty(n, dtype=np.int64)
+    slack = 0.75 * math.hypot(dx, dy) if refine else 0.0
+    K.drop_samples(Z, float(x0), float(y0), float(dx), float(dy), bm, _B, cut.code, R, cut.corner_radius,
+                   slack, qx, qy, val, oi, oj)
+    ok = oi >= 0
+    ux = np.where(ok, x0 + oi * dx, np.nan)
+    uy = np.where(ok, y0 + oj * dy, np.nan)
+    if refine and ok.any():
+        # a best sample just outside the disk: start from its projection on the rim, exactly
+        ox, oy = ux - qx, uy - qy
+        rr = np.hypot(ox, oy)
+        out_ = np.flatnonzero(ok & (rr > R))
+        if out_.size:
+            f = R / rr[out_]
+            ux[out_] = qx[out_] + ox[out_] * f
+            uy[out_] = qy[out_] + oy[out_] * f
+            val[out_] = _contact(hf, cut, qx[out_], qy[out_], ux[out_], uy[out_])
+        idx = np.flatnonzero(ok)
+        I, J = oi[idx], oj[idx]
+        gn = np.empty((idx.size, 3, 3))
+        zn = np.empty((idx.size, 3, 3))
+        for a in (-1, 0, 1):
+            for b in (-1, 0, 1):
+                ii, jj = I + a, J + b
+                inside = (ii >= 0) & (ii < nx) & (jj >= 0) & (jj < ny)
+                zz = np.where(inside, Z[np.clip(ii, 0, nx - 1), np.clip(jj, 0, ny - 1)], np.nan)
+                d = np.hypot(x0 + ii * dx - qx[idx], y0 + jj * dy - qy[idx])
+                env = np.empty(d.size)
+                K.envelope_many(cut.code, R, cut.corner_radius, np.ascontiguousarray(d), env)
+                zn[:, a + 1, b + 1] = zz
+                gn[:, a + 1, b + 1] = zz - env
+        g0 = gn[:, 1, 1]
+        cxx = gn[:, 0, 1] + gn[:, 2, 1] - 2 * g0
+        cyy = gn[:, 1, 0] + gn[:, 1, 2] - 2 * g0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rng = np.nanmax(zn.reshape(-1, 9), axis=1) - np.nanmin(zn.reshape(-1, 9), axis=1)
+            smooth = (np.isfinite(gn).all(axis=(1, 2)) & (cxx < 0) & (cyy < 0)
+                      & (rng <= 3.0 * max(dx, dy)))
+            tx = np.clip(0.5 * (gn[:, 0, 1] - gn[:, 2, 1]) / cxx, -0.5, 0.5)
+            ty = np.clip(0.5 * (gn[:, 1, 0] - gn[:, 1, 2]) / cyy, -0.5, 0.5)
+        if cut.code == 2:  # a bull's envelope has a kink where the flat bottom meets the torus
+            r0 = R - cut.corner_radius
+            db = np.hypot(ux[idx] - qx[idx], uy[idx] - qy[idx])
+            smooth &= np.abs(db - r0) > 1.5 * max(dx, dy)
+        tx = np.where(smooth, tx, 0.0)
+        ty = np.where(smooth, ty, 0.0)
+        px = ux[idx] + tx * dx
+        py = uy[idx] + ty * dy
+        gs = _contact(hf, cut, qx[idx], qy[idx], px, py)
+        g_here = val[idx]
+        better = gs > g_here
+        ux[idx[better]] = px[better]
+        uy[idx[better]] = py[better]
+        val[idx[better]] = gs[better]
+        # exact height at the sample itself (a ZMap's nodes are exact already)
+        rough = idx[~smooth]
+        if rough.size:
+            sx, sy, sg = _pattern_search(hf, cut, qx[rough], qy[rough], ux[rough].copy(), uy[rough].copy(),
+                                         val[rough].copy(), 0.5 * max(dx, dy), xtol)
+            ux[rough], uy[rough], val[rough] = sx, sy, sg
+    cl = np.where(np.isfinite(val), val, np.nan).reshape(shape)
+    if not return_contact:
+        return cl[()] if cl.ndim == 0 else cl
+    cz = cl + np.where(ok, 0.0, np.nan).reshape(shape)
+    d = np.hypot(ux - qx, uy - qy)
+    env = np.empty(d.size)
+    K.envelope_many(cut.code, R, cut.corner_radius, np.ascontiguousarray(np.nan_to_num(d, nan=2 * R)), env)
+    cz = (cl.ravel() + env).reshape(shape)
+    return cl, ux.reshape(shape), uy.reshape(shape), cz
