@@ -23,7 +23,7 @@ from ..grid import ZMap
 __all__ = ["BREAK_RATIO", "FORMAT_VERSION", "NAN_CODE", "SERIAL_BELOW", "CellPatches", "EZMap", "all_edges",
            "cells_around", "edge_count", "encode_heights", "sub_grid"]
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 #: Batches smaller than this are evaluated on one thread (no thread-pool wake-up).
 SERIAL_BELOW = 4096
 #: A jump or kink must stand out this many times from its neighbours to count as a break.
@@ -107,6 +107,81 @@ def cells_around(nx: int, ny: int, ids: np.ndarray) -> np.ndarray:
 def _n_points(length: float, interval: float) -> int:
     """Interior points that split ``length`` into pieces no longer than ``interval``."""
     return max(math.ceil(length / interval - 1e-9) - 1, 0)
+
+
+def break_thresholds(dx: float, dy: float, interval: float, tol: float) -> tuple[float, float]:
+    """``(jump_min, kink_min)`` of :func:`zmap.refine._ez_kernels.detect_breaks` for an e-map
+    of ``interval`` on a ``dx`` by ``dy`` grid built for ``tol``."""
+    n_max = max(_n_points(dx, interval), _n_points(dy, interval)) + 1
+    return tol, 4.0 * tol / n_max
+
+
+def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, edge_ids: np.ndarray,
+             offsets: np.ndarray, heights: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """Keep on each smooth edge only every ``s``-th e-point, ``s`` as large as lets the kept
+    points interpolate all of them linearly within ``limit``.
+
+    An edge keeps all its points where its sequence has a break (a wall or a sharp edge,
+    :func:`zmap.refine._ez_kernels.detect_breaks`), where the thinned sequence would show
+    one, or where a height is missing. The thinned edge's boundary curve (linear between
+    samples, as the cells evaluate it) is then within ``limit`` of the full one everywhere
+    (both are linear between the full samples, and agree within ``limit`` at each), and
+    its cells split the same way (no break either way).
+
+    Parameters
+    ----------
+    z : ndarray of shape (nx, ny)
+        Grid heights (the edges' corners).
+    dx, dy, interval, tol : float
+        Grid steps, e-map interval and tolerance (the break thresholds).
+    edge_ids, offsets : ndarray of int64
+        The e-edges and their CSR offsets (interior points at ``t = q / (n + 1)``).
+    heights : ndarray of shape (P,), float64
+        E-point heights (NaN = none).
+    limit : float
+        Largest difference allowed at a dropped point, mm.
+
+    Returns
+    -------
+    offsets, heights : ndarray
+        The thinned CSR offsets and heights (the same edges, each still with at least one point).
+    """
+    from . import _ez_kernels as _k
+
+    E = edge_ids.shape[0]
+    if E == 0:
+        return offsets, heights
+    heights = np.ascontiguousarray(heights, dtype=np.float64)
+    n = np.diff(offsets)
+    d = np.empty(E, dtype=np.int64)
+    _k.decimate_counts(z, edge_ids, offsets, heights, float(limit), d)
+    thin = d < n + 1
+    if not thin.any():
+        return offsets, heights
+    jump_min, kink_min = break_thresholds(dx, dy, interval, tol)
+
+    def has_break(off, h):
+        kind = np.zeros(E, dtype=np.int8)
+        t = np.zeros(E, dtype=np.float64)
+        _k.detect_breaks(z, edge_ids, off, encode_heights(off, h), jump_min, kink_min, BREAK_RATIO, kind, t)
+        return kind != 0
+
+    def thinned(dd):
+        stride = (n + 1) // dd
+        q = np.arange(heights.shape[0]) - np.repeat(offsets[:-1], n) + 1
+        keep = q % np.repeat(stride, n) == 0
+        off = np.zeros(E + 1, dtype=np.int64)
+        np.cumsum(dd - 1, out=off[1:])
+        return off, heights[keep]
+
+    full = has_break(offsets, heights)
+    d[full] = n[full] + 1
+    off, h = thinned(d)
+    again = has_break(off, h) & (d < n + 1)
+    if again.any():
+        d[again] = n[again] + 1
+        off, h = thinned(d)
+    return off, h
 
 
 @dataclass(eq=False)
@@ -248,10 +323,16 @@ class EZMap:
 
     @property
     def nbytes(self) -> int:
-        """Bytes of the stored e-map (edge ids, offsets, codes, lo, step, cell patches); the
-        evaluation cache, rebuilt from them, is :attr:`cache_nbytes`."""
-        return int(self.edge_ids.nbytes + self.offsets.nbytes + self.codes.nbytes + self.lo.nbytes + self.step.nbytes
-                   + self.patch_nbytes)
+        """Bytes of the stored e-map (:meth:`to_arrays`: one bit per grid edge saying which
+        carry e-points, their point counts, codes, lo, step, and the cell patches). The
+        int64 edge ids and offsets the kernels index by are rebuilt from the bits and counts
+        on load (:attr:`index_nbytes`), as the evaluation tables are (:attr:`cache_nbytes`)."""
+        return int(sum(a.nbytes for a in self.to_arrays().values()))
+
+    @property
+    def index_nbytes(self) -> int:
+        """Bytes of the in-memory edge index (int64 ids and offsets), rebuilt on load."""
+        return int(self.edge_ids.nbytes + self.offsets.nbytes)
 
     @property
     def patch_nbytes(self) -> int:
@@ -314,10 +395,7 @@ class EZMap:
         E = self.n_edges
         kind = np.zeros(E, dtype=np.int8)
         brk_t = np.zeros(E, dtype=np.float64)
-        n_max = max(_n_points(self.dx, self.interval), _n_points(self.dy, self.interval)) + 1
-        h = max(self.dx, self.dy)
-        jump_min = self.tol
-        kink_min = 4.0 * self.tol * (h / n_max) / h
+        jump_min, kink_min = break_thresholds(self.dx, self.dy, self.interval, self.tol)
         if E:
             _k.detect_breaks(base.z, self.edge_ids, self.offsets, self._hq(), jump_min, kink_min, BREAK_RATIO,
                              kind, brk_t)
@@ -434,6 +512,12 @@ class EZMap:
 
     # ---- storage --------------------------------------------------------------------------
 
+    def edge_bits(self) -> np.ndarray:
+        """One bit per grid edge (edge id order, :func:`numpy.packbits`): set on the e-edges."""
+        bits = np.zeros(edge_count(self.nx, self.ny), dtype=np.uint8)
+        bits[self.edge_ids] = 1
+        return np.packbits(bits)
+
     def to_arrays(self) -> dict[str, np.ndarray]:
         """Arrays to save inside another file; :meth:`from_arrays` restores the map exactly."""
         return {
@@ -441,8 +525,9 @@ class EZMap:
             "grid": np.array([self.x0, self.y0, self.dx, self.dy, self.interval, self.tol], dtype=np.float64),
             "shape": np.array([self.nx, self.ny, self.failed, self.lifted, self.unresolved, self.pruned],
                               dtype=np.int64),
-            "edge_ids": self.edge_ids,
-            "offsets": self.offsets,
+            "edge_bits": self.edge_bits(),
+            "counts": np.diff(self.offsets).astype(np.uint8 if self.n_edges == 0 or np.diff(self.offsets).max() < 256
+                                                   else np.uint16),
             "codes": self.codes,
             "lo": self.lo,
             "step": self.step,
@@ -451,7 +536,9 @@ class EZMap:
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> EZMap:
         """Inverse of :meth:`to_arrays`."""
-        missing = {"version", "grid", "shape", "edge_ids", "offsets", "codes", "lo", "step"} - set(arrays)
+        missing = {"version", "grid", "shape", "codes", "lo", "step"} - set(arrays)
+        missing |= ({"edge_bits", "counts"} if "edge_bits" in arrays or "counts" in arrays
+                    else {"edge_ids", "offsets"}) - set(arrays)
         if missing:
             raise ValueError(f"e-map arrays lack {sorted(missing)}, got {sorted(arrays)}")
         version = int(np.asarray(arrays["version"]).ravel()[0])
@@ -462,11 +549,40 @@ class EZMap:
         patches = None
         if version >= 2:
             patches = CellPatches.from_arrays({k[len("patch_"):]: v for k, v in arrays.items()
-                                               if k.startswith("patch_")})
+                                               if k.startswith("patch_")}, grid=(g[2], g[3], g[4]))
             patches = patches if patches.n_patches else None
-        return cls(g[0], g[1], g[2], g[3], int(s[0]), int(s[1]), g[4], g[5], arrays["edge_ids"], arrays["offsets"],
+        if "edge_bits" in arrays:
+            nx, ny = int(s[0]), int(s[1])
+            bits = np.unpackbits(np.asarray(arrays["edge_bits"], dtype=np.uint8), count=edge_count(nx, ny))
+            edge_ids = np.flatnonzero(bits).astype(np.int64)
+            counts = np.asarray(arrays["counts"]).astype(np.int64)
+            if counts.shape != edge_ids.shape:
+                raise ValueError(f"e-map arrays: {counts.size} point counts for {edge_ids.size} edges")
+            offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        else:
+            edge_ids, offsets = arrays["edge_ids"], arrays["offsets"]
+        return cls(g[0], g[1], g[2], g[3], int(s[0]), int(s[1]), g[4], g[5], edge_ids, offsets,
                    arrays["codes"], arrays["lo"], arrays["step"], failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0,
                    patches=patches, unresolved=int(s[4]) if s.size > 4 else 0, pruned=int(s[5]) if s.size > 5 else 0)
+
+
+def full_counts(level, dx: float, dy: float, interval: float) -> np.ndarray:
+    """Per sub-edge e-points of patches at ``level`` (ints, ``-n`` a lattice: one 0) on a
+    ``dx`` by ``dy`` base when every sub-edge holds all its points (as format 2 stored them)."""
+    out = []
+    for m in np.asarray(level, dtype=np.int64).ravel():
+        if m <= 0:
+            out.append(np.zeros(1, dtype=np.uint16))
+        else:
+            nx_, ny_ = _n_points(dx / m, interval), _n_points(dy / m, interval)
+            out.append(np.concatenate([np.full(m * (m + 1), nx_), np.full(m * (m + 1), ny_)]).astype(np.uint16))
+    return np.concatenate(out) if out else np.zeros(0, dtype=np.uint16)
+
+
+def _segment_sums(values: np.ndarray, off: np.ndarray) -> np.ndarray:
+    """Sums of ``values[off[k]:off[k+1]]`` per segment k (0 for an empty one)."""
+    c = np.concatenate([[0], np.cumsum(np.asarray(values, dtype=np.int64))])
+    return c[off[1:]] - c[off[:-1]]
 
 
 def sub_grid(base: ZMap, cell: int, m: int, z: np.ndarray | None = None) -> ZMap:
@@ -509,6 +625,12 @@ class CellPatches:
         the ``(n+1) x (n+1)`` lattice heights in C order.
     lo, step : ndarray, float32
         Per sub-edge (one per lattice) offset and quantum of the codes.
+    counts : ndarray, uint16, optional
+        E-points kept on each sub-edge (aligned with ``lo``; 0 for a lattice): a smooth
+        sub-edge keeps every ``s``-th of its points (:func:`decimate`). Default: all of them.
+
+    Stored (:meth:`to_arrays`, :attr:`nbytes`): cells, level, nodes, codes, lo, step and
+    counts; the offsets follow from the levels and counts and are rebuilt on load.
     """
 
     cells: np.ndarray
@@ -520,10 +642,13 @@ class CellPatches:
     edge_off: np.ndarray
     lo: np.ndarray
     step: np.ndarray
+    counts: np.ndarray | None = None
     _maps: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         self.cells = np.ascontiguousarray(self.cells, dtype=np.int64)
+        if self.counts is None:  # lattices only
+            self.counts = np.zeros(self.lo.shape, dtype=np.uint16)
         self.level = np.ascontiguousarray(self.level, dtype=np.int16)
         for name in ("node_off", "code_off", "edge_off"):
             setattr(self, name, np.ascontiguousarray(getattr(self, name), dtype=np.int64))
@@ -531,6 +656,7 @@ class CellPatches:
         self.codes = np.ascontiguousarray(self.codes, dtype=np.uint16)
         self.lo = np.ascontiguousarray(self.lo, dtype=np.float32)
         self.step = np.ascontiguousarray(self.step, dtype=np.float32)
+        self.counts = np.ascontiguousarray(self.counts, dtype=np.uint16)
         K = self.cells.shape[0]
         if self.level.shape != (K,) or any(getattr(self, n).shape != (K + 1,)
                                            for n in ("node_off", "code_off", "edge_off")):
@@ -544,19 +670,22 @@ class CellPatches:
                 or not np.array_equal(np.diff(self.edge_off), np.where(ez, 2 * m * (m + 1), 1))
                 or self.edge_off[-1] != self.lo.size or self.lo.shape != self.step.shape or self.code_off[0] != 0
                 or self.code_off[-1] != self.codes.size or np.any(np.diff(self.code_off) < 0)
-                or not np.array_equal(np.diff(self.code_off)[~ez], (n[~ez] + 1) ** 2)):
-            raise ValueError("cell patches: offsets do not match the levels and array sizes")
+                or not np.array_equal(np.diff(self.code_off)[~ez], (n[~ez] + 1) ** 2)
+                or self.counts.shape != self.lo.shape
+                or not np.array_equal(np.diff(self.code_off)[ez], _segment_sums(self.counts, self.edge_off)[ez])):
+            raise ValueError("cell patches: offsets do not match the levels, counts and array sizes")
 
     @classmethod
     def empty(cls) -> CellPatches:
         z = np.zeros(0)
         zero = np.zeros(1, dtype=np.int64)
         return cls(np.zeros(0, np.int64), np.zeros(0, np.int16), zero, z, zero, np.zeros(0, np.uint16), zero,
-                   np.zeros(0, np.float32), np.zeros(0, np.float32))
+                   np.zeros(0, np.float32), np.zeros(0, np.float32), np.zeros(0, np.uint16))
 
     @classmethod
     def pack(cls, per_cell: dict[int, tuple]) -> CellPatches:
-        """Patches from ``{cell: (m, nodes, codes, lo, step)}``."""
+        """Patches from ``{cell: (m, nodes, codes, lo, step, counts)}`` (a lattice's counts
+        may be left out)."""
         if not per_cell:
             return cls.empty()
         keys = sorted(per_cell)
@@ -566,7 +695,9 @@ class CellPatches:
                    off([p[1].size for p in parts]), np.concatenate([p[1].ravel() for p in parts]),
                    off([p[2].size for p in parts]), np.concatenate([p[2] for p in parts]),
                    off([p[3].size for p in parts]), np.concatenate([p[3] for p in parts]),
-                   np.concatenate([p[4] for p in parts]))
+                   np.concatenate([p[4] for p in parts]),
+                   np.concatenate([p[5] if len(p) > 5 else np.zeros(p[3].size, np.uint16)
+                                   for p in parts]).astype(np.uint16))
 
     def unpack(self) -> dict[int, tuple]:
         """Inverse of :meth:`pack`."""
@@ -574,7 +705,8 @@ class CellPatches:
                          self.nodes[self.node_off[k]:self.node_off[k + 1]].reshape(max(int(self.level[k]) + 1, 0), -1),
                          self.codes[self.code_off[k]:self.code_off[k + 1]],
                          self.lo[self.edge_off[k]:self.edge_off[k + 1]],
-                         self.step[self.edge_off[k]:self.edge_off[k + 1]]) for k, c in enumerate(self.cells)}
+                         self.step[self.edge_off[k]:self.edge_off[k + 1]],
+                         self.counts[self.edge_off[k]:self.edge_off[k + 1]]) for k, c in enumerate(self.cells)}
 
     @property
     def n_patches(self) -> int:
@@ -582,19 +714,32 @@ class CellPatches:
 
     @property
     def nbytes(self) -> int:
-        """Bytes stored (every array)."""
-        return int(sum(a.nbytes for a in (self.cells, self.level, self.node_off, self.nodes, self.code_off,
-                                           self.codes, self.edge_off, self.lo, self.step)))
+        """Bytes stored (:meth:`to_arrays`: cells, level, nodes, codes, lo, step, counts)."""
+        return int(sum(a.nbytes for a in self.to_arrays().values()))
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        return {"cells": self.cells, "level": self.level, "node_off": self.node_off, "nodes": self.nodes,
-                "code_off": self.code_off, "codes": self.codes, "edge_off": self.edge_off, "lo": self.lo,
-                "step": self.step}
+        return {"cells": self.cells, "level": self.level, "nodes": self.nodes, "codes": self.codes, "lo": self.lo,
+                "step": self.step, "counts": self.counts}
 
     @classmethod
-    def from_arrays(cls, a: dict[str, np.ndarray]) -> CellPatches:
-        return cls(a["cells"], a["level"], a["node_off"], a["nodes"], a["code_off"], a["codes"], a["edge_off"],
-                   a["lo"], a["step"])
+    def from_arrays(cls, a: dict[str, np.ndarray], grid: tuple[float, float, float] | None = None) -> CellPatches:
+        """Inverse of :meth:`to_arrays`; also reads format 2's arrays (offsets, no counts: every
+        sub-edge full), given ``grid = (dx, dy, interval)`` of the e-map."""
+        if "counts" not in a:
+            if grid is None:
+                raise ValueError("cell patches without counts (format 2) need the e-map's (dx, dy, interval)")
+            return cls(a["cells"], a["level"], a["node_off"], a["nodes"], a["code_off"], a["codes"], a["edge_off"],
+                       a["lo"], a["step"], full_counts(a["level"], *grid))
+        m = np.asarray(a["level"], dtype=np.int64)
+        counts = np.asarray(a["counts"], dtype=np.int64)
+        off = lambda sizes: np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        ez = m > 0
+        edge_off = off(np.where(ez, 2 * m * (m + 1), 1))
+        if edge_off[-1] != counts.size:
+            raise ValueError(f"cell patches: {counts.size} counts for the {edge_off[-1]} sub-edges of the levels")
+        code_off = off(np.where(ez, _segment_sums(counts, edge_off), (1 - m) ** 2))
+        return cls(a["cells"], a["level"], off(np.where(ez, (m + 1) ** 2, 0)), a["nodes"], code_off, a["codes"],
+                   edge_off, a["lo"], a["step"], a["counts"])
 
     # ---- evaluation -----------------------------------------------------------------------
 
@@ -602,7 +747,9 @@ class CellPatches:
         """The sub-grid ZMap and EZMap of EZ patch ``k``."""
         m = int(self.level[k])
         sub = sub_grid(base, int(self.cells[k]), m, self.nodes[self.node_off[k]:self.node_off[k + 1]].reshape(m + 1, m + 1))
-        ids, offsets = all_edges(sub, interval)
+        ids, _ = all_edges(sub, interval)
+        offsets = np.zeros(ids.size + 1, dtype=np.int64)
+        np.cumsum(self.counts[self.edge_off[k]:self.edge_off[k + 1]], out=offsets[1:])
         ez = EZMap(sub.x0, sub.y0, sub.dx, sub.dy, m + 1, m + 1, interval, tol, ids, offsets,
                    self.codes[self.code_off[k]:self.code_off[k + 1]], self.lo[self.edge_off[k]:self.edge_off[k + 1]],
                    self.step[self.edge_off[k]:self.edge_off[k + 1]])
@@ -625,11 +772,15 @@ class CellPatches:
             sub0, ez0 = maps[0]
             st = {name: np.ascontiguousarray(np.stack([t[name] for t in tabs]))
                   for name in ("brk_kind", "brk_t", "nb", "bk", "bt", "pts", "arc")}
+            P = max(ez.n_points for _, ez in maps)
+            codes = np.full((len(maps), max(P, 1)), NAN_CODE, dtype=np.uint16)
+            for r, (_, ez) in enumerate(maps):
+                codes[r, :ez.n_points] = ez.codes
             st.update(index=index, zs=np.ascontiguousarray(np.stack([sub.z for sub, _ in maps])),
                       x0s=np.array([sub.x0 for sub, _ in maps]), y0s=np.array([sub.y0 for sub, _ in maps]),
-                      dx=sub0.dx, dy=sub0.dy, edge_ids=ez0.edge_ids, offsets=ez0.offsets,
-                      ecell_ids=tabs[0]["ecell_ids"], slots=tabs[0]["slots"],
-                      codes=np.ascontiguousarray(np.stack([ez.codes for _, ez in maps])),
+                      dx=sub0.dx, dy=sub0.dy, edge_ids=ez0.edge_ids,
+                      offsets=np.ascontiguousarray(np.stack([ez.offsets for _, ez in maps])),
+                      ecell_ids=tabs[0]["ecell_ids"], slots=tabs[0]["slots"], codes=codes,
                       lo=np.ascontiguousarray(np.stack([ez.lo for _, ez in maps])),
                       step=np.ascontiguousarray(np.stack([ez.step for _, ez in maps])))
             stacks[int(m)] = st

@@ -113,6 +113,52 @@ def despike(z, edge_ids, offsets, heights, thresh, out_count):
 
 
 @njit(cache=True, parallel=True)
+def decimate_counts(z, edge_ids, offsets, heights, limit, out_m):
+    """Fewest intervals ``d`` (a divisor of the edge's ``m = n + 1``, ``d >= 2``) whose
+    knots, every ``m / d``-th sample, interpolate every sample of the edge linearly within
+    ``limit``; ``m`` where none does or a sample or corner has no height. ``heights``
+    float64 (P,), ``out_m`` int64 (E,)."""
+    nx, ny = z.shape
+    for k in prange(edge_ids.shape[0]):
+        _axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
+        off = offsets[k]
+        n = offsets[k + 1] - off
+        m = n + 1
+        out_m[k] = m
+        za0 = z[ia, ja]
+        zb0 = z[ib, jb]
+        if math.isnan(za0) or math.isnan(zb0):
+            continue
+        ok = True
+        for q in range(n):
+            if math.isnan(heights[off + q]):
+                ok = False
+                break
+        if not ok:
+            continue
+        for d in range(2, m):
+            if m % d != 0:
+                continue
+            s = m // d
+            good = True
+            for q in range(1, m):
+                r = q % s
+                if r == 0:
+                    continue
+                qa = q - r
+                qb = qa + s
+                va = za0 if qa == 0 else heights[off + qa - 1]
+                vb = zb0 if qb == m else heights[off + qb - 1]
+                val = va + (vb - va) * (r / s)
+                if abs(val - heights[off + q - 1]) > limit:
+                    good = False
+                    break
+            if good:
+                out_m[k] = d
+                break
+
+
+@njit(cache=True, parallel=True)
 def detect_breaks(z, edge_ids, offsets, hq, jump_min, kink_min, ratio, out_kind, out_t):
     """One break per edge: the dominant jump, else the dominant kink, of its sequence.
 
@@ -736,8 +782,9 @@ def patch_kernel(zs, x0s, y0s, dx, dy, cs, sn, ox, oy, xs, ys, ks, edge_ids, off
                  brk_t, ecell_ids, slots, nb, bk, bt, pts, arc, out):
     """:func:`ez_kernel` over a stack of same-level cell patches: point ``p`` lies in patch
     ``ks[p]``, whose sub-grid is ``zs[k]`` at ``(x0s[k], y0s[k])`` and whose per-edge and
-    per-cell tables are row ``k`` of the stacked arrays (ids, offsets and slots are shared:
-    every patch of a level has every sub-edge)."""
+    per-cell tables are row ``k`` of the stacked arrays (ids and slots are shared: every
+    patch of a level has every sub-edge; ``offsets[k]`` are patch k's, its sub-edges thinned
+    to their own counts)."""
     for p in prange(xs.shape[0]):
         k = ks[p]
         z = zs[k]
@@ -751,11 +798,12 @@ def patch_kernel(zs, x0s, y0s, dx, dy, cs, sn, ox, oy, xs, ys, ks, edge_ids, off
             out[p] = np.nan
             continue
         hq = (codes[k], lo[k], step[k])
+        off = offsets[k]
         if nb[k, c] == 2 and (pts[k, c, 0, 0] != pts[k, c, 2, 0] or pts[k, c, 0, 1] != pts[k, c, 2, 1]):
-            out[p] = _split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind[k], brk_t[k], bk[k], bt[k], pts[k],
+            out[p] = _split(z, i, j, u, v, c, slots, edge_ids, off, hq, brk_kind[k], brk_t[k], bk[k], bt[k], pts[k],
                             arc[k], dx, dy)
         else:
-            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind[k], brk_t[k], dx, dy, nb[k, c] > 0)
+            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, off, hq, brk_kind[k], brk_t[k], dx, dy, nb[k, c] > 0)
 
 
 #: :func:`patch_kernel` on one thread, for small batches

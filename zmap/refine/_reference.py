@@ -232,3 +232,24 @@ def _split(value, breaks, P, arc, X, Y, dx, dy):
         return vals[0]
     return (vals[0] * dists[1] + vals[1] * dists[0]) / (dists[0] + dists[1])
 
+
+
+def thin_intervals(seq: np.ndarray, limit: float) -> int:
+    """Slow reference of :func:`zmap.refine._ez_kernels.decimate_counts` for one edge.
+
+    ``seq`` is the edge's boundary sequence (corner, e-points, corner; ``m + 1`` values).
+    Returns the fewest intervals ``d >= 2`` dividing ``m`` whose knots (every ``m/d``-th
+    value) interpolate every value linearly within ``limit``; ``m`` if none or a NaN.
+    """
+    seq = np.asarray(seq, dtype=np.float64)
+    m = seq.size - 1
+    if np.isnan(seq).any():
+        return m
+    q = np.arange(m + 1)
+    for d in range(2, m):
+        if m % d:
+            continue
+        knots = q[:: m // d]
+        if np.all(np.abs(np.interp(q, knots, seq[knots]) - seq) <= limit):
+            return d
+    return m

@@ -64,6 +64,7 @@ from ._emap import (  # noqa: F401  (BREAK_RATIO, FORMAT_VERSION, SERIAL_BELOW: 
     EZMap,
     _n_points,
     cells_around,
+    decimate,
     edge_count,
     encode_heights,
 )
@@ -74,11 +75,15 @@ __all__ = ["NAN_CODE", "EZMap", "build_ez", "edge_count", "encode_heights"]
 #: An edge whose e-points all lie within this share of the tolerance of the base's Bezier
 #: curve along it carries nothing the base misses, and is dropped (``build_ez(prune=True)``).
 PRUNE_SHARE = 0.25
+#: A smooth e-edge keeps every ``s``-th e-point, ``s`` as large as lets the kept points
+#: interpolate all of them linearly within this share of the tolerance
+#: (:func:`zmap.refine._emap.decimate`; ``build_ez(thin=True)``).
+THIN_SHARE = 0.125
 
 
 def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray], *, tol: float,
              eps_r: float | None = None, se_curves: Sequence[np.ndarray] = (), interval: float | None = None,
-             prune: bool = True, verify: bool = True) -> EZMap:
+             prune: bool = True, verify: bool = True, thin: bool = True) -> EZMap:
     """Procedure Construct_EZmap: e-points on the steep and SE-crossed edges of ``base``.
 
     Beyond the paper, two steps that a real die needs (both on by default):
@@ -86,6 +91,10 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
     - ``prune``: a candidate edge whose e-points all lie within ``PRUNE_SHARE * tol`` of the
       base's cubic Bezier curve along it is dropped (a steep but smooth slope the base
       already holds; on free-form parts most steep edges are such);
+    - ``thin``: an edge (or a cell patch's sub-edge) without a wall or a sharp edge keeps
+      only every ``s``-th e-point, ``s`` as large as lets the kept points interpolate all
+      of them linearly within ``THIN_SHARE * tol`` (a smooth steep slope needs a few
+      samples, not one per ``interval``); the check below then tests the thinned model;
     - ``verify``: every refined cell, and every cell next to a candidate edge, is checked
       against ``heights`` at a lattice of test points (:func:`zmap.refine.patch.misfit`:
       off by more than ``tol`` vertically with no exact height within ``tol`` around it to
@@ -108,8 +117,9 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
         Sharp-edge curves, world xy (:func:`zmap.features.sharp_edge_curves`).
     interval : float, optional
         Largest spacing of e-points along an edge, mm; default ``tol``.
-    prune, verify : bool
-        Drop the edges the base holds; check the refined cells and patch the misses.
+    prune, verify, thin : bool
+        Drop the edges the base holds; check the refined cells and patch the misses; thin
+        the e-points of smooth edges.
 
     Returns
     -------
@@ -200,6 +210,10 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
             offsets = np.zeros(edge_ids.shape[0] + 1, dtype=np.int64)
             np.cumsum(np.diff(ez.offsets)[keep], out=offsets[1:])
             ez.edge_ids, ez.offsets = edge_ids, offsets
+        if thin:
+            offsets, z = decimate(base.z, base.dx, base.dy, interval, tol, ez.edge_ids, ez.offsets, z,
+                                  THIN_SHARE * tol)
+            ez.offsets = offsets
         ez.lifted = int(lifted.sum())
         ez.codes, ez.lo, ez.step = encode_heights(offsets, z)
     ez.pruned = int(n_candidates - ez.n_edges)
@@ -214,7 +228,7 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
         a = ez._tables(base) if ez.n_edges else None
         broken = a["ecell_ids"][a["nb"] > 0] if a is not None else None
         _patches, still = patch_failing(lambda x, y: ez.height(base, x, y), base, heights, tol, interval, cells,
-                                        install, fine_cells=broken)
+                                        install, fine_cells=broken, thin=THIN_SHARE * tol if thin else None)
         ez.unresolved = int(still.size)
     return ez
 

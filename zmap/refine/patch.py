@@ -32,7 +32,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..grid import ZMap
-from ._emap import CellPatches, EZMap, all_edges, encode_heights, sub_grid
+from ._emap import CellPatches, EZMap, all_edges, decimate, encode_heights, sub_grid
 
 __all__ = ["PATCH_SUBCELLS", "TEST_POINTS", "CellPatches", "cell_test_points", "failing_cells", "misfit", "patch_levels"]
 
@@ -171,10 +171,11 @@ def failing_cells(model_height: Heights, base: ZMap, heights: Heights, tol: floa
 
 
 def build_patches(base: ZMap, heights: Heights, cells: np.ndarray, m: int, interval: float,
-                  tol: float) -> dict[int, tuple]:
-    """Patch data ``{cell: (m, nodes, codes, lo, step)}`` of level ``m`` for ``cells``.
+                  tol: float, thin: float | None = None) -> dict[int, tuple]:
+    """Patch data ``{cell: (m, nodes, codes, lo, step, counts)}`` of level ``m`` for ``cells``.
 
-    Two calls of ``heights``: the sub-grid nodes of all cells, then their e-points.
+    Two calls of ``heights``: the sub-grid nodes of all cells, then their e-points. ``thin``
+    (mm): thin the smooth sub-edges' e-points to that limit (:func:`zmap.refine._emap.decimate`).
     """
     from . import _ez_kernels as _k
 
@@ -208,8 +209,10 @@ def build_patches(base: ZMap, heights: Heights, cells: np.ndarray, m: int, inter
         at += P
         lifted = np.zeros(ids.size, dtype=np.int64)
         _k.despike(s.z, ids, offsets, z, tol, lifted)
+        if thin is not None:
+            offsets, z = decimate(s.z, s.dx, s.dy, interval, tol, ids, offsets, z, thin)
         codes, lo, step = encode_heights(offsets, z)
-        out[c] = (m, s.z.copy(), codes, lo, step)
+        out[c] = (m, s.z.copy(), codes, lo, step, np.diff(offsets).astype(np.uint16))
     return out
 
 
@@ -236,7 +239,8 @@ def build_lattices(base: ZMap, heights: Heights, cells: np.ndarray, n: int) -> d
 def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: float, interval: float,
                   cells: np.ndarray, set_patches: Callable[[CellPatches], None],
                   levels: tuple[int, ...] | None = None, n: int = TEST_POINTS,
-                  fine_cells: np.ndarray | None = None, lattice: bool = True) -> tuple[CellPatches, np.ndarray]:
+                  fine_cells: np.ndarray | None = None, lattice: bool = True,
+                  thin: float | None = None) -> tuple[CellPatches, np.ndarray]:
     """Test ``cells``, patch the misses level by level; returns the patches and the cells still off.
 
     ``set_patches`` installs a :class:`CellPatches` in the model that ``model_height``
@@ -244,7 +248,8 @@ def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: floa
     of ``cells``: those a wall or an edge runs through) are tested on a lattice four times as
     fine: a Coons cell split along a wall can miss by a sliver next to the wall that an
     ``n x n`` lattice steps over. ``levels`` (default :func:`patch_levels`) are the EZ patch
-    levels tried in turn; ``lattice`` adds the dense lattice as the last resort.
+    levels tried in turn; ``lattice`` adds the dense lattice as the last resort; ``thin``
+    (mm) thins the patches' smooth sub-edges (:func:`build_patches`).
     """
     per_cell: dict[int, tuple] = {}
     tol_check = CHECK_SHARE * tol
@@ -262,7 +267,7 @@ def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: floa
         if bad.size == 0:
             break
         if m:
-            per_cell.update(build_patches(base, heights, bad, m, interval, tol))
+            per_cell.update(build_patches(base, heights, bad, m, interval, tol, thin))
         else:  # the last resort: a lattice whose cells' diagonal is tol
             per_cell.update(build_lattices(base, heights, bad, lattice_intervals(base, tol)))
         patches = CellPatches.pack(per_cell)

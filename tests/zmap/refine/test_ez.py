@@ -104,12 +104,12 @@ def test_layout_matches_table_2_spacing_and_contract_ids():
     ez = build_ez(base, f, tol=0.02)
     assert ez.interval == 0.02 and ez.tol == 0.02
     n = np.diff(ez.offsets)
-    assert np.all(n == 19)  # paper: 0.4 mm grid, 0.02 mm e-map, 19 points per edge
+    assert np.all(n == 19)  # paper: 0.4 mm grid, 0.02 mm e-map, 19 points per edge (walls are not thinned)
     assert ez.codes.dtype == np.uint16 and ez.edge_ids.dtype == np.int64 and ez.heights.dtype == np.float64
     assert np.all(np.diff(ez.edge_ids) > 0)
     assert ez.edge_ratio == pytest.approx(ez.n_edges / edge_count(base.nx, base.ny))
-    assert ez.nbytes == ez.edge_ids.nbytes + ez.offsets.nbytes + ez.codes.nbytes + ez.lo.nbytes + ez.step.nbytes
-    assert ez.nbytes == 24 * ez.n_edges + 8 + 2 * ez.n_points
+    # stored: header, one bit per grid edge, a byte count and two float32 per e-edge, 2 bytes per e-point
+    assert ez.nbytes == 104 + math.ceil(edge_count(base.nx, base.ny) / 8) + 9 * ez.n_edges + 2 * ez.n_points
     px, py = ez.points()
     qx, qy = ref.edge_points(ez)
     assert np.array_equal(px, qx) and np.array_equal(py, qy)
@@ -357,9 +357,18 @@ def test_round_trip(tmp_path):
     with pytest.raises(ValueError, match="version 99"):
         EZMap.from_arrays(arrays)
     arrays = ez.to_arrays()
-    arrays["offsets"] = arrays["offsets"][:-1]
+    arrays["counts"] = arrays["counts"][:-1]
+    with pytest.raises(ValueError, match="point counts"):
+        EZMap.from_arrays(arrays)
+    arrays = ez.to_arrays()
+    arrays["codes"] = arrays["codes"][:-1]
     with pytest.raises(ValueError, match="offsets"):
         EZMap.from_arrays(arrays)
+    # format 2 (edge ids and offsets stored) still loads
+    arrays = {k: v for k, v in ez.to_arrays().items() if k not in ("edge_bits", "counts")}
+    arrays.update(version=np.array([2]), edge_ids=ez.edge_ids, offsets=ez.offsets)
+    old = EZMap.from_arrays(arrays)
+    assert np.array_equal(old.offsets, ez.offsets) and np.array_equal(old.edge_ids, ez.edge_ids)
 
 
 def test_bad_input():

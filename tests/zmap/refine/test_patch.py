@@ -163,7 +163,10 @@ def test_bad_patch_arrays():
     rib = Rib()
     base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
     a = build_ez(base, rib, tol=TOL).patches.to_arrays()
-    bad = dict(a, node_off=a["node_off"] + 1)
+    bad = dict(a, counts=a["counts"][:-1])
+    with pytest.raises(ValueError, match="counts"):
+        CellPatches.from_arrays(bad)
+    bad = dict(a, codes=a["codes"][:-1])
     with pytest.raises(ValueError, match="offsets"):
         CellPatches.from_arrays(bad)
     with pytest.raises(ValueError, match="increasing"):
