@@ -1,0 +1,334 @@
+"""Tool access directions of a part (paper 002): its exact faces voxelised, and an OCC truth.
+
+:func:`surface_samples` samples every trimmed face at a step d': each triangle of the face's
+mesh (its (u, v) stay inside the trim loops) is split into n^2 sub-triangles in (u, v), and the
+exact NURBS (:mod:`cad_io.nurbs`, the evaluator the z-map sampler uses) gives the point, the
+outward normal and the principal curvatures at each sub-triangle's centroid. Faces with only
+triangles (AP242 tessellated) are sampled on their triangles, flat. :func:`voxelize` folds the
+samples into a :class:`zmap.access.VoxelMap`; :func:`analyse` runs the whole pipeline.
+
+The reference shares no code with that pipeline: :func:`reference_visibility` casts one OCC
+ray per (point, direction) (``IntCurvesFace_ShapeIntersector``) and
+:func:`reference_tool` measures with ``BRepExtrema_DistShapeShape`` the distance from the
+part to the ball-end tool's axis (ball centre to shank top) and to the holder's axis.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from cad_io.part import Part
+from zmap.access.voxelmap import (AccessModelError, AccessResult, Tool, VoxelMap, accessibility,
+                                  global_visibility, set_cover, three_axis)
+
+__all__ = ["Samples", "surface_samples", "voxelize", "analyse", "reference_visibility",
+           "reference_tool", "read_part"]
+
+
+@dataclass
+class Samples:
+    """Surface samples of a part: ``points`` (n, 3) mm, outward unit ``normals`` (n, 3),
+    ``curvature`` (n,) largest concave principal curvature (1/mm, negative where convex),
+    ``face`` (n,) face index, ``weight`` (n,) area each stands for (mm^2)."""
+
+    points: np.ndarray
+    normals: np.ndarray
+    curvature: np.ndarray
+    face: np.ndarray
+    weight: np.ndarray
+
+    def __len__(self) -> int:
+        return int(len(self.points))
+
+
+def _subdivide(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentric (b1, b2) of the centroids of the n^2 sub-triangles of a triangle."""
+    up = [((i + 1 / 3) / n, (j + 1 / 3) / n) for i in range(n) for j in range(n - i)]
+    down = [((i + 2 / 3) / n, (j + 2 / 3) / n) for i in range(n - 1) for j in range(n - 1 - i)]
+    b = np.array(up + down)
+    return b[:, 0], b[:, 1]
+
+
+def _curvatures(der: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Largest principal curvature w.r.t. ``normal`` (positive = the surface bends toward it,
+    concave seen from outside) from rows S, Su, Sv, Suu, Suv, Svv."""
+    su, sv, suu, suv, svv = der[:, 1], der[:, 2], der[:, 3], der[:, 4], der[:, 5]
+    E = np.einsum("ij,ij->i", su, su)
+    F = np.einsum("ij,ij->i", su, sv)
+    G = np.einsum("ij,ij->i", sv, sv)
+    L = np.einsum("ij,ij->i", suu, normal)
+    M = np.einsum("ij,ij->i", suv, normal)
+    N = np.einsum("ij,ij->i", svv, normal)
+    det = E * G - F * F
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H = (E * N - 2 * F * M + G * L) / (2 * det)
+        K = (L * N - M * M) / det
+        return H + np.sqrt(np.maximum(H * H - K, 0.0))
+
+
+def surface_samples(part: Part, step: float, *, deflection: float | None = None) -> Samples:
+    """Samples of every face of ``part`` at spacing about ``step`` (mm).
+
+    Raises
+    ------
+    AccessModelError
+        When no face has an exact surface (a tessellated-only file) or the part has no faces.
+    """
+    from cad_io.mesh import triangulate
+    from cad_io.nurbs import evaluate_packed, pack
+
+    step = float(step)
+    if not part.faces:
+        raise AccessModelError(f"{part.source or 'part'}: no faces to voxelise")
+    exact = [f for f in part.faces if f.surface is not None]
+    if not exact:
+        raise AccessModelError(f"{part.source or 'part'}: no face has an exact surface (only triangles, "
+                               "as in a tessellated AP242 file): access directions need exact faces")
+    if any(f.mesh is None for f in part.faces):
+        triangulate(part, deflection if deflection is not None else max(step, 0.01))
+    packed = pack([f.surface for f in part.faces])
+    P, Nn, C, Fc, Wt = [], [], [], [], []
+    for face in part.faces:
+        m = face.mesh
+        if m is None or len(m.triangles) == 0:
+            continue
+        tri = m.triangles
+        xyz = m.nodes[tri]  # (t, 3, 3)
+        edge = np.max(np.linalg.norm(xyz - np.roll(xyz, 1, axis=1), axis=2), axis=1)
+        area = 0.5 * np.linalg.norm(np.cross(xyz[:, 1] - xyz[:, 0], xyz[:, 2] - xyz[:, 0]), axis=1)
+        nsub = np.maximum(1, np.ceil(edge / step)).astype(np.int64)
+        tnorm = np.cross(xyz[:, 1] - xyz[:, 0], xyz[:, 2] - xyz[:, 0])
+        for n in np.unique(nsub):
+            sel = np.flatnonzero(nsub == n)
+            b1, b2 = _subdivide(int(n))
+            w = (area[sel] / (n * n))[:, None] * np.ones(len(b1))
+            if face.surface is not None and m.uv is not None:
+                uv = m.uv[tri[sel]]  # (s, 3, 2)
+                u = uv[:, 0, 0, None] + b1 * (uv[:, 1, 0, None] - uv[:, 0, 0, None]) + b2 * (uv[:, 2, 0, None] - uv[:, 0, 0, None])
+                v = uv[:, 0, 1, None] + b1 * (uv[:, 1, 1, None] - uv[:, 0, 1, None]) + b2 * (uv[:, 2, 1, None] - uv[:, 0, 1, None])
+                der = evaluate_packed(packed, face.index, u.ravel(), v.ravel(), derivs=2)
+                cr = np.cross(der[:, 1], der[:, 2])
+                ln = np.linalg.norm(cr, axis=1)
+                fb = np.repeat(tnorm[sel], len(b1), axis=0)
+                scale = np.linalg.norm(der[:, 1], axis=1) * np.linalg.norm(der[:, 2], axis=1)
+                good = ln > 1e-9 * np.maximum(scale, 1e-300)
+                nrm = np.where(good[:, None], cr / np.maximum(ln, 1e-300)[:, None], 0.0)
+                if face.reversed:
+                    nrm = -nrm
+                # the mesh triangles are wound outward: agree with them where the NURBS is singular
+                fbn = fb / np.maximum(np.linalg.norm(fb, axis=1), 1e-300)[:, None]
+                nrm[~good] = fbn[~good]
+                k = _curvatures(der, nrm)
+                k[~good] = np.inf  # a singular point (a pole): no curvature, treated as too sharp
+                pts = der[:, 0]
+            else:
+                x0 = xyz[sel, 0][:, None]
+                pts = (x0 + b1[:, None] * (xyz[sel, 1] - xyz[sel, 0])[:, None]
+                       + b2[:, None] * (xyz[sel, 2] - xyz[sel, 0])[:, None]).reshape(-1, 3)
+                nrm = np.repeat(tnorm[sel] / np.maximum(np.linalg.norm(tnorm[sel], axis=1), 1e-300)[:, None],
+                                len(b1), axis=0)
+                k = np.zeros(len(pts))
+            P.append(pts)
+            Nn.append(nrm)
+            C.append(k)
+            Fc.append(np.full(len(pts), face.index, dtype=np.int64))
+            Wt.append(w.ravel())
+    if not P:
+        raise AccessModelError(f"{part.source or 'part'}: no face could be meshed for sampling")
+    return Samples(np.concatenate(P), np.concatenate(Nn), np.concatenate(C), np.concatenate(Fc),
+                   np.concatenate(Wt))
+
+
+def _check_args(d, step, q) -> tuple[float, float, int]:
+    try:
+        d = float(d)
+    except (TypeError, ValueError):
+        raise AccessModelError(f"voxel size d must be a positive number of mm, got {d!r}") from None
+    if not np.isfinite(d) or d <= 0:
+        raise AccessModelError(f"voxel size d must be a positive number of mm, got {d!r}")
+    step = d / 4 if step is None else float(step)
+    if not np.isfinite(step) or step <= 0 or step >= d:
+        raise AccessModelError(f"sampling step d' must be positive and smaller than the voxel d = {d:g} mm, "
+                               f"got d' = {step:g} mm")
+    if isinstance(q, bool) or not isinstance(q, (int, np.integer)) or q < 1:
+        raise AccessModelError(f"q must be an integer >= 1, got {q!r}")
+    return d, step, int(q)
+
+
+def voxelize(part: Part, d: float, *, step: float | None = None, q: int = 4, exact: bool = False,
+             crease_deg: float = 10.0, check: bool = True) -> VoxelMap:
+    """The visibility voxel map of ``part`` at voxel ``d`` (mm), sampled at ``step`` (d/4).
+
+    Examples
+    --------
+    >>> import cad_io  # doctest: +SKIP
+    >>> vm = voxelize(cad_io.read_step("data/pocket.step"), 0.5, q=4)  # doctest: +SKIP
+    """
+    d, step, q = _check_args(d, step, q)
+    s = surface_samples(part, step)
+    return VoxelMap.from_samples(s.points, s.normals, s.curvature, s.face, s.weight, d=d, q=q,
+                                 step=step, exact=exact, crease_deg=crease_deg, check=check)
+
+
+def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float | None = None,
+            cone: float | None = None, exact: bool = False, progress=None) -> AccessResult:
+    """The whole pipeline: voxel map, V'_g, A', 3-axis verdict and set-ups, with timings.
+
+    ``progress(message)`` is called at each stage (the CLI prints it).
+    """
+    say = progress or (lambda msg: None)
+    d, step, q = _check_args(d, step, q)
+    bb = np.array(part.bbox)
+    size = bb[3:] - bb[:3]
+    if tool.diameter > float(np.nanmax(size)):
+        raise AccessModelError(f"tool diameter {tool.diameter:g} mm is larger than the part "
+                               f"({size[0]:.1f} x {size[1]:.1f} x {size[2]:.1f} mm)")
+    sec = {}
+    t0 = time.perf_counter()
+    say(f"sampling faces at d' = {step:g} mm")
+    s = surface_samples(part, step)
+    sec["sample"] = time.perf_counter() - t0
+    t = time.perf_counter()
+    say(f"{len(s):,} samples; voxel map at d = {d:g} mm, q = {q} (k = {20 * q * q})")
+    vm = VoxelMap.from_samples(s.points, s.normals, s.curvature, s.face, s.weight, d=d, q=q, step=step,
+                               exact=exact)
+    sec["voxelize"] = time.perf_counter() - t
+    t = time.perf_counter()
+    say(f"{vm.n_boundary:,} boundary, {vm.n_interior:,} interior voxels; cylinder casting")
+    vg = global_visibility(vm)
+    sec["visibility"] = time.perf_counter() - t
+    t = time.perf_counter()
+    say("accessibility for the tool")
+    amap = accessibility(vm, vg, tool)
+    sec["access"] = time.perf_counter() - t
+    t = time.perf_counter()
+    verdict = three_axis(vm, amap)
+    setups = set_cover(vm, amap, cone=cone)
+    sec["setups"] = time.perf_counter() - t
+    sec["total"] = time.perf_counter() - t0
+    return AccessResult(vm=vm, vg=vg, amap=amap, tool=tool, verdict=verdict, setups=setups, seconds=sec)
+
+
+def read_part(path) -> Part:
+    """Read a STEP file for access analysis (no mesh yet)."""
+    from cad_io.step import read_step
+
+    return read_step(path)
+
+
+# --------------------------------------------------------------------------------------
+# the independent reference (OCC)
+
+
+def _faces_compound(shape: Any):
+    from OCP.BRep import BRep_Builder
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS_Compound
+
+    comp = TopoDS_Compound()
+    b = BRep_Builder()
+    b.MakeCompound(comp)
+    ex = TopExp_Explorer(shape, TopAbs_FACE)
+    while ex.More():
+        b.Add(comp, ex.Current())
+        ex.Next()
+    return comp
+
+
+def reference_visibility(shape: Any, points, directions, *, offset: float = 1e-4,
+                         far: float = 1e4) -> tuple[np.ndarray, np.ndarray]:
+    """Thin-ray visibility by OCC: is the ray from each point along each direction free?
+
+    Parameters
+    ----------
+    shape : OCP shape (or cadquery Shape)
+    points : ndarray of shape (n, 3)
+        Surface points; each ray starts ``offset`` mm along its direction.
+    directions : ndarray of shape (k, 3)
+        Unit directions.
+
+    Returns
+    -------
+    free : ndarray of shape (n, k), bool
+    hit : ndarray of shape (n, k), float64
+        Distance to the first hit (inf where free).
+    """
+    from OCP.gp import gp_Dir, gp_Lin, gp_Pnt
+    from OCP.IntCurvesFace import IntCurvesFace_ShapeIntersector
+    from OCP.TopAbs import TopAbs_OUT
+
+    shape = getattr(shape, "wrapped", shape)
+    inter = IntCurvesFace_ShapeIntersector()
+    inter.Load(_faces_compound(shape), 1e-7)
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    dirs = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    hit = np.full((len(pts), len(dirs)), np.inf)
+    gd = [gp_Dir(*map(float, v)) for v in dirs]
+    for a, p in enumerate(pts):
+        for b, v in enumerate(dirs):
+            o = p + offset * v
+            inter.Perform(gp_Lin(gp_Pnt(*map(float, o)), gd[b]), 0.0, far)
+            if not inter.IsDone():
+                continue
+            best = np.inf
+            for i in range(1, inter.NbPnt() + 1):
+                if inter.State(i) == TopAbs_OUT:
+                    continue
+                w = inter.WParameter(i)
+                if w < best:
+                    best = w
+            hit[a, b] = best + offset if np.isfinite(best) else np.inf
+    return ~np.isfinite(hit), hit
+
+
+def reference_tool(shape: Any, points, normals, directions, tool: Tool, *, tol: float = 1e-3,
+                   reach: float = 200.0) -> np.ndarray:
+    """Ball-end tool clearance by OCC: (n, k) bool, True where the tool fits.
+
+    The ball of radius a touches each point from outside (centre ``p + a n``); along direction
+    t the tool is the capsule of radius a around the segment from the centre to ``reach`` mm
+    up, and the holder the capsule of its radius from the stick-out up. The tool fits when the
+    part keeps ``a - tol`` from the first segment and ``R - tol`` from the second
+    (``BRepExtrema_DistShapeShape``), and the ball's centre lies outside the solid.
+    """
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeVertex
+    from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.gp import gp_Pnt
+    from OCP.TopAbs import TopAbs_OUT
+
+    shape = getattr(shape, "wrapped", shape)
+    a = tool.radius
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    dirs = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    out = np.zeros((len(pts), len(dirs)), dtype=bool)
+    faces = _faces_compound(shape)
+
+    def dist(p0, p1) -> float:
+        if np.allclose(p0, p1):
+            shp = BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, p0))).Vertex()
+        else:
+            shp = BRepBuilderAPI_MakeEdge(gp_Pnt(*map(float, p0)), gp_Pnt(*map(float, p1))).Edge()
+        ext = BRepExtrema_DistShapeShape(faces, shp)
+        return ext.Value() if ext.IsDone() else -np.inf
+
+    for i, (p, n) in enumerate(zip(pts, nrm)):
+        c = p + a * n
+        cls = BRepClass3d_SolidClassifier(shape, gp_Pnt(*map(float, c)), 1e-7)
+        if cls.State() != TopAbs_OUT or dist(c, c) < a - tol:
+            continue
+        for j, t in enumerate(dirs):
+            if dist(c, c + reach * t) < a - tol:
+                continue
+            if tool.holder_diameter > 0:
+                h0 = c + (tool.stickout - a) * t
+                if dist(h0, h0 + reach * t) < tool.holder_diameter / 2 - tol:
+                    continue
+            out[i, j] = True
+    return out

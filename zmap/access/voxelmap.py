@@ -1,0 +1,670 @@
+"""The visibility voxel map of paper 002 and what it answers, without the CAD kernel.
+
+Pipeline (paper §4.2, steps 1-4):
+
+1. :meth:`VoxelMap.from_samples`: surface samples (point, outward normal, largest concave
+   curvature, face id, area weight) at a step d' << d are binned into voxels of edge d. Per
+   boundary voxel: ``V'_l`` = AND of ``H_V(t)`` over its samples, ``L'`` = OR of ``H_L(t)``, the
+   largest curvature, the surface id (-1 where several faces meet), a crease flag.
+2. Paint spreading (:func:`paint`) splits the other voxels into exterior (reached from the
+   grid's border without crossing a boundary voxel) and interior, with the paper's model
+   checks: boundary voxels edge-connected, one outward side per surface. A part that fails
+   raises :class:`AccessModelError` naming the faces and where.
+3. :func:`global_visibility`: ``V'_g`` by cylinder casting.
+4. :func:`accessibility`: the ball-end map ``A'`` (three conditions over ``E_n(v)``), with
+   shank and holder cylinders; :func:`three_axis`, :func:`set_cover` and
+   :func:`node_directions` turn it into answers.
+
+Examples
+--------
+>>> import numpy as np
+>>> from zmap.access.voxelmap import VoxelMap
+>>> rng = np.random.default_rng(0)
+>>> p = rng.normal(size=(20000, 3)); p /= np.linalg.norm(p, axis=1)[:, None]
+>>> vm = VoxelMap.from_samples(10 * p, p, np.full(len(p), -0.1), np.zeros(len(p), int),
+...                            np.full(len(p), 0.06), d=1.0, q=2)
+>>> vm.n_interior > 0 and vm.n_boundary > 0
+True
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ZMapError
+from .directions import DirectionSet, count, direction_set, to_bool
+
+__all__ = ["AccessModelError", "VoxelMap", "Tool", "parse_tool", "parse_holder", "paint",
+           "global_visibility", "accessibility", "three_axis", "set_cover", "node_directions",
+           "AccessResult"]
+
+EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
+#: Largest number of voxels a map may hold (about 1 GB of state and index arrays).
+MAX_VOXELS = 200_000_000
+
+
+class AccessModelError(ZMapError, ValueError):
+    """A part whose voxel model fails the paper's checks (open shell, pieces, faces with two
+    outward sides) or an access request that cannot be answered (bad d, d', q or tool)."""
+
+
+@dataclass
+class Tool:
+    """A ball-end cutter with its shank and an optional holder.
+
+    Parameters
+    ----------
+    diameter : float
+        Ball (and shank) diameter, mm.
+    stickout : float
+        Distance from the tool tip to the holder's face, mm (ignored without a holder).
+    holder_diameter, holder_length : float
+        Holder cylinder, mm; 0 for none. The shank and the holder are tested as reaching
+        upward without end (the spindle above them), which is conservative.
+    """
+
+    diameter: float
+    stickout: float = 25.0
+    holder_diameter: float = 0.0
+    holder_length: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("diameter", "stickout", "holder_diameter", "holder_length"):
+            v = float(getattr(self, name))
+            if not np.isfinite(v) or v < 0 or (name == "diameter" and v == 0):
+                raise AccessModelError(f"tool {name} must be a positive number of mm, got {v!r}")
+            setattr(self, name, v)
+        if self.holder_diameter and self.holder_diameter < self.diameter:
+            raise AccessModelError(f"holder diameter {self.holder_diameter:g} mm is smaller than the "
+                                   f"tool diameter {self.diameter:g} mm")
+        if self.holder_diameter and self.stickout <= self.diameter / 2:
+            raise AccessModelError(f"stick-out {self.stickout:g} mm must exceed the ball radius "
+                                   f"{self.diameter / 2:g} mm")
+
+    @property
+    def radius(self) -> float:
+        return self.diameter / 2.0
+
+
+def parse_tool(spec: str) -> float:
+    """Ball diameter (mm) from ``'ball:6'``.
+
+    Examples
+    --------
+    >>> parse_tool("ball:6")
+    6.0
+    """
+    m = re.fullmatch(r"\s*ball:([0-9.eE+-]+)\s*", str(spec))
+    try:
+        value = float(m.group(1)) if m else float("nan")
+    except ValueError:
+        value = float("nan")
+    if not m or not np.isfinite(value) or value <= 0:
+        raise AccessModelError(f"tool {spec!r} is not 'ball:DIAMETER' with a positive diameter in mm "
+                               "(only ball-end cutters are supported)")
+    return value
+
+
+def parse_holder(spec: str) -> tuple[float, float]:
+    """``(diameter, length)`` in mm from ``'20x40'``.
+
+    Examples
+    --------
+    >>> parse_holder("20x40")
+    (20.0, 40.0)
+    """
+    m = re.fullmatch(r"\s*([0-9.eE+-]+)\s*[xX]\s*([0-9.eE+-]+)\s*", str(spec))
+    try:
+        dia, length = (float(m.group(1)), float(m.group(2))) if m else (np.nan, np.nan)
+    except ValueError:
+        dia, length = np.nan, np.nan
+    if not m or not (dia > 0 and length > 0 and np.isfinite(dia) and np.isfinite(length)):
+        raise AccessModelError(f"holder {spec!r} is not 'DIAMETERxLENGTH' in mm, e.g. '20x40'")
+    return dia, length
+
+
+@dataclass
+class VoxelMap:
+    """The visibility voxel map M' (paper 002 §4.3-4.4).
+
+    Attributes
+    ----------
+    origin : ndarray of shape (3,), float64
+        Corner of voxel (0, 0, 0), mm.
+    d : float
+        Voxel edge, mm.
+    state : ndarray of shape (nx, ny, nz), uint8
+        0 exterior, 1 boundary, 2 interior.
+    index : ndarray of shape (nx, ny, nz), int32
+        Boundary voxel number, -1 elsewhere.
+    ijk : ndarray of shape (mb, 3), int32
+        Grid indices of the boundary voxels.
+    vl, light : ndarray of shape (mb, words), uint64
+        ``V'_l`` and ``L'`` bitsets.
+    curvature : ndarray of shape (mb,), float64
+        Largest concave principal curvature of the samples (1/mm; negative where convex).
+    surface : ndarray of shape (mb,), int32
+        Face id, -1 where samples of several faces meet.
+    crease : ndarray of shape (mb,), bool
+        Several faces meet with normals more than ``crease_deg`` apart.
+    point, normal : ndarray of shape (mb, 3), float64
+        Mean sample point and unit mean normal.
+    area : ndarray of shape (mb,), float64
+        Surface area sampled in the voxel, mm^2.
+    q : int
+        Frequency of the direction set.
+    flipped : list of int
+        Faces whose normals pointed inward and were turned (the paper's SIGN = -1).
+    """
+
+    origin: np.ndarray
+    d: float
+    state: np.ndarray
+    index: np.ndarray
+    ijk: np.ndarray
+    vl: np.ndarray
+    light: np.ndarray
+    curvature: np.ndarray
+    surface: np.ndarray
+    crease: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    area: np.ndarray
+    q: int
+    flipped: list = field(default_factory=list)
+    step: float = float("nan")
+    n_samples: int = 0
+
+    @property
+    def directions(self) -> DirectionSet:
+        return direction_set(self.q)
+
+    @property
+    def n_boundary(self) -> int:
+        return int(self.ijk.shape[0])
+
+    @property
+    def n_interior(self) -> int:
+        return int(np.count_nonzero(self.state == INTERIOR))
+
+    @property
+    def n_voxels(self) -> int:
+        return int(self.state.size)
+
+    @property
+    def centres(self) -> np.ndarray:
+        """Boundary voxel centres (mb, 3), mm."""
+        return self.origin + self.d * (self.ijk + 0.5)
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(a.nbytes for a in (self.state, self.index, self.ijk, self.vl, self.light,
+                                             self.curvature, self.surface, self.crease, self.point,
+                                             self.normal, self.area)))
+
+    @classmethod
+    def from_samples(cls, points, normals, curvature, face, weight, *, d: float, q: int,
+                     step: float | None = None, exact: bool = False, crease_deg: float = 10.0,
+                     pad: int = 2, check: bool = True) -> "VoxelMap":
+        """Build the map from surface samples (paper 002 §4.3 and §4.4).
+
+        Parameters
+        ----------
+        points, normals : ndarray of shape (n, 3), float64
+            Sample points (mm) and unit normals, outward as far as the caller knows (a face
+            whose normals all point inward is turned; one that points both ways fails).
+        curvature : ndarray of shape (n,), float64
+            Largest concave principal curvature (1/mm), negative where convex.
+        face : ndarray of shape (n,), int
+            Surface id of each sample (>= 0).
+        weight : ndarray of shape (n,), float64
+            Area each sample stands for, mm^2.
+        d : float, keyword-only
+            Voxel edge, mm.
+        q : int, keyword-only
+            Frequency of the direction set (k = 20 q^2).
+        step : float, optional
+            The sampling step d' used (recorded; must be < d).
+        exact : bool
+            Fold each sample's exact hemisphere instead of its tessel's ``H_V``/``H_L``.
+        crease_deg : float
+            Angle between normals of different faces in one voxel above which the voxel is
+            a crease (condition 3 of the accessibility map).
+        check : bool
+            Apply the model checks (raise :class:`AccessModelError` on failure).
+        """
+        from ._access_kernels import accumulate, orientation_votes, paint_exterior
+
+        d = _check_d(d)
+        ds = _direction_set(q)
+        if step is not None:
+            step = float(step)
+            if not (step > 0) or step >= d:
+                raise AccessModelError(f"sampling step d' must be positive and smaller than the voxel "
+                                       f"d = {d:g} mm, got d' = {step!r} mm")
+        pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        nrm = np.ascontiguousarray(normals, dtype=np.float64).reshape(-1, 3)
+        kmax = np.ascontiguousarray(curvature, dtype=np.float64).ravel()
+        fid = np.ascontiguousarray(face, dtype=np.int64).ravel()
+        wt = np.ascontiguousarray(weight, dtype=np.float64).ravel()
+        n = len(pts)
+        if not (len(nrm) == len(kmax) == len(fid) == len(wt) == n):
+            raise ValueError(f"samples must have one row each: points {len(pts)}, normals {len(nrm)}, "
+                             f"curvature {len(kmax)}, face {len(fid)}, weight {len(wt)}")
+        if n == 0:
+            raise AccessModelError("no surface samples: the part has no faces to voxelise")
+        good = np.isfinite(pts).all(axis=1) & np.isfinite(nrm).all(axis=1)
+        if not good.all():
+            bad = int(np.flatnonzero(~good)[0])
+            raise AccessModelError(f"sample {bad} of face {fid[bad]} is not finite: {pts[bad]}, normal {nrm[bad]}")
+        kmax = np.where(np.isfinite(kmax), kmax, np.inf)
+        lo = pts.min(axis=0)
+        hi = pts.max(axis=0)
+        origin = lo - pad * d
+        shape = tuple(int(s) for s in np.floor((hi - origin) / d).astype(np.int64) + pad + 1)
+        total = int(np.prod(np.array(shape, dtype=np.float64)))
+        if total > MAX_VOXELS:
+            raise AccessModelError(f"{shape[0]} x {shape[1]} x {shape[2]} = {total:,} voxels at d = {d:g} mm "
+                                   f"exceed the limit of {MAX_VOXELS:,}: choose a larger --voxel")
+        ijk = np.floor((pts - origin) / d).astype(np.int64)
+        flat = (ijk[:, 0] * shape[1] + ijk[:, 1]) * shape[2] + ijk[:, 2]
+        uniq, vox = np.unique(flat, return_inverse=True)
+        state = np.full(shape, UNPAINTED, dtype=np.uint8)
+        state.ravel()[uniq] = BOUNDARY
+        index = np.full(shape, -1, dtype=np.int32)
+        index.ravel()[uniq] = np.arange(len(uniq), dtype=np.int32)
+        bijk = np.stack(np.unravel_index(uniq, shape), axis=1).astype(np.int32)
+        paint_exterior(state)
+        flipped: list[int] = []
+        nf = int(fid.max()) + 1
+        if check:
+            _check_connected(state, index, fid, vox, pts)
+            if not np.any(state == INTERIOR):
+                raise AccessModelError(
+                    f"no interior voxels at d = {d:g} mm: the exterior paint leaks through the "
+                    f"shell (an open surface, a gap wider than {d:g} mm, or walls thinner than the "
+                    "voxel); the paper needs a closed model at the voxel resolution")
+            votes = np.zeros((nf, 4), dtype=np.int64)
+            orientation_votes(pts, nrm, fid, origin, d, state, votes)
+            flipped = _check_orientation(votes, fid, pts, nrm)
+            if flipped:
+                turn = np.isin(fid, flipped)
+                nrm = nrm.copy()
+                nrm[turn] *= -1
+                kmax = np.where(turn, -kmax, kmax)  # concave and convex swap with the side
+        mb = len(uniq)
+        W = ds.words
+        vl = np.full((mb, W), np.uint64(0xFFFFFFFFFFFFFFFF), dtype=np.uint64)
+        if ds.k % 64:
+            vl[:, -1] = np.uint64((1 << (ds.k % 64)) - 1)
+        light = np.zeros((mb, W), dtype=np.uint64)
+        curv = np.full(mb, -np.inf)
+        surf = np.full(mb, -1, dtype=np.int32)
+        crease = np.zeros(mb, dtype=np.uint8)
+        psum = np.zeros((mb, 3))
+        nsum = np.zeros((mb, 3))
+        area = np.zeros(mb)
+        nsamp = np.zeros(mb, dtype=np.int64)
+        first = np.zeros((mb, 3))
+        accumulate(np.ascontiguousarray(vox, dtype=np.int64), pts, nrm, kmax, fid, wt, ds._centres,
+                   ds._frames, ds.q, ds.hv, ds.hl, 1 if exact else 0, ds.normals, vl, light, curv,
+                   surf, crease, float(np.cos(np.radians(crease_deg))), psum, nsum, area, nsamp, first)
+        point = psum / nsamp[:, None]
+        nlen = np.linalg.norm(nsum, axis=1)
+        normal = np.where(nlen[:, None] > 0, nsum / np.maximum(nlen, 1e-300)[:, None], 0.0)
+        return cls(origin=origin, d=d, state=state, index=index, ijk=bijk, vl=vl, light=light,
+                   curvature=curv, surface=surf, crease=crease.astype(bool), point=point,
+                   normal=normal, area=area, q=ds.q, flipped=flipped,
+                   step=float(step) if step is not None else float("nan"), n_samples=n)
+
+    def skin(self) -> np.ndarray:
+        """Centres (ms, 3) of the interior voxels 26-adjacent to a non-interior voxel: every
+        line from outside that enters the interior meets one of them first."""
+        from scipy import ndimage
+
+        inner = self.state == INTERIOR
+        core = ndimage.binary_erosion(inner, structure=np.ones((3, 3, 3), bool), border_value=0)
+        ijk = np.argwhere(inner & ~core)
+        return self.origin + self.d * (ijk + 0.5)
+
+    def voxel_of(self, points) -> np.ndarray:
+        """Boundary voxel number of each point (-1 outside the boundary voxels)."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        ijk = np.floor((p - self.origin) / self.d).astype(np.int64)
+        inside = ((ijk >= 0) & (ijk < np.array(self.state.shape))).all(axis=1)
+        out = np.full(len(p), -1, dtype=np.int64)
+        out[inside] = self.index[ijk[inside, 0], ijk[inside, 1], ijk[inside, 2]]
+        return out
+
+
+def _direction_set(q) -> DirectionSet:
+    if isinstance(q, bool) or not isinstance(q, (int, np.integer)) or q < 1:
+        try:
+            DirectionSet(q)
+        except ValueError as exc:
+            raise AccessModelError(str(exc)) from None
+    return direction_set(int(q))
+
+
+def _check_d(d) -> float:
+    try:
+        d = float(d)
+    except (TypeError, ValueError):
+        raise AccessModelError(f"voxel size d must be a positive number of mm, got {d!r}") from None
+    if not np.isfinite(d) or d <= 0:
+        raise AccessModelError(f"voxel size d must be a positive number of mm, got {d!r}")
+    return d
+
+
+def _check_connected(state, index, fid, vox, pts) -> None:
+    from scipy import ndimage
+
+    # edge-connected: 18-neighbourhood
+    st = ndimage.generate_binary_structure(3, 2)
+    labels, n = ndimage.label(state == BOUNDARY, structure=st)
+    if n <= 1:
+        return
+    lab_of_b = np.empty(int(index.max()) + 1, dtype=np.int64)
+    bi = index >= 0
+    lab_of_b[index[bi]] = labels[bi]
+    lab = lab_of_b[vox]
+    sizes = np.bincount(lab, minlength=n + 1)
+    main = int(np.argmax(sizes))
+    parts = []
+    for comp in np.argsort(-sizes):
+        if comp == main or comp == 0 or sizes[comp] == 0:
+            continue
+        faces = np.unique(fid[lab == comp])
+        where = pts[lab == comp].mean(axis=0)
+        parts.append(f"faces {_ranges(faces)} near ({where[0]:.1f}, {where[1]:.1f}, {where[2]:.1f}) mm")
+        if len(parts) == 3:
+            break
+    raise AccessModelError(
+        f"the boundary voxels form {n} pieces that share no edge (the paper needs one edge-connected "
+        f"shell): besides the largest, " + "; ".join(parts) + (" ..." if n > 4 else ""))
+
+
+def _check_orientation(votes, fid, pts, nrm) -> list[int]:
+    """Faces to turn (all normals inward); raises where a face points both ways."""
+    flipped = []
+    bad = []
+    for f in range(votes.shape[0]):
+        out_, in_ = votes[f, 0], votes[f, 1]
+        tot = out_ + in_
+        if tot == 0:
+            continue
+        if in_ <= 0.02 * tot:
+            continue
+        if out_ <= 0.02 * tot:
+            flipped.append(f)
+            continue
+        sel = (fid == f)
+        where = pts[sel].mean(axis=0)
+        bad.append(f"face {f} ({out_} samples point out, {in_} in, around "
+                   f"({where[0]:.1f}, {where[1]:.1f}, {where[2]:.1f}) mm)")
+    if bad:
+        raise AccessModelError("no consistent outward side: " + "; ".join(bad[:4])
+                               + (f" and {len(bad) - 4} more faces" if len(bad) > 4 else ""))
+    return flipped
+
+
+def _ranges(ids) -> str:
+    ids = sorted(int(i) for i in ids)
+    out = []
+    start = prev = ids[0]
+    for i in ids[1:] + [None]:
+        if i is not None and i == prev + 1:
+            prev = i
+            continue
+        out.append(str(start) if start == prev else f"{start}-{prev}")
+        if i is not None:
+            start = prev = i
+    return ",".join(out[:8]) + (",..." if len(out) > 8 else "")
+
+
+def paint(state: np.ndarray) -> np.ndarray:
+    """Paint spreading on a boundary mask or state grid: returns the state (0 exterior,
+    1 boundary, 2 interior). Non-boundary voxels 6-connected to the grid's border are exterior.
+
+    Examples
+    --------
+    >>> b = np.zeros((5, 5, 5), bool); b[1:4, 1:4, 1:4] = True; b[2, 2, 2] = False
+    >>> int((paint(b) == 2).sum())
+    1
+    """
+    from ._access_kernels import paint_exterior
+
+    st = np.where(np.asarray(state).astype(bool) & (np.asarray(state) != INTERIOR), BOUNDARY,
+                  UNPAINTED).astype(np.uint8)
+    if np.asarray(state).dtype == np.uint8:
+        st = np.where(np.asarray(state) == BOUNDARY, BOUNDARY, UNPAINTED).astype(np.uint8)
+    paint_exterior(st)
+    return st
+
+
+def _opposite(ds: DirectionSet) -> np.ndarray:
+    return ds.lookup(-ds.normals).astype(np.int64)
+
+
+def global_visibility(vm: VoxelMap, *, rays: int = 2) -> np.ndarray:
+    """``V'_g`` of every boundary voxel by cylinder casting (paper 002 §4.5).
+
+    A direction n stays in ``V'_g(v)`` when no line parallel to n through v's cube meets,
+    ahead of v, an interior voxel or a boundary voxel w with -n in ``L'(w)``. The lines are
+    those of a plane grid of pitch ``d / rays`` (one depth buffer per direction).
+
+    Returns
+    -------
+    ndarray of shape (mb, words), uint64
+    """
+    from ._access_kernels import cast_directions
+
+    from .directions import from_bool
+
+    ds = vm.directions
+    bx = np.ascontiguousarray(vm.centres)
+    skin = np.ascontiguousarray(vm.skin())
+    allc = np.concatenate([bx, skin]) if len(skin) else bx
+    lo_, hi_ = allc.min(axis=0), allc.max(axis=0)
+    centre = 0.5 * (lo_ + hi_)
+    radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d
+    out = np.zeros((ds.k, vm.n_boundary), dtype=np.uint8)
+    cast_directions(ds.normals, _opposite(ds), bx, skin, vm.light, vm.vl, vm.d, vm.d / rays,
+                    radius, centre, out)
+    return from_bool(out.T.astype(bool))
+
+
+def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | None = None) -> np.ndarray:
+    """Ball-end accessibility map ``A'`` (paper 002 §4.6) with shank and holder.
+
+    n is in ``A'(v)`` when n is in ``V'_g(v)`` and
+
+    1. n is in ``V'_g(w)`` for every boundary voxel w of ``E_n(v)``: those whose centres lie
+       within half a voxel diagonal of the eraser's surface, on its side facing -n (the ball
+       of radius a centred at v's mean point plus a times its mean normal);
+    2. no voxel of ``E_n(v)`` has a concave curvature above 1/a;
+    3. no voxel of ``E_n(v)`` is a crease (several faces meeting at an angle);
+
+    and no occupied voxel (boundary or interior) reaches above the ball's centre within the
+    shank's radius, nor above the stick-out within the holder's radius (both tested upward
+    without end; cells of the depth buffer: ``cell``, d by default). A voxel where the ball
+    itself would hold a boundary or interior voxel centre closer than a - half a diagonal to
+    its centre has no direction.
+
+    Returns
+    -------
+    ndarray of shape (mb, words), uint64
+    """
+    from ._access_kernels import access_kernel, ball_neighbours
+
+    from .directions import from_bool
+
+    a = tool.radius
+    bbox = vm.centres.max(axis=0) - vm.centres.min(axis=0)
+    if 2 * a > float(bbox.max()) + vm.d:
+        raise AccessModelError(f"tool diameter {tool.diameter:g} mm is larger than the part "
+                               f"({bbox[0]:.1f} x {bbox[1]:.1f} x {bbox[2]:.1f} mm)")
+    ds = vm.directions
+    hd = np.sqrt(3.0) * 0.5 * vm.d
+    centre = np.ascontiguousarray(vm.point + a * vm.normal)
+    mb = vm.n_boundary
+    ptr = np.zeros(mb + 1, dtype=np.int64)
+    inside = np.zeros(mb, dtype=np.uint8)
+    cap = max(1024, mb * 64)
+    while True:
+        nb = np.empty(cap, dtype=np.int64)
+        got = ball_neighbours(centre, vm.origin, vm.d, vm.index, vm.state, a - hd, a + hd, ptr, nb,
+                              inside)
+        if got >= 0:
+            break
+        cap *= 4
+        inside[:] = 0
+    nb = nb[:got]
+    skin = vm.skin()
+    occ = np.ascontiguousarray(np.concatenate([vm.centres, skin]) if len(skin) else vm.centres)
+    lo_, hi_ = occ.min(axis=0), occ.max(axis=0)
+    mid = 0.5 * (lo_ + hi_)
+    radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d + a
+    out = np.zeros((ds.k, mb), dtype=np.uint8)
+    has_holder = tool.holder_diameter > 0
+    access_kernel(ds.normals, np.ascontiguousarray(vg), np.ascontiguousarray(vm.centres), centre, ptr, nb,
+                  inside, vm.curvature, vm.crease.astype(np.uint8), 1.0 / a * (1 + 1e-9), occ, vm.d, a,
+                  float(cell or vm.d), tool.stickout - a, tool.holder_diameter / 2.0, mid, radius,
+                  1 if has_holder else 0, out)
+    return from_bool(out.T.astype(bool))
+
+
+def three_axis(vm: VoxelMap, amap: np.ndarray, *, axis="+z") -> dict:
+    """The 3-axis verdict: area reachable along ``axis`` and the rest.
+
+    Returns
+    -------
+    dict
+        ``axis_index``, ``reachable`` (bool (mb,)), ``area_total``, ``area_reachable``,
+        ``area_other`` (accessible, but not along the axis), ``area_inaccessible`` (mm^2),
+        ``share`` (reachable / total).
+    """
+    ds = vm.directions
+    i = ds.index(axis)
+    bits = np.asarray(amap)
+    reach = ((bits[:, i >> 6] >> np.uint64(i & 63)) & np.uint64(1)).astype(bool)
+    anyd = count(bits) > 0
+    total = float(vm.area.sum())
+    return {"axis_index": i, "reachable": reach, "area_total": total,
+            "area_reachable": float(vm.area[reach].sum()),
+            "area_other": float(vm.area[anyd & ~reach].sum()),
+            "area_inaccessible": float(vm.area[~anyd].sum()),
+            "share": float(vm.area[reach].sum() / total) if total > 0 else float("nan")}
+
+
+def set_cover(vm: VoxelMap, amap: np.ndarray, *, cone: float | None = None, axis="+z",
+              max_setups: int = 64) -> list[dict]:
+    """Fewest directions that together reach every accessible voxel (greedy set cover by area).
+
+    Parameters
+    ----------
+    cone : float, optional
+        Only directions within this angle (radians) of ``axis`` (a tilt cone, as 3+2 heads
+        allow); voxels reachable only outside it stay uncovered.
+
+    Returns
+    -------
+    list of dict
+        One per set-up in the order chosen: ``direction`` index, ``vector``, ``area`` newly
+        covered (mm^2), ``voxels`` (their numbers).
+    """
+    ds = vm.directions
+    cand = np.ones(ds.k, bool) if cone is None else ds.within(
+        np.asarray(ds.normals[ds.index(axis)] if isinstance(axis, str) else axis), float(cone))
+    A = to_bool(amap, ds.k) & cand[None, :]
+    left = A.any(axis=1)
+    setups = []
+    area = vm.area
+    while left.any() and len(setups) < max_setups:
+        gain = (A & left[:, None]).T.astype(np.float64) @ area
+        j = int(np.argmax(gain))
+        if gain[j] <= 0:
+            break
+        got = A[:, j] & left
+        setups.append({"direction": j, "vector": ds.normals[j].tolist(), "area": float(area[got].sum()),
+                       "voxels": np.flatnonzero(got)})
+        left &= ~got
+    return setups
+
+
+def node_directions(vm: VoxelMap, amap: np.ndarray, x, y) -> tuple[np.ndarray, np.ndarray]:
+    """Per z-map node (x, y): the top-most boundary voxel in its column and its directions.
+
+    Returns
+    -------
+    voxel : ndarray of shape broadcast(x, y).shape, int64
+        Boundary voxel number, -1 where the column holds none.
+    n : ndarray of the same shape, int64
+        Number of accessible directions there (0 where none or no voxel).
+    """
+    x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+    i = np.floor((x - vm.origin[0]) / vm.d).astype(np.int64)
+    j = np.floor((y - vm.origin[1]) / vm.d).astype(np.int64)
+    nx, ny, nz = vm.state.shape
+    ok = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
+    col = vm.index[np.clip(i, 0, nx - 1), np.clip(j, 0, ny - 1), :]  # (..., nz)
+    has = col >= 0
+    top = nz - 1 - np.argmax(has[..., ::-1], axis=-1)
+    vox = np.take_along_axis(col, top[..., None], axis=-1)[..., 0].astype(np.int64)
+    vox[~(ok & has.any(axis=-1))] = -1
+    cnt = np.where(vox >= 0, count(np.asarray(amap))[np.maximum(vox, 0)], 0)
+    return vox, cnt
+
+
+@dataclass
+class AccessResult:
+    """Everything ``zmap access`` computes, saved as one ``.npz``."""
+
+    vm: VoxelMap
+    vg: np.ndarray
+    amap: np.ndarray
+    tool: Tool
+    verdict: dict
+    setups: list
+    seconds: dict
+
+    def save(self, path) -> None:
+        """Write atomically (temporary name, then rename)."""
+        import json
+
+        path = os.fspath(path)
+        vm = self.vm
+        setup_of = np.full(vm.n_boundary, -1, dtype=np.int32)
+        for s, su in enumerate(self.setups):
+            setup_of[su["voxels"]] = s
+        header = {"format": "zmap.access", "version": 1, "d": vm.d, "q": vm.q, "step": vm.step,
+                  "tool": vars(self.tool), "verdict": {k: v for k, v in self.verdict.items() if k != "reachable"},
+                  "setups": [{k: v for k, v in s.items() if k != "voxels"} for s in self.setups],
+                  "seconds": self.seconds, "flipped": vm.flipped}
+        arrays = dict(origin=vm.origin, ijk=vm.ijk, state=vm.state, vl=vm.vl, light=vm.light, vg=self.vg,
+                      amap=self.amap, curvature=vm.curvature, surface=vm.surface, point=vm.point,
+                      normal=vm.normal, area=vm.area, setup=setup_of,
+                      n_access=count(self.amap).astype(np.int32),
+                      directions=vm.directions.normals,
+                      header=np.frombuffer(json.dumps(header).encode(), dtype=np.uint8))
+        folder = os.path.dirname(os.path.abspath(path))
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=".npz")
+        os.close(fd)
+        try:
+            np.savez_compressed(tmp, **arrays)
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+
+
+def _timer():
+    t0 = time.perf_counter()
+    return lambda: time.perf_counter() - t0
