@@ -260,7 +260,11 @@ def _collinear(pn, a, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack):
 @njit(cache=True)
 def _candidate(z, i0, j0, NX, NY, t, tri, vx, vy, cand, q, qerr, qidx, st):
     """Rasterise triangle t; push it with its worst interior (non-border) node. Internal x
-    runs along j (the contiguous axis of z), internal y along i."""
+    runs along j (the contiguous axis of z), internal y along i.
+
+    Each row's span inside the triangle comes from the three edge functions at once (they
+    are exact: integer coordinates), clipped to the region's interior, so the inner loop is
+    one plane value and one height per node."""
     a = tri[3 * t]
     b = tri[3 * t + 1]
     c = tri[3 * t + 2]
@@ -271,14 +275,17 @@ def _candidate(z, i0, j0, NX, NY, t, tri, vx, vy, cand, q, qerr, qidx, st):
     p2x = vx[c]
     p2y = vy[c]
     minx = int(min(p0x, p1x, p2x))
-    miny = int(min(p0y, p1y, p2y))
     maxx = int(max(p0x, p1x, p2x))
-    maxy = int(max(p0y, p1y, p2y))
+    # border rows and columns are never candidates
+    ylo = max(int(min(p0y, p1y, p2y)), 1)
+    yhi = min(int(max(p0y, p1y, p2y)), NY - 2)
+    xlo = max(minx, 1)
+    xhi = min(maxx, NX - 2)
     fminx = float(minx)
-    fminy = float(miny)
-    w00 = _orient(p1x, p1y, p2x, p2y, fminx, fminy)
-    w01 = _orient(p2x, p2y, p0x, p0y, fminx, fminy)
-    w02 = _orient(p0x, p0y, p1x, p1y, fminx, fminy)
+    fy = float(ylo)
+    w00 = _orient(p1x, p1y, p2x, p2y, fminx, fy)
+    w01 = _orient(p2x, p2y, p0x, p0y, fminx, fy)
+    w02 = _orient(p0x, p0y, p1x, p1y, fminx, fy)
     a01 = p1y - p0y
     b01 = p0x - p1x
     a12 = p2y - p1y
@@ -289,41 +296,54 @@ def _candidate(z, i0, j0, NX, NY, t, tri, vx, vy, cand, q, qerr, qidx, st):
     z0 = z[i0 + int(p0y), j0 + int(p0x)] / area
     z1 = z[i0 + int(p1y), j0 + int(p1x)] / area
     z2 = z[i0 + int(p2y), j0 + int(p2x)] / area
+    dzx = z0 * a12 + z1 * a20 + z2 * a01  # plane slope per node along x
     maxerr = 0.0
     mx = 0
     my = 0
-    for y in range(miny, maxy + 1):
-        dx = 0
-        if w00 < 0 and a12 != 0:
-            dx = max(dx, int(np.floor(-w00 / a12)))
-        if w01 < 0 and a20 != 0:
-            dx = max(dx, int(np.floor(-w01 / a20)))
-        if w02 < 0 and a01 != 0:
-            dx = max(dx, int(np.floor(-w02 / a01)))
-        w0 = w00 + a12 * dx
-        w1 = w01 + a20 * dx
-        w2 = w02 + a01 * dx
-        inside_row = y > 0 and y < NY - 1
-        zrow = i0 + y
-        was = False
-        for x in range(minx + dx, maxx + 1):
-            if w0 >= 0 and w1 >= 0 and w2 >= 0:
-                was = True
-                if inside_row and x > 0 and x < NX - 1:
-                    zz = z0 * w0 + z1 * w1 + z2 * w2
-                    d = abs(zz - z[zrow, j0 + x])
-                    if d > maxerr:
-                        maxerr = d
-                        mx = x
-                        my = y
-            elif was:
-                break
-            w0 += a12
-            w1 += a20
-            w2 += a01
+    for y in range(ylo, yhi + 1):
+        # x - minx = s must keep w >= 0 on the three edges: w + A s >= 0
+        s0 = 0
+        s1 = maxx - minx
+        empty = False
+        for e in range(3):
+            if e == 0:
+                w = w00
+                A = a12
+            elif e == 1:
+                w = w01
+                A = a20
+            else:
+                w = w02
+                A = a01
+            if A > 0:
+                if w < 0:
+                    s0 = max(s0, int(np.ceil(-w / A)))
+            elif A < 0:
+                s1 = min(s1, int(np.floor(w / -A)))
+            elif w < 0:
+                empty = True
+        w0 = w00
+        w1 = w01
+        w2 = w02
         w00 += b12
         w01 += b20
         w02 += b01
+        if empty:
+            continue
+        xa = max(minx + s0, xlo)
+        xb = min(minx + s1, xhi)
+        if xa > xb:
+            continue
+        s = float(xa - minx)
+        zz = z0 * (w0 + a12 * s) + z1 * (w1 + a20 * s) + z2 * (w2 + a01 * s)
+        row = z[i0 + y]
+        for x in range(xa, xb + 1):
+            d = abs(zz - row[j0 + x])
+            if d > maxerr:
+                maxerr = d
+                mx = x
+                my = y
+            zz += dzx
     if (mx == p0x and my == p0y) or (mx == p1x and my == p1y) or (mx == p2x and my == p2y):
         maxerr = 0.0
     cand[2 * t] = mx
