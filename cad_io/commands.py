@@ -28,10 +28,22 @@ _AXES = ("+z", "-z", "+x", "-x", "+y", "-y")
               help="World direction that becomes the map's +z.")
 @click.option("--deflection", type=float, default=None, metavar="MM",
               help="Mesh deflection for starts and facets (default grid/20).")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="PART.zmap.npz to write.")
+@click.option("-o", "--output", required=True, type=click.Path(),
+              help="PART.zmap.npz to write (with --tiles: the PART.zarr store).")
 @click.option("--progress/--no-progress", default=True, show_default=True)
-def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progress) -> None:
+@click.option("--tiles", type=int, default=None, metavar="N",
+              help="Convert in N x N-node tiles as Dask tasks into a zarr store (-o PART.zarr); resumes.")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="With --tiles: a running Dask scheduler (tcp://host:port); default a local cluster.")
+@click.option("--workers", type=int, default=2, show_default=True, help="With --tiles: local worker processes.")
+def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progress, tiles=None,
+                scheduler=None, workers=2) -> None:
     """Convert a STEP part to a master z-map (paper 004 §2.1) and save it."""
+    if tiles is not None or scheduler is not None:  # tiled conversion on Dask (cad_io/tiled.py)
+        from cad_io.tiled import convert_cmd_tiled
+
+        return convert_cmd_tiled(part_path, grid, bounds, method, axis, deflection, output, progress, tiles,
+                                 scheduler, workers)
     import time
     import warnings
 

@@ -1,0 +1,377 @@
+"""Tiled conversion of a STEP part to a z-map in a zarr store, tile by tile as Dask tasks.
+
+The client reads the part once, meshes it, fixes the grid exactly as :func:`cad_io.sample`
+would (same bounds, same deflection), packs the faces (:class:`cad_io.sampler._FaceSet`:
+plain arrays, no CAD kernel) and ships that to every worker once. Each task samples one
+tile of ``tile`` x ``tile`` nodes with the sampler's own kernels (the pair scan restricted to
+the tile, :mod:`cad_io._tiled_kernels`; the nodes' coordinates computed as the whole-map
+kernel computes them), writes the tile's chunks into the store and then its completion
+marker. A worker's memory is bounded by the tile and the packed part, never the map. A
+conversion that stops half-way leaves a store that :meth:`zmap.tiled.TiledZMap.open` refuses;
+running it again skips the tiles that have their marker.
+
+By default the tasks run on a :class:`dask.distributed.LocalCluster` of worker processes on
+this machine; ``scheduler="tcp://host:port"`` sends them to any running Dask cluster (the
+workers need zmap installed and the store's folder on a shared file system).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import os
+import resource
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterator, Sequence
+
+import numpy as np
+
+from zmap.errors import ZMapError
+
+from .part import Part
+
+__all__ = ["DEFAULT_TILE", "CONNECT_TIMEOUT", "TiledGrid", "plan_grid", "sample_tile", "convert_tiled", "convert_cmd_tiled",
+           "dask_client"]
+
+#: tile side in grid nodes when none is given (16.7 M nodes, about 0.45 GB of working memory)
+DEFAULT_TILE = 4096
+#: seconds to wait for a scheduler given by address before giving up (the issue's bound is 10)
+CONNECT_TIMEOUT = 6.0
+
+
+@dataclass(frozen=True)
+class TiledGrid:
+    """The whole map's grid and what every tile task needs to sample its part of it."""
+
+    x0: float
+    y0: float
+    dx: float
+    dy: float
+    nx: int
+    ny: int
+    deflection: float
+    axis: str
+    method: str
+    window: tuple
+
+
+def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, axis: str = "+z",
+              method: str = "auto", deflection: float | None = None) -> TiledGrid:
+    """The grid :func:`cad_io.sample` would use for these arguments, without sampling.
+
+    The same steps as ``sample`` (bounds from the mesh extents, lines centred on them); the
+    tests check the two agree on real parts. Meshes ``part`` at the deflection (as ``sample`` does) when its meshes are coarser.
+    No memory check: the map is never held whole.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> import cad_io
+    >>> part = cad_io.read_step(Path(cad_io.__file__).parents[1] / "data" / "boss.step")
+    >>> g = plan_grid(part, 1.0)
+    >>> (g.nx, g.ny) == cad_io.sample(part, 1.0).shape
+    True
+    """
+    from .sampler import _MODE, METHODS, _centred, _needs_mesh, _spacing, _view_bounds, grid_shape
+    from .view import check_axis, transform_part
+
+    if method not in _MODE:
+        raise ValueError(f"method={method!r} is not one of {', '.join(repr(m) for m in METHODS)}")
+    check_axis(axis)
+    dx, dy = _spacing(grid)
+    if not part.faces:
+        raise ValueError(f"part {part.source!r} has no faces")
+    default_bounds = bounds is None
+    if default_bounds:
+        bounds = _view_bounds(part, axis)
+    elif np.shape(bounds) != (4,):
+        raise ValueError(f"bounds must be (x0, y0, x1, y1), got {np.asarray(bounds).tolist()!r}")
+    x0, y0 = float(bounds[0]), float(bounds[1])
+    nx, ny = grid_shape(bounds, dx, dy)
+    deflection = min(dx, dy) / 20.0 if deflection is None else float(deflection)
+    if not (math.isfinite(deflection) and deflection > 0):
+        raise ValueError(f"deflection must be positive, got {deflection!r}")
+    if _needs_mesh(part, deflection):
+        from .mesh import triangulate
+
+        triangulate(part, deflection)
+    if default_bounds:
+        vpart = transform_part(part, axis)
+        ext = [(m.nodes[:, 0].min(), m.nodes[:, 1].min(), m.nodes[:, 0].max(), m.nodes[:, 1].max())
+               for m in (f.mesh for f in vpart.faces) if m is not None and len(m.nodes)]
+        if ext:
+            e = np.array(ext)
+            bounds = (float(e[:, 0].min()), float(e[:, 1].min()), float(e[:, 2].max()), float(e[:, 3].max()))
+            nx, ny = grid_shape(bounds, dx, dy)
+        # as sample(): the lines cover the part's extents, centred on them
+        x0 = _centred(bounds[0], bounds[2], dx, nx)
+        y0 = _centred(bounds[1], bounds[3], dy, ny)
+    window = (x0 - dx, y0 - dy, x0 + (nx - 1) * dx + dx, y0 + (ny - 1) * dy + dy)
+    return TiledGrid(x0, y0, dx, dy, nx, ny, deflection, axis, method, window)
+
+
+def _face_set(part: Part, g: TiledGrid):
+    from .sampler import _face_set as face_set
+    from .view import transform_part
+
+    return face_set(transform_part(part, g.axis), g.deflection, g.window)
+
+
+def _peak_rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def sample_tile(fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1: int) -> tuple[np.ndarray, ...]:
+    """Heights, face and method layers of nodes ``[i0:i1, j0:j1]`` of the grid ``g``.
+
+    Equal to the same block of ``cad_io.sample(part, ...)`` to the last bit: the same
+    pairs in the same order, solved at the same coordinates.
+    """
+    from . import _sample_kernels as K
+    from . import _tiled_kernels as TK
+    from .sampler import _MODE, NEWTON_MAX_ITER, NEWTON_TOL, _run_pairs
+
+    tnx, tny = i1 - i0, j1 - j0
+    n = tnx * tny
+    zflat = np.full(n, np.nan)
+    fflat = np.full(n, -1, dtype=np.int32)
+    mflat = np.zeros(n, dtype=np.int8)
+    if fs.tris is not None:
+        # node coordinates as the whole-map kernels compute them: x0 + i*dx with the global i
+        px = np.ascontiguousarray(np.repeat(g.x0 + np.arange(i0, i1, dtype=np.int64) * g.dx, tny))
+        py = np.ascontiguousarray(np.tile(g.y0 + np.arange(j0, j1, dtype=np.int64) * g.dy, tnx))
+        counts = np.zeros(len(fs.tris), dtype=np.int64)
+        TK.count_pairs_tile(fs.nodes, fs.tris, fs.tri_margin, g.x0, g.y0, g.dx, g.dy, g.nx, g.ny, i0, i1, j0, j1,
+                            counts)
+        mode = _MODE[g.method]
+
+        def fill(t, offsets, gidx, tri_p, w):
+            TK.fill_pairs_tile(fs.nodes, fs.tris, fs.tri_margin, t, offsets, g.x0, g.y0, g.dx, g.dy, g.nx, g.ny,
+                               i0, i1, j0, j1, gidx, tri_p, w)
+
+        def solve(gidx, tri_p, w, zc, st):
+            K.solve_pairs_xy(gidx, tri_p, w, *fs.solve_args(), px, py, mode, NEWTON_TOL, NEWTON_MAX_ITER, zc, st)
+
+        _run_pairs(fs, counts, fill, solve, zflat, fflat, mflat)
+    return zflat.reshape(tnx, tny), fflat.reshape(tnx, tny), mflat.reshape(tnx, tny)
+
+
+def _tile_task(fs: Any, g: TiledGrid, store: Any, ti: int, tj: int, threads: int) -> dict:
+    """One Dask task: sample tile (ti, tj), write it and its marker; returns its figures."""
+    import numba
+
+    numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    t0 = time.perf_counter()
+    si, sj = store.tile_slices(ti, tj)
+    z, face, how = sample_tile(fs, g, si.start, si.stop, sj.start, sj.stop)
+    store.write_tile(ti, tj, z, {"face": face, "method": how})
+    return {"tile": (ti, tj), "nodes": int(z.size), "seconds": time.perf_counter() - t0,
+            "filled": int(np.isfinite(z).sum()), "jacobian": int((how == 1).sum()), "facet": int((how == 2).sum()),
+            "pid": os.getpid(), "peak_rss_mb": _peak_rss_mb()}
+
+
+@contextlib.contextmanager
+def dask_client(scheduler: str | None = None, *, workers: int = 2, threads_per_worker: int = 1) -> Iterator[Any]:
+    """A ``dask.distributed.Client``: on ``scheduler`` (address), else on a new LocalCluster.
+
+    The LocalCluster has ``workers`` worker processes of ``threads_per_worker`` threads and
+    is shut down on exit. A scheduler that does not answer within :data:`CONNECT_TIMEOUT`
+    seconds raises :class:`zmap.errors.ZMapError` naming its address.
+    """
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT}s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise ZMapError(f"no Dask scheduler answers at {scheduler} within {CONNECT_TIMEOUT:g} s "
+                            f"({type(exc).__name__}: {' '.join(str(exc).split())[:160]})") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    workers = int(workers)
+    if workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # "port 8787 is already in use" and friends
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=int(threads_per_worker), processes=True,
+                               dashboard_address=":0", silence_logs=logging.ERROR)
+    client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def convert_tiled(part: Part | str | os.PathLike, grid: Any, output: str | os.PathLike, *, tile: int = DEFAULT_TILE,
+                  bounds: Sequence[float] | None = None, method: str = "auto", axis: str = "+z",
+                  deflection: float | None = None, scheduler: str | None = None, workers: int = 2,
+                  client: Any = None, progress: bool = False, echo: Any = None, _stop_after: int | None = None):
+    """Convert a part to a tiled z-map store, one Dask task per tile; resumes an unfinished store.
+
+    Parameters
+    ----------
+    part : cad_io.Part, or path of a STEP file
+    grid : float or (float, float)
+        Grid interval in mm, as for :func:`cad_io.sample`.
+    output : str or PathLike
+        Folder of the zarr store to write (``PART.zarr``).
+    tile : int
+        Tile side in grid nodes (at least the 2-node stencil halo; thousands for speed).
+    bounds, method, axis, deflection
+        As for :func:`cad_io.sample`; the grid is the one it would use.
+    scheduler : str, optional
+        Address of a running Dask scheduler; default a LocalCluster of ``workers``
+        processes on this machine.
+    workers : int
+        Worker processes of the LocalCluster.
+    client : dask.distributed.Client, optional
+        Use this client (and its cluster) instead.
+    progress : bool
+        A tqdm bar over the tiles (the Dask dashboard shows the tasks too).
+    echo : callable, optional
+        ``echo(line)`` receives the status lines (dashboard address, tiles to do).
+
+    Returns
+    -------
+    store : zmap.tiled.TiledZMap
+        The finished store.
+    report : dict
+        ``nodes``, ``tiles``, ``tiles_skipped``, ``tiles_done_now``, ``workers``, ``seconds``
+        (the tile tasks, from the first submitted to the last finished), ``nodes_per_s``,
+        ``peak_rss_mb_per_worker`` (largest peak RSS of a worker process), ``prepare_seconds``.
+
+    Raises
+    ------
+    ValueError
+        A tile below the halo, bad grid or options.
+    zmap.errors.ZMapFileError
+        ``output`` is not ours, or holds another grid.
+    zmap.errors.ZMapError
+        ``scheduler`` does not answer.
+    """
+    from tqdm import tqdm
+
+    from zmap.tiled import TiledZMap
+
+    t_start = time.perf_counter()
+    say = echo or (lambda line: None)
+    from zmap.tiled.store import _check_tile
+
+    tile = _check_tile(tile)
+    if isinstance(part, (str, os.PathLike)):
+        from .step import read_step
+
+        source = os.path.basename(str(part))
+        part = read_step(part)
+    else:
+        source = os.path.basename(str(part.source))
+    g = plan_grid(part, grid, bounds=bounds, axis=axis, method=method, deflection=deflection)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fs = _face_set(part, g)
+    msgs = list(fs.msgs)
+    meta = {"source": source, "axis": axis, "method": method, "deflection": g.deflection, "faces": len(part.faces),
+            "tile": tile, "warnings": msgs}
+    store = TiledZMap.create(output, x0=g.x0, y0=g.y0, dx=g.dx, dy=g.dy, nx=g.nx, ny=g.ny, tile=tile, meta=meta,
+                             layers={"face": "int32", "method": "int8"}, resume=True)
+    todo = [t for t in store.tiles() if not store.tile_done(*t)]
+    skipped = store.n_tiles - len(todo)
+    prepare = time.perf_counter() - t_start
+    results: list[dict] = []
+    n_workers = 0
+    t_tasks = time.perf_counter()
+    seconds = 0.0
+    if todo:
+        ctx = contextlib.nullcontext(client) if client is not None else dask_client(scheduler, workers=workers)
+        with ctx as cl:
+            info = cl.scheduler_info()
+            n_workers = len(info.get("workers", {}))
+            threads = max(1, min(int(w.get("nthreads", 1)) for w in info["workers"].values())) if n_workers else 1
+            say(f"dask     {n_workers} workers at {cl.scheduler.address}, dashboard {cl.dashboard_link}")
+            say(f"tiles    {len(todo)} of {store.n_tiles} to sample ({skipped} finished before), "
+                f"{tile} x {tile} nodes each")
+            from dask.distributed import as_completed
+
+            fs_future = cl.scatter(fs, broadcast=True)
+            t_tasks = time.perf_counter()
+            futures = [cl.submit(_tile_task, fs_future, g, store, ti, tj, threads, pure=False) for ti, tj in todo]
+            try:
+                with tqdm(total=len(todo), unit="tile", desc="tiles", disable=not progress, leave=False) as bar:
+                    for fut in as_completed(futures):
+                        results.append(fut.result())
+                        bar.update(1)
+                        if _stop_after is not None and len(results) >= _stop_after:
+                            raise KeyboardInterrupt  # tests: an interruption after some tiles
+            except BaseException:
+                cl.cancel(futures)
+                raise
+            seconds = time.perf_counter() - t_tasks
+    filled = store.tile_stats()["filled"]
+    store.finish({"warnings": msgs + [str(c.message) for c in caught], "filled": filled})
+    nodes_now = sum(r["nodes"] for r in results)
+    per_worker: dict[int, float] = {}
+    for r in results:
+        per_worker[r["pid"]] = max(per_worker.get(r["pid"], 0.0), r["peak_rss_mb"])
+    report = {"nodes": g.nx * g.ny, "tiles": store.n_tiles, "tiles_skipped": skipped, "tiles_done_now": len(results),
+              "workers": n_workers, "seconds": round(seconds, 3), "prepare_seconds": round(prepare, 3),
+              "nodes_per_s": round(nodes_now / seconds, 1) if seconds > 0 else 0.0,
+              "peak_rss_mb_per_worker": round(max(per_worker.values()), 1) if per_worker else 0.0}
+    return store, report
+
+
+def convert_cmd_tiled(part_path: str, grid: float, bounds, method: str, axis: str, deflection, output: str,
+                      progress: bool, tiles: int | None, scheduler: str | None, workers: int) -> None:
+    """``zmap convert ... --tiles N [--scheduler ADDRESS]``: the tiled branch of the command."""
+    import click
+
+    from zmap.errors import StepImportError
+
+    from .step import read_step
+
+    t0 = time.perf_counter()
+    if tiles is None:
+        raise click.BadParameter("--scheduler needs --tiles N (the tiled conversion)", param_hint="--scheduler")
+    from zmap.tiled.store import _check_tile
+
+    try:
+        _check_tile(tiles)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--tiles") from None
+    if grid <= 0:
+        raise click.BadParameter(f"must be positive, got {grid!r}", param_hint="--grid")
+    if not os.path.exists(part_path):
+        raise StepImportError(f"{part_path}: no such file")
+    if scheduler:
+        # fail fast, before reading and meshing the part, when the address does not answer
+        with dask_client(scheduler):
+            pass
+    click.echo(f"reading  {part_path}", err=True)
+    part = read_step(part_path)
+    if not part.faces:
+        raise StepImportError(f"{part_path}: no faces in the file")
+    part.source = os.path.basename(part_path)
+    store, rep = convert_tiled(part, grid, output, tile=tiles, bounds=bounds, method=method, axis=axis,
+                               deflection=deflection, scheduler=scheduler, workers=workers, progress=progress,
+                               echo=lambda line: click.echo(line, err=True))
+    for w in list(part.warnings) + list(store.meta.get("warnings", [])):
+        click.echo(f"warning: {' '.join(str(w).split())}", err=True)
+    st = store.tile_stats()
+    n = store.nx * store.ny
+    click.echo(f"wrote    {output} (tiled zarr store, complete)")
+    click.echo(f"part     {os.path.basename(part_path)}: {len(part.faces)} faces, axis {axis}")
+    click.echo(f"grid     {store.nx} x {store.ny} = {n:,} points, dx={store.dx:g} dy={store.dy:g} mm, "
+               f"x {store.x0:g} .. {store.x1:g}, y {store.y0:g} .. {store.y1:g}")
+    click.echo(f"tiles    {store.n_tiles} of {store.tile} x {store.tile} nodes: {rep['tiles_done_now']} sampled now, "
+               f"{rep['tiles_skipped']} finished before; {st['filled']:,} points with surface")
+    click.echo(f"time     {time.perf_counter() - t0:.2f} s (tiles {rep['seconds']:.2f} s on {rep['workers']} workers, "
+               f"{rep['nodes_per_s'] / 1e6:.3f} M nodes/s)")
+    click.echo(f"memory   peak {rep['peak_rss_mb_per_worker']:.0f} MB per worker; store {store.disk_bytes() / 1e6:.1f} MB "
+               f"on disk, {store.nbytes / 1e6:.1f} MB in memory")
