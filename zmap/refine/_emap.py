@@ -118,15 +118,17 @@ def break_thresholds(dx: float, dy: float, interval: float, tol: float) -> tuple
 
 def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, edge_ids: np.ndarray,
              offsets: np.ndarray, heights: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
-    """Keep on each smooth edge only every ``s``-th e-point, ``s`` as large as lets the kept
-    points interpolate all of them linearly within ``limit``.
+    """Thin each smooth edge to the fewest evenly spaced e-points that interpolate all of its
+    points linearly within ``limit``.
 
-    An edge keeps all its points where its sequence has a break (a wall or a sharp edge,
-    :func:`zmap.refine._ez_kernels.detect_breaks`), where the thinned sequence would show
-    one, or where a height is missing. The thinned edge's boundary curve (linear between
-    samples, as the cells evaluate it) is then within ``limit`` of the full one everywhere
-    (both are linear between the full samples, and agree within ``limit`` at each), and
-    its cells split the same way (no break either way).
+    The new points (``d - 1`` of them at ``t = k / d``, ``d`` from 2, 3, 4, 5, 6, 8, ...) are
+    read off the edge's full sequence, linear between samples, as the cells evaluate it; so
+    the thinned boundary curve is within ``limit`` of the full one everywhere (their
+    difference is linear between the union of both sets of knots, zero at the new knots and
+    checked at the full ones). An edge keeps all its points where its sequence has a break
+    (a wall or a sharp edge, :func:`zmap.refine._ez_kernels.detect_breaks`), where the
+    thinned sequence would show one, or where a height is missing: its cells split the same
+    way (no break either way).
 
     Parameters
     ----------
@@ -139,7 +141,7 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
     heights : ndarray of shape (P,), float64
         E-point heights (NaN = none).
     limit : float
-        Largest difference allowed at a dropped point, mm.
+        Largest difference allowed at a full point, mm.
 
     Returns
     -------
@@ -155,8 +157,7 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
     n = np.diff(offsets)
     d = np.empty(E, dtype=np.int64)
     _k.decimate_counts(z, edge_ids, offsets, heights, float(limit), d)
-    thin = d < n + 1
-    if not thin.any():
+    if not np.any(d < n + 1):
         return offsets, heights
     jump_min, kink_min = break_thresholds(dx, dy, interval, tol)
 
@@ -167,12 +168,11 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
         return kind != 0
 
     def thinned(dd):
-        stride = (n + 1) // dd
-        q = np.arange(heights.shape[0]) - np.repeat(offsets[:-1], n) + 1
-        keep = q % np.repeat(stride, n) == 0
         off = np.zeros(E + 1, dtype=np.int64)
         np.cumsum(dd - 1, out=off[1:])
-        return off, heights[keep]
+        out = np.empty(int(off[-1]))
+        _k.resample(z, edge_ids, offsets, heights, dd - 1, off, out)
+        return off, out
 
     full = has_break(offsets, heights)
     d[full] = n[full] + 1

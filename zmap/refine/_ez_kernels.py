@@ -112,12 +112,29 @@ def despike(z, edge_ids, offsets, heights, thresh, out_count):
         out_count[k] = cnt
 
 
+@njit(cache=True, inline="always")
+def _polyline(za0, zb0, heights, off, m, f):
+    """The edge's full boundary sequence (corners and e-points at ``q = 0..m``) read
+    linearly at fractional index ``f``."""
+    q = min(max(int(math.floor(f)), 0), m - 1)
+    va = za0 if q == 0 else heights[off + q - 1]
+    vb = zb0 if q + 1 == m else heights[off + q]
+    return va + (vb - va) * (f - q)
+
+
+@njit(cache=True)
+def _next_count(d):
+    """The next number of intervals tried after ``d`` (2, 3, 4, 5, 6, 8, 10, 12, 16, ...: steps of
+    about 25 %)."""
+    return max(d + 1, (d * 5) // 4)
+
+
 @njit(cache=True, parallel=True)
 def decimate_counts(z, edge_ids, offsets, heights, limit, out_m):
-    """Fewest intervals ``d`` (a divisor of the edge's ``m = n + 1``, ``d >= 2``) whose
-    knots, every ``m / d``-th sample, interpolate every sample of the edge linearly within
-    ``limit``; ``m`` where none does or a sample or corner has no height. ``heights``
-    float64 (P,), ``out_m`` int64 (E,)."""
+    """Fewest intervals ``d`` (2, 3, 4, 5, 6, 8, ... below the edge's ``m = n + 1``) such that
+    the edge's full sequence read at ``t = k / d`` and interpolated linearly between those
+    knots is within ``limit`` of every full sample; ``m`` where none is or a sample or corner
+    has no height. ``heights`` float64 (P,), ``out_m`` int64 (E,)."""
     nx, ny = z.shape
     for k in prange(edge_ids.shape[0]):
         _axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
@@ -136,26 +153,42 @@ def decimate_counts(z, edge_ids, offsets, heights, limit, out_m):
                 break
         if not ok:
             continue
-        for d in range(2, m):
-            if m % d != 0:
-                continue
-            s = m // d
+        d = 2
+        while d < m:
             good = True
             for q in range(1, m):
-                r = q % s
-                if r == 0:
-                    continue
-                qa = q - r
-                qb = qa + s
-                va = za0 if qa == 0 else heights[off + qa - 1]
-                vb = zb0 if qb == m else heights[off + qb - 1]
-                val = va + (vb - va) * (r / s)
-                if abs(val - heights[off + q - 1]) > limit:
+                g = q * d / m  # the full sample's position among the knots
+                a = min(int(math.floor(g)), d - 1)
+                ka = _polyline(za0, zb0, heights, off, m, a * m / d)
+                kb = _polyline(za0, zb0, heights, off, m, (a + 1) * m / d)
+                if abs(ka + (kb - ka) * (g - a) - heights[off + q - 1]) > limit:
                     good = False
                     break
             if good:
                 out_m[k] = d
                 break
+            d = _next_count(d)
+
+
+@njit(cache=True, parallel=True)
+def resample(z, edge_ids, offsets, heights, counts, new_offsets, out):
+    """The knots of :func:`decimate_counts`: edge k's full sequence read at ``t = q / (c + 1)``,
+    ``q = 1..c`` (``c = counts[k]`` interior points), into ``out[new_offsets[k]:]``; an edge
+    that keeps its count is copied."""
+    nx, ny = z.shape
+    for k in prange(edge_ids.shape[0]):
+        _axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
+        off = offsets[k]
+        m = offsets[k + 1] - off + 1
+        c = counts[k]
+        d = c + 1
+        o = new_offsets[k]
+        if d == m:
+            for q in range(c):
+                out[o + q] = heights[off + q]
+            continue
+        for q in range(c):
+            out[o + q] = _polyline(z[ia, ja], z[ib, jb], heights, off, m, (q + 1) * m / d)
 
 
 @njit(cache=True, parallel=True)

@@ -237,19 +237,21 @@ def _split(value, breaks, P, arc, X, Y, dx, dy):
 def thin_intervals(seq: np.ndarray, limit: float) -> int:
     """Slow reference of :func:`zmap.refine._ez_kernels.decimate_counts` for one edge.
 
-    ``seq`` is the edge's boundary sequence (corner, e-points, corner; ``m + 1`` values).
-    Returns the fewest intervals ``d >= 2`` dividing ``m`` whose knots (every ``m/d``-th
-    value) interpolate every value linearly within ``limit``; ``m`` if none or a NaN.
+    ``seq`` is the edge's boundary sequence (corner, e-points, corner; ``m + 1`` values at
+    ``q = 0..m``). Returns the fewest intervals ``d`` of the ladder 2, 3, 4, 5, 6, 8, ...
+    (``max(d + 1, 5 d // 4)``) below ``m`` such that the sequence read linearly at
+    ``q = k m / d`` and interpolated linearly between those knots is within ``limit`` of
+    every value; ``m`` if none or a NaN.
     """
     seq = np.asarray(seq, dtype=np.float64)
     m = seq.size - 1
     if np.isnan(seq).any():
         return m
-    q = np.arange(m + 1)
-    for d in range(2, m):
-        if m % d:
-            continue
-        knots = q[:: m // d]
-        if np.all(np.abs(np.interp(q, knots, seq[knots]) - seq) <= limit):
+    q = np.arange(m + 1, dtype=np.float64)
+    d = 2
+    while d < m:
+        kq = np.arange(d + 1) * m / d
+        if np.all(np.abs(np.interp(q, kq, np.interp(kq, q, seq)) - seq) <= limit):
             return d
+        d = max(d + 1, 5 * d // 4)
     return m
