@@ -167,9 +167,11 @@ def point_in_loops(u, v, loop_uv, loop_off, first, last, eps):
 def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps):
     """:func:`point_in_loops` on a face's loop edges bucketed in ``nband`` bands of v.
 
-    Band ``b`` (``vlo + b*h`` .. ``vlo + (b+1)*h``, widened by ``eps``) lists, in
+    Band ``b`` (``vlo + b*h`` .. ``vlo + (b+1)*h``, widened by the edges' slack) lists, in
     ``band_edges[band_ptr[first + b]:band_ptr[first + b + 1]]``, every edge (row of
-    ``edges`` = ua, va, ub, vb) whose v-range meets it, so a point tests only its band.
+    ``edges`` = ua, va, ub, vb and, where present, the edge's own slack in uv) whose
+    v-range meets it, so a point tests only its band. A point within ``eps`` or the
+    edge's own slack of an edge counts as inside.
     """
     fb = (v - vlo) / h
     if fb < -1.0 or fb > nband + 1.0:
@@ -177,14 +179,17 @@ def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps)
     b = int(math.floor(fb))
     b = min(max(b, 0), nband - 1)
     inside = False
-    eps2 = eps * eps
+    own = edges.shape[1] > 4
     for q in range(band_ptr[first + b], band_ptr[first + b + 1]):
         e = band_edges[q]
         ua = edges[e, 0]
         va = edges[e, 1]
         ub = edges[e, 2]
         vb = edges[e, 3]
-        hit = _edge_test(u, v, ua, va, ub, vb, eps2)
+        se = eps
+        if own:
+            se = max(eps, edges[e, 4])
+        hit = _edge_test(u, v, ua, va, ub, vb, se * se)
         if hit == 2:
             return True
         if hit == 1:

@@ -31,12 +31,14 @@ _AXES = ("+z", "-z", "+x", "-x", "+y", "-y")
 @click.option("-o", "--output", required=True, type=click.Path(),
               help="PART.zmap.npz to write (with --tiles: the PART.zarr store).")
 @click.option("--progress/--no-progress", default=True, show_default=True)
+@click.option("--strict", is_flag=True, default=False,
+              help="Refuse a damaged STEP file (entities that failed to load or transfer, faces missing).")
 @click.option("--tiles", type=int, default=None, metavar="N",
               help="Convert in N x N-node tiles as Dask tasks into a zarr store (-o PART.zarr); resumes.")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="With --tiles: a running Dask scheduler (tcp://host:port); default a local cluster.")
 @click.option("--workers", type=int, default=2, show_default=True, help="With --tiles: local worker processes.")
-def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progress, tiles=None,
+def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progress, strict=False, tiles=None,
                 scheduler=None, workers=2) -> None:
     """Convert a STEP part to a master z-map (paper 004 §2.1) and save it."""
     if tiles is not None or scheduler is not None:  # tiled conversion on Dask (cad_io/tiled.py)
@@ -56,7 +58,7 @@ def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progr
         raise StepImportError(f"{part_path}: no such file")
     if grid <= 0:
         raise click.BadParameter(f"must be positive, got {grid!r}", param_hint="--grid")
-    part = read_step(part_path)
+    part = read_step(part_path, strict=strict)
     if not part.faces:
         raise StepImportError(f"{part_path}: no faces in the file")
     with warnings.catch_warnings(record=True) as caught:

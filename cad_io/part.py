@@ -92,6 +92,9 @@ class Face:
     #: The OCP ``TopoDS_Face`` (oriented as in the part) whose surface ``surface`` is and
     #: whose pcurves ``loops`` sample; None for geomdl input.
     topo: Any = field(default=None, repr=False, compare=False)
+    #: Largest tolerance (mm) of the face's edges in the file: its trim curves may lie that
+    #: far from the true boundary (0 when unknown, e.g. geomdl input).
+    tolerance: float = 0.0
 
 
 @dataclass

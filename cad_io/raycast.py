@@ -172,11 +172,14 @@ def read_shape(path) -> Any:
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.STEPControl import STEPControl_Reader
 
-    reader = STEPControl_Reader()
-    if reader.ReadFile(str(path)) != IFSelect_RetDone:
-        raise OSError(f"{path}: OCC cannot read it as STEP")
-    reader.TransferRoots()
-    return reader.OneShape()
+    from .step import _QuietFd
+
+    with _QuietFd(1):  # OCC's reader messages go to stdout, which a bench's JSON owns
+        reader = STEPControl_Reader()
+        if reader.ReadFile(str(path)) != IFSelect_RetDone:
+            raise OSError(f"{path}: OCC cannot read it as STEP")
+        reader.TransferRoots()
+        return reader.OneShape()
 
 
 def raycast(shape: Any, x: np.ndarray, y: np.ndarray, *, axis: str = "+z", tol: float = 1e-7

@@ -53,6 +53,9 @@ LATTICE = 48
 #: Points this close (mm) to a face's trim loop count as inside it: the loops are polylines
 #: within about 1e-4 mm of the true boundary (see _trim_slack_uv).
 TRIM_SLACK_MM = 5e-4
+#: A face whose edges carry a larger tolerance in the file (its trim curves may be that far
+#: from the true boundary) widens its slack to that tolerance, up to this many mm.
+TRIM_SLACK_MAX_MM = 0.05
 #: Boundary triangles of an exact face pair with points up to this many mesh deflections
 #: outside them (Newton and the trim test then decide)
 BOUNDARY_MARGIN = 2.0
@@ -157,42 +160,63 @@ def _boundary_triangles(tris: np.ndarray) -> np.ndarray:
     return bnodes[tris].any(axis=1)
 
 
-def _trim_slack_uv(packed, face_loops: dict[int, list[np.ndarray]], F: int) -> np.ndarray:
-    """Per face, the uv distance that spans :data:`TRIM_SLACK_MM` on the surface.
+def _trim_slack_uv(packed, face_loops: dict[int, list[np.ndarray]], F: int,
+                   tol_mm: np.ndarray | None = None) -> dict[int, np.ndarray]:
+    """Per face, per loop edge, the uv distance across the edge that spans
+    :data:`TRIM_SLACK_MM` on the surface (or the face's own edge tolerance ``tol_mm[k]``
+    where larger, up to :data:`TRIM_SLACK_MAX_MM`).
 
     The trim loops are polylines within about 1e-4 mm of the true boundary, so a point
     exactly on a curved boundary can fall just outside the polygon of both faces that meet
     there (a wall's top edge and the fillet below it), and a lower face would answer. A
-    point within the slack of a loop counts as inside. The mm-per-uv scale is the median
-    of |dS| / |duv| over the loop's segments.
+    point within the slack of a loop counts as inside. A file's edge tolerance says how far
+    its trim curves may lie from the boundary they share with the next face: on a soap-box
+    moulding, edges of 7.7e-3 mm left nodes at a face boundary in neither face, and the
+    floor 2.1 mm below answered.
+
+    The scale is measured across each loop edge, ``|S_u n_u + S_v n_v|`` at its midpoint
+    for the uv normal ``n`` of the edge: one scale per face (the median of |dS| / |duv|
+    along the loop, as before) let cornetta's face 3, 1 mm per u but 70 mm per v, claim a
+    point 0.33 mm outside it, 18 mm above the floor OCC sees there.
     """
     from .nurbs import evaluate_packed
 
-    slack = np.zeros(F)
+    out: dict[int, np.ndarray] = {}
     for k, lps in face_loops.items():
         if not lps:
             continue
         a = np.concatenate(lps)
         b = np.concatenate([np.roll(lp, -1, axis=0) for lp in lps])
-        pa = evaluate_packed(packed, np.full(len(a), k), a[:, 0], a[:, 1])[:, 0, :]
-        pb = evaluate_packed(packed, np.full(len(b), k), b[:, 0], b[:, 1])[:, 0, :]
-        duv = np.hypot(*(b - a).T)
-        ok = duv > 0
-        if not ok.any():
-            continue
-        ratio = np.linalg.norm(pb - pa, axis=1)[ok] / duv[ok]
-        mm_per_uv = float(np.median(ratio))
-        if mm_per_uv > 0 and np.isfinite(mm_per_uv):
-            slack[k] = TRIM_SLACK_MM / mm_per_uv
-    return slack
+        d = b - a
+        duv = np.hypot(d[:, 0], d[:, 1])
+        m = 0.5 * (a + b)
+        der = evaluate_packed(packed, np.full(len(m), k), m[:, 0], m[:, 1], derivs=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            nu, nv = -d[:, 1] / duv, d[:, 0] / duv
+            across = np.linalg.norm(der[:, 1, :] * nu[:, None] + der[:, 2, :] * nv[:, None], axis=1)
+        mm = TRIM_SLACK_MM
+        if tol_mm is not None and np.isfinite(tol_mm[k]):
+            mm = min(max(mm, float(tol_mm[k])), max(mm, TRIM_SLACK_MAX_MM))
+        ok = np.isfinite(across) & (across > 0) & (duv > 0)
+        slack = np.zeros(len(a))
+        if ok.any():
+            # a degenerate edge (a pole) borrows the median scale of the loop
+            fallback = float(np.median(across[ok]))
+            scale = np.where(ok, across, fallback)
+            span = float(np.nanmax(np.r_[np.ptp(a[:, 0]), np.ptp(a[:, 1])])) if len(a) else 0.0
+            slack = np.minimum(mm / scale, 0.01 * span) if span > 0 else mm / scale
+        out[k] = slack
+    return out
 
 
 def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: int,
-                slack_uv: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+                slack_uv: dict[int, np.ndarray] | None = None) -> tuple[np.ndarray, ...]:
     """Trim loop edges of every face bucketed in bands of v (see ``_sample_kernels.point_in_bands``).
 
-    ``slack_uv[k]`` (optional) widens face k's loops: points that close count as inside.
-    Returns ``edges (E, 4), band_ptr (B+1,), band_edges (X,), face_bi (F, 2), face_bf (F, 3)``.
+    ``slack_uv[k]`` (optional, one value per loop edge of face k, from
+    :func:`_trim_slack_uv`) widens face k's loops: points that close to an edge count as
+    inside. Returns ``edges (E, 5)`` (ua, va, ub, vb, slack in uv), ``band_ptr (B+1,),
+    band_edges (X,), face_bi (F, 2), face_bf (F, 3)``.
     """
     face_bi = np.zeros((F, 2), dtype=np.int64)
     face_bf = np.zeros((F, 3))
@@ -205,16 +229,18 @@ def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: 
             continue
         a = np.concatenate(lps)
         b = np.concatenate([np.roll(lp, -1, axis=0) for lp in lps])
-        e = np.hstack([a, b])
         eps = 1e-9 * max(domain[k, 1] - domain[k, 0], domain[k, 3] - domain[k, 2], 1e-300)
-        if slack_uv is not None:
-            eps = max(eps, float(slack_uv[k]))
-        vlo = float(min(a[:, 1].min(), b[:, 1].min())) - eps
-        vhi = float(max(a[:, 1].max(), b[:, 1].max())) + eps
+        own = np.zeros(len(a))
+        if slack_uv is not None and k in slack_uv:
+            own = np.asarray(slack_uv[k], dtype=np.float64)
+        e = np.hstack([a, b, np.maximum(own, eps)[:, None]])
+        wide = float(e[:, 4].max()) if len(e) else eps
+        vlo = float(min(a[:, 1].min(), b[:, 1].min())) - wide
+        vhi = float(max(a[:, 1].max(), b[:, 1].max())) + wide
         nb = int(min(max(len(e) // 2, 1), 4096))
         h = (vhi - vlo) / nb if vhi > vlo else 1.0
-        lo = np.clip(np.floor((np.minimum(e[:, 1], e[:, 3]) - eps - vlo) / h), 0, nb - 1).astype(np.int64)
-        hi = np.clip(np.floor((np.maximum(e[:, 1], e[:, 3]) + eps - vlo) / h), 0, nb - 1).astype(np.int64)
+        lo = np.clip(np.floor((np.minimum(e[:, 1], e[:, 3]) - e[:, 4] - vlo) / h), 0, nb - 1).astype(np.int64)
+        hi = np.clip(np.floor((np.maximum(e[:, 1], e[:, 3]) + e[:, 4] - vlo) / h), 0, nb - 1).astype(np.int64)
         span = hi - lo + 1
         eid = np.repeat(np.arange(len(e)), span)
         start = np.repeat(np.cumsum(span) - span, span)
@@ -228,7 +254,7 @@ def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: 
         n_edges += len(e)
         n_bands += nb
     if not edges_l:
-        return np.zeros((0, 4)), np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), face_bi, face_bf
+        return np.zeros((0, 5)), np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), face_bi, face_bf
     band_ptr = np.concatenate([[0], np.cumsum(np.concatenate(counts_l))]).astype(np.int64)
     return (np.ascontiguousarray(np.concatenate(edges_l)), band_ptr,
             np.ascontiguousarray(np.concatenate(members_l)).astype(np.int64), face_bi, face_bf)
@@ -361,13 +387,15 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
         margin_l.append(np.where(check, margin, 0.0))
         n_nodes += len(m.nodes)
     if tris_l:
+        face_tol = np.array([float(getattr(f, "tolerance", 0.0)) for f in vpart.faces])
         fs.nodes = np.ascontiguousarray(np.concatenate(nodes_l))
         fs.uv = np.ascontiguousarray(np.concatenate(uv_l))
         fs.tris = np.ascontiguousarray(np.concatenate(tris_l))
         fs.tri_face = np.ascontiguousarray(np.concatenate(tface_l))
         fs.tri_check = np.ascontiguousarray(np.concatenate(check_l))
         fs.tri_margin = np.ascontiguousarray(np.concatenate(margin_l))
-        fs.trim = _trim_bands(face_loops, np.nan_to_num(packed.domain), F, _trim_slack_uv(packed, face_loops, F))
+        slack = _trim_slack_uv(packed, face_loops, F, face_tol)
+        fs.trim = _trim_bands(face_loops, np.nan_to_num(packed.domain), F, slack)
     return fs
 
 

@@ -46,11 +46,212 @@ _KIND_NAMES = {
 # reading
 
 
-def _load_shape(path: Path):
-    """The OCP shape of a STEP file; StepImportError naming the file otherwise."""
+#: Types of STEP entities whose load or transfer errors can touch the shape: geometry,
+#: topology and the representations that hold them. Errors on others (presentation, PMI,
+#: properties: AP242 files carry them by the dozen, nist_ctc_02 and trj7 among them) are
+#: not counted; syntax errors always are.
+_SHAPE_ENTITIES = ("StepGeom_", "StepShape_", "StepRepr_DefinitionalRepresentation",
+                   "StepRepr_ShapeRepresentationRelationship", "StepRepr_RepresentationRelationship",
+                   "StepRepr_ItemDefinedTransformation", "StepRepr_MappedItem", "StepRepr_RepresentationMap")
+_NOT_SHAPE = ("StepShape_DimensionalSize", "StepShape_DimensionalLocation", "StepShape_ShapeDimension",
+              "StepShape_DimensionalCharacteristic", "StepShape_ShapeDefinitionRepresentation")
+_FACE_ENTITIES = ("StepShape_AdvancedFace", "StepShape_FaceSurface")
+
+
+class _QuietFd:
+    """Point the process's file descriptor ``fd`` (1: stdout) at a temporary file while in
+    the block: OpenCASCADE writes its messages (coloured, from C++) straight to stdout,
+    which must stay clean for our own output. ``text`` holds what was caught."""
+
+    def __init__(self, fd: int = 1):
+        self.fd = fd
+        self.text = ""
+
+    def __enter__(self):
+        import sys
+        import tempfile
+
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (AttributeError, ValueError, OSError):
+                pass
+        self._tmp = tempfile.TemporaryFile()
+        try:
+            self._saved = os.dup(self.fd)
+        except OSError:  # no such descriptor (a daemon, an embedded interpreter)
+            self._saved = None
+            return self
+        os.dup2(self._tmp.fileno(), self.fd)
+        return self
+
+    def __exit__(self, *exc):
+        if self._saved is not None:
+            os.dup2(self._saved, self.fd)
+            os.close(self._saved)
+        self._tmp.seek(0)
+        self.text = self._tmp.read().decode("utf-8", "replace")
+        self._tmp.close()
+        return False
+
+
+def _damage(reader, shape) -> dict:
+    """What the STEP reader lost: entities that failed to load (syntax errors, broken
+    geometry or topology records) or to transfer, and faces of the file missing from the
+    shape. Returns counts and the first few messages (entity label, type, OCC's words)."""
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp
+    from OCP.TopTools import TopTools_IndexedMapOfShape
+
+    model = reader.StepModel()
+    first: list[str] = []
+
+    def label(ent, number: int) -> str:
+        name = ent.DynamicType().Name().split("_", 1)[-1]
+        try:
+            ident = model.IdentLabel(model.Value(number))
+        except Exception:  # noqa: BLE001 (OCCT errors share no base class in OCP)
+            ident = 0
+        return f"#{ident} {name}" if ident > 0 else f"entity {number} ({name})"
+
+    def scan(checks) -> int:
+        n = 0
+        checks.Start()
+        while checks.More():
+            ch = checks.Value()
+            if ch.HasFailed():
+                ent = ch.Entity()
+                name = ent.DynamicType().Name() if ent is not None else ""
+                if ent is None or (name.startswith(_SHAPE_ENTITIES) and not name.startswith(_NOT_SHAPE)):
+                    k = ch.NbFails() if ent is None else 1  # syntax errors: one per bad record
+                    n += k
+                    if len(first) < 3:
+                        where = label(ent, checks.Number()) if ent is not None else "syntax"
+                        first.append(f"{where}: {ch.CFail(1).strip()}")
+            checks.Next()
+        return n
+
+    load_fails = scan(reader.WS().ModelCheckList())
+    transfer_fails = scan(reader.WS().TransferReader().TransientProcess().CheckList(False))
+    file_faces = 0
+    for i in range(1, model.NbEntities() + 1):
+        if model.Value(i).DynamicType().Name() in _FACE_ENTITIES:
+            file_faces += 1
+    fmap = TopTools_IndexedMapOfShape()
+    if shape is not None and not shape.IsNull():
+        TopExp.MapShapes_s(shape, TopAbs_FACE, fmap)
+    return {"load_fails": load_fails, "transfer_fails": transfer_fails, "file_faces": file_faces,
+            "shape_faces": fmap.Extent(), "first": first}
+
+
+def _read_here(path: Path) -> tuple:
+    """Read and transfer ``path`` in this process: (shape or None, damage dict, error or "")."""
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.STEPControl import STEPControl_Reader
 
+    reader = STEPControl_Reader()
+    status = reader.ReadFile(str(path))
+    if status != IFSelect_RetDone:
+        return None, {}, f"STEP reader failed ({status.name})"
+    reader.TransferRoots()
+    if reader.NbShapes() == 0:
+        return None, {}, "STEP file has no faces (no shape transferred)"
+    shape = reader.OneShape()
+    return shape, _damage(reader, shape), ""
+
+
+def _read_in_child(path: Path) -> tuple:
+    """:func:`_read_here` in a forked child, so that a crash of OCC's reader (it segfaults
+    on some corrupt files) ends the child and not us. The shape comes back as an OCC
+    binary BRep file (``BinTools``: exact, tens of ms for thousands of faces)."""
+    import json
+    import signal
+    import tempfile
+
+    from OCP.BinTools import BinTools
+    from OCP.TopoDS import TopoDS_Shape
+
+    with tempfile.TemporaryDirectory(prefix="zmap-step-") as tmp:
+        brep = os.path.join(tmp, "shape.bin")
+        info = os.path.join(tmp, "info.json")
+        pid = os.fork()
+        if pid == 0:  # the child: never returns
+            code = 1
+            try:
+                import faulthandler
+
+                faulthandler.disable()  # a crash is the parent's to report (pytest enables it)
+                with _QuietFd(1), _QuietFd(2):
+                    shape, damage, error = _read_here(path)
+                    if shape is not None:
+                        BinTools.Write_s(shape, brep)
+                with open(info, "w") as fh:
+                    json.dump({"damage": damage, "error": error}, fh)
+                code = 0
+            except BaseException as err:  # noqa: BLE001 (the child must end here, whatever happened)
+                try:
+                    with open(info, "w") as fh:
+                        json.dump({"damage": {}, "error": f"{type(err).__name__}: {err}"}, fh)
+                    code = 0
+                except BaseException:  # noqa: BLE001
+                    pass
+            finally:
+                os._exit(code)
+        while True:
+            try:
+                _, status = os.waitpid(pid, 0)
+                break
+            except InterruptedError:
+                continue
+            except KeyboardInterrupt:
+                os.kill(pid, signal.SIGKILL)
+                os.waitpid(pid, 0)
+                raise
+        if os.WIFSIGNALED(status):
+            sig = os.WTERMSIG(status)
+            try:
+                name = signal.Signals(sig).name
+            except ValueError:
+                name = f"signal {sig}"
+            raise StepImportError(f"{path}: OCC's STEP reader crashed ({name}) on this file: it is "
+                                  f"corrupt or uses records the reader cannot handle")
+        try:
+            with open(info) as fh:
+                got = json.load(fh)
+        except (OSError, ValueError):
+            raise StepImportError(f"{path}: OCC's STEP reader stopped (exit status "
+                                  f"{os.WEXITSTATUS(status)}) without a result") from None
+        if got["error"]:
+            return None, got["damage"], got["error"]
+        shape = TopoDS_Shape()
+        BinTools.Read_s(shape, brep)
+        return shape, got["damage"], ""
+
+
+def _damage_message(damage: dict) -> str:
+    """One line on what the reader lost, or "" when nothing was."""
+    if not damage:
+        return ""
+    bad = damage["load_fails"] + damage["transfer_fails"]
+    missing = max(0, damage["file_faces"] - damage["shape_faces"])
+    if bad == 0 and missing == 0:
+        return ""
+    parts = []
+    if bad:
+        parts.append(f"{bad} entities failed to load or transfer"
+                     + (f" ({'; '.join(damage['first'])})" if damage["first"] else ""))
+    if missing:
+        parts.append(f"{missing} of the file's {damage['file_faces']} faces are missing from the shape")
+    return "; ".join(parts) + ": the file is damaged, heights may be missing or wrong"
+
+
+def _load_shape(path: Path, *, strict: bool = False, isolate: bool = True):
+    """The OCP shape of a STEP file and the reader's damage report (a warning line or "").
+
+    StepImportError naming the file where it cannot be read, where OCC's reader crashes
+    (the file is read in a child process where ``os.fork`` exists and ``isolate``), or
+    where ``strict`` and entities failed to load or transfer.
+    """
     if not path.exists():
         raise StepImportError(f"{path}: no such file")
     if not path.is_file():
@@ -63,14 +264,17 @@ def _load_shape(path: Path):
     if not head.startswith(b"ISO-10303-21"):
         raise StepImportError(f"{path}: not a STEP file (expected 'ISO-10303-21;' at the "
                               f"start, got {head[:20]!r})")
-    reader = STEPControl_Reader()
-    status = reader.ReadFile(str(path))
-    if status != IFSelect_RetDone:
-        raise StepImportError(f"{path}: STEP reader failed ({status.name})")
-    reader.TransferRoots()
-    if reader.NbShapes() == 0:
-        raise StepImportError(f"{path}: STEP file has no faces (no shape transferred)")
-    return reader.OneShape()
+    if isolate and hasattr(os, "fork"):
+        shape, damage, error = _read_in_child(path)
+    else:
+        with _QuietFd(1):
+            shape, damage, error = _read_here(path)
+    if error:
+        raise StepImportError(f"{path}: {error}")
+    msg = _damage_message(damage)
+    if msg and strict:
+        raise StepImportError(f"{path}: {msg} (refused: strict)")
+    return shape, msg
 
 
 def _kind(face) -> str:
@@ -296,6 +500,21 @@ def _loops(face, packed, tol: float) -> list[np.ndarray]:
     return loops + holes
 
 
+def _edge_tolerance(face) -> float:
+    """Largest tolerance (mm) of the edges of ``face`` as the file (and OCC's reader) set it."""
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    tol = 0.0
+    ex = TopExp_Explorer(face, TopAbs_EDGE)
+    while ex.More():
+        tol = max(tol, float(BRep_Tool.Tolerance_s(TopoDS.Edge_s(ex.Current()))))
+        ex.Next()
+    return tol
+
+
 def _bbox(face) -> tuple[float, ...]:
     from OCP.Bnd import Bnd_Box
     from OCP.BRepBndLib import BRepBndLib
@@ -402,7 +621,7 @@ def _ranges(ids: list[int]) -> str:
     return ", ".join(out)
 
 
-def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None) -> Part:
+def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None, strict: bool = False) -> Part:
     """Read a STEP file into a :class:`Part` with exact NURBS faces.
 
     Parameters
@@ -412,6 +631,10 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None) 
     mesh_deflection : float, optional, keyword-only
         When given, also triangulate every face (:func:`cad_io.mesh.triangulate`) with this
         linear deflection in mm.
+    strict : bool, keyword-only
+        Refuse (StepImportError) a file whose entities failed to load or transfer, or
+        whose faces did not all reach the shape; by default such a file is read and
+        ``warnings`` says how many were lost.
 
     Returns
     -------
@@ -427,7 +650,13 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None) 
     Raises
     ------
     zmap.errors.StepImportError
-        Missing file, not a STEP file, a STEP file the reader rejects or one with no faces.
+        Missing file, not a STEP file, a STEP file the reader rejects or crashes on (the
+        file is read in a child process, so a crash of OCC's reader is reported, not
+        suffered), one with no faces, or under ``strict`` a damaged one.
+
+    Notes
+    -----
+    OCC's reader messages never reach stdout (they are caught in the child).
 
     Examples
     --------
@@ -444,7 +673,7 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None) 
     from cad_io.nurbs import MAX_DEGREE, pack
 
     path = Path(path)
-    shape = _load_shape(path)
+    shape, damage = _load_shape(path, strict=strict)
     fmap = TopTools_IndexedMapOfShape()
     TopExp.MapShapes_s(shape, TopAbs_FACE, fmap)
     if fmap.Extent() == 0:
@@ -477,9 +706,9 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None) 
                 loops = []
         out_faces.append(Face(index=i, kind=kinds[i], surface=surface,
                               reversed=f.Orientation().name == "TopAbs_REVERSED",
-                              loops=loops, bbox=_bbox(f), topo=topo))
+                              loops=loops, bbox=_bbox(f), topo=topo, tolerance=_edge_tolerance(f)))
 
-    warnings: list[str] = []
+    warnings: list[str] = [damage] if damage else []
     groups: dict[tuple[str, str], list[int]] = {}
     for fc in out_faces:
         if fc.surface is None:

@@ -78,3 +78,38 @@ def test_chunks_give_the_same_answer(monkeypatch):
     chunked = S.sample_points(part, x, y)
     for a, b in zip(whole, chunked):
         np.testing.assert_array_equal(a, b)
+
+
+def _two_faces(tmp_path, tolerance: float):
+    """A 10 x 10 top face at z = 5 over a 20 x 10 floor at z = 3, the top face's trim loop
+    pulled 5e-3 mm inside its true boundary (as a file's pcurves may lie, within their edge
+    tolerance, off the edge they share with the next face) and its edge tolerance set."""
+    cq = pytest.importorskip("cadquery")
+    top = cq.Face.makeFromWires(cq.Wire.makePolygon([(0, 0, 5), (10, 0, 5), (10, 10, 5), (0, 10, 5)], close=True))
+    floor = cq.Face.makeFromWires(cq.Wire.makePolygon([(0, 0, 3), (20, 0, 3), (20, 10, 3), (0, 10, 3)], close=True))
+    path = tmp_path / "two_faces.step"
+    cq.exporters.export(cq.Compound.makeCompound([top, floor]), str(path))
+    part = read_step(path)
+    k = int(np.argmax([f.bbox[5] for f in part.faces]))
+    face = part.faces[k]
+    (loop,) = face.loops
+    c = loop.mean(axis=0)
+    face.loops = [c + (loop - c) * (5.0 - 5e-3) / 5.0]  # uv of a plane are mm here
+    face.tolerance = tolerance
+    return part
+
+
+@pytest.mark.parametrize("tolerance,expect", [(0.0, 3.0), (7.7e-3, 5.0)])
+def test_edge_tolerance_of_the_file_is_honoured(tmp_path, tolerance, expect):
+    """Points between a face's trim curve and its true edge (within the edge's tolerance in the
+    file, 7.7e-3 mm on a soap-box moulding, above the 5e-4 mm slack) belong to the face: with
+    the tolerance honoured they get the top (5), not the floor 2 mm below (the bug: 3)."""
+    part = _two_faces(tmp_path, tolerance)
+    x = np.array([9.997, 9.999, 10.0, 0.003, 5.0])
+    y = np.array([5.0, 5.0, 5.0, 5.0, 9.998])
+    z, _, how = sample_points(part, x, y, deflection=0.05)
+    np.testing.assert_allclose(z, expect, atol=1e-9)
+    assert (how == 1).all()
+    # well inside the face and beyond its tolerance the answers do not depend on it
+    z2, _, _ = sample_points(part, [5.0, 10.02], [5.0, 5.0], deflection=0.05)
+    np.testing.assert_allclose(z2, [5.0, 3.0], atol=1e-9)

@@ -287,3 +287,25 @@ def test_lazy_reexport_does_not_import_occ():
             "assert callable(cad_io.read_step); assert 'OCP' not in sys.modules;"
             "from cad_io import from_geomdl, triangulate")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_faces_carry_their_edge_tolerance(sample_data):
+    """Face.tolerance is the largest tolerance of the face's edges as read: bm2_ec_t4-A has
+    edges above the sampler's 5e-4 mm trim slack (the sampler then widens that face's)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    from cad_io.sampler import TRIM_SLACK_MM
+
+    part = _cached(str(sample_data / "step" / "bm2_ec_t4-A.stp"))
+    tols = np.array([f.tolerance for f in part.faces])
+    assert (tols > 0).all() and tols.max() > TRIM_SLACK_MM
+    f = part.faces[int(np.argmax(tols))]
+    ex = TopExp_Explorer(part.shape, TopAbs_EDGE)
+    every = []
+    while ex.More():
+        every.append(BRep_Tool.Tolerance_s(TopoDS.Edge_s(ex.Current())))
+        ex.Next()
+    assert f.tolerance == max(every)
