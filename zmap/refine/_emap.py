@@ -21,6 +21,7 @@ import numpy as np
 from ..grid import ZMap
 
 __all__ = ["BREAK_RATIO", "FORMAT_VERSION", "NAN_CODE", "SERIAL_BELOW", "CellPatches", "EZMap", "all_edges",
+           "break_thresholds", "code_patch", "decimate", "full_counts",
            "cells_around", "edge_count", "encode_heights", "sub_grid"]
 
 FORMAT_VERSION = 3
@@ -566,6 +567,23 @@ class EZMap:
                    patches=patches, unresolved=int(s[4]) if s.size > 4 else 0, pruned=int(s[5]) if s.size > 5 else 0)
 
 
+def code_patch(m: int, nodes: np.ndarray, heights: np.ndarray, counts: np.ndarray) -> tuple:
+    """A level-``m`` patch's data ``(m, nodes, codes, lo, step, counts)`` on one 16-bit scale.
+
+    Its sub-grid ``nodes`` ((m+1, m+1), float64) and e-point ``heights`` ((P,), NaN = none)
+    are coded over their common range (:func:`encode_heights`); the nodes come back decoded
+    (what the patch evaluates and stores as codes), ``lo`` and ``step`` repeated per sub-edge.
+    """
+    nodes = np.asarray(nodes, dtype=np.float64)
+    allv = np.concatenate([nodes.ravel(), np.asarray(heights, dtype=np.float64)])
+    codes, lo, step = encode_heights(np.array([0, allv.size], dtype=np.int64), allv)
+    dec = np.float64(lo[0]) + np.float64(step[0]) * codes.astype(np.float64)
+    dec[codes == NAN_CODE] = np.nan
+    S = int(np.asarray(counts).size)
+    return (int(m), dec[:nodes.size].reshape(nodes.shape), codes[nodes.size:], np.full(S, lo[0], np.float32),
+            np.full(S, step[0], np.float32), np.asarray(counts, dtype=np.uint16))
+
+
 def full_counts(level, dx: float, dy: float, interval: float) -> np.ndarray:
     """Per sub-edge e-points of patches at ``level`` (ints, ``-n`` a lattice: one 0) on a
     ``dx`` by ``dy`` base when every sub-edge holds all its points (as format 2 stored them)."""
@@ -624,7 +642,8 @@ class CellPatches:
         E-point heights of every sub-edge (e-map coding, see :mod:`zmap.refine.ez`), or
         the ``(n+1) x (n+1)`` lattice heights in C order.
     lo, step : ndarray, float32
-        Per sub-edge (one per lattice) offset and quantum of the codes.
+        Per sub-edge (one per lattice) offset and quantum of the codes; every sub-edge of a
+        patch has the patch's (:func:`code_patch`), and its nodes are on that scale too.
     counts : ndarray, uint16, optional
         E-points kept on each sub-edge (aligned with ``lo``; 0 for a lattice): a smooth
         sub-edge keeps every ``s``-th of its points (:func:`decimate`). Default: all of them.
@@ -643,6 +662,7 @@ class CellPatches:
     lo: np.ndarray
     step: np.ndarray
     counts: np.ndarray | None = None
+    shared: bool = True
     _maps: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -674,6 +694,10 @@ class CellPatches:
                 or self.counts.shape != self.lo.shape
                 or not np.array_equal(np.diff(self.code_off)[ez], _segment_sums(self.counts, self.edge_off)[ez])):
             raise ValueError("cell patches: offsets do not match the levels, counts and array sizes")
+        ke = np.repeat(np.arange(K), np.diff(self.edge_off))
+        if self.shared and K and (np.any(self.lo != self.lo[self.edge_off[:-1]][ke])
+                                  or np.any(self.step != self.step[self.edge_off[:-1]][ke])):
+            raise ValueError("cell patches: the sub-edges of a patch must share its lo and step (code_patch)")
 
     @classmethod
     def empty(cls) -> CellPatches:
@@ -718,18 +742,40 @@ class CellPatches:
         return int(sum(a.nbytes for a in self.to_arrays().values()))
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        return {"cells": self.cells, "level": self.level, "nodes": self.nodes, "codes": self.codes, "lo": self.lo,
-                "step": self.step, "counts": self.counts}
+        """Stored arrays: cells, level, the sub-grid nodes as 16-bit codes on their patch's
+        scale, the e-point/lattice codes, one lo and step per patch, the sub-edge counts."""
+        first = self.edge_off[:-1]
+        lo, step = self.lo[first], self.step[first]
+        k = np.repeat(np.arange(self.n_patches), np.diff(self.node_off))
+        lo_n, st_n = lo[k].astype(np.float64), step[k].astype(np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            q = np.where(st_n > 0, np.rint((self.nodes - lo_n) / np.where(st_n > 0, st_n, 1.0)), 0.0)
+        node_codes = np.clip(np.nan_to_num(q, nan=0.0), 0, NAN_CODE - 1).astype(np.uint16)
+        node_codes[np.isnan(self.nodes)] = NAN_CODE
+        return {"cells": self.cells, "level": self.level, "node_codes": node_codes, "codes": self.codes, "lo": lo,
+                "step": step, "counts": self.counts}
 
     @classmethod
     def from_arrays(cls, a: dict[str, np.ndarray], grid: tuple[float, float, float] | None = None) -> CellPatches:
         """Inverse of :meth:`to_arrays`; also reads format 2's arrays (offsets, no counts: every
         sub-edge full), given ``grid = (dx, dy, interval)`` of the e-map."""
         if "counts" not in a:
+            # format 2: float64 nodes and a scale per sub-edge, every sub-edge full; re-coded
+            # on one scale per patch (heights move by at most half the patch's quantum)
             if grid is None:
                 raise ValueError("cell patches without counts (format 2) need the e-map's (dx, dy, interval)")
-            return cls(a["cells"], a["level"], a["node_off"], a["nodes"], a["code_off"], a["codes"], a["edge_off"],
-                       a["lo"], a["step"], full_counts(a["level"], *grid))
+            old = cls(a["cells"], a["level"], a["node_off"], a["nodes"], a["code_off"], a["codes"], a["edge_off"],
+                      a["lo"], a["step"], full_counts(a["level"], *grid), shared=False)
+            per = {}
+            for c, (m_, nodes, codes, lo, step, counts) in old.unpack().items():
+                if m_ < 0:
+                    per[c] = (m_, nodes, codes, lo, step, counts)
+                    continue
+                e = np.repeat(np.arange(lo.size), counts.astype(np.int64))
+                h = lo[e].astype(np.float64) + step[e].astype(np.float64) * codes
+                h[codes == NAN_CODE] = np.nan
+                per[c] = code_patch(m_, nodes, h, counts)
+            return cls.pack(per)
         m = np.asarray(a["level"], dtype=np.int64)
         counts = np.asarray(a["counts"], dtype=np.int64)
         off = lambda sizes: np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
@@ -737,9 +783,20 @@ class CellPatches:
         edge_off = off(np.where(ez, 2 * m * (m + 1), 1))
         if edge_off[-1] != counts.size:
             raise ValueError(f"cell patches: {counts.size} counts for the {edge_off[-1]} sub-edges of the levels")
+        K = m.size
+        lo_p, st_p = np.asarray(a["lo"], dtype=np.float32), np.asarray(a["step"], dtype=np.float32)
+        nc = np.asarray(a["node_codes"], dtype=np.uint16)
+        node_off = off(np.where(ez, (m + 1) ** 2, 0))
+        if lo_p.shape != (K,) or st_p.shape != (K,) or nc.size != node_off[-1]:
+            raise ValueError(f"cell patches: lo, step must hold one value per patch ({K}) and the node codes "
+                             f"{node_off[-1]}, got {lo_p.size}, {st_p.size}, {nc.size}")
+        kn = np.repeat(np.arange(K), np.diff(node_off))
+        nodes = lo_p[kn].astype(np.float64) + st_p[kn].astype(np.float64) * nc
+        nodes[nc == NAN_CODE] = np.nan
+        ke = np.repeat(np.arange(K), np.diff(edge_off))
         code_off = off(np.where(ez, _segment_sums(counts, edge_off), (1 - m) ** 2))
-        return cls(a["cells"], a["level"], off(np.where(ez, (m + 1) ** 2, 0)), a["nodes"], code_off, a["codes"],
-                   edge_off, a["lo"], a["step"], a["counts"])
+        return cls(a["cells"], a["level"], node_off, nodes, code_off, a["codes"], edge_off, lo_p[ke], st_p[ke],
+                   a["counts"])
 
     # ---- evaluation -----------------------------------------------------------------------
 

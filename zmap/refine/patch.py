@@ -18,10 +18,11 @@ when the lattice is not among the levels asked for (:func:`patch_failing`).
 
 Storage (:class:`CellPatches`): per patched base cell its level ``m`` (``m > 0``: EZ
 sub-grid; ``m = -n``: dense lattice), for a sub-grid the ``(m+1)^2`` heights of its nodes
-(float64) and its e-points as 16-bit codes with a float32 offset and quantum per sub-edge,
-as the e-map itself stores them; for a lattice its ``(n+1)^2`` heights as 16-bit codes with
-one offset and quantum. All concatenated, CSR offsets per cell. The sub-edge ids are
-implicit (every sub-edge, in the e-map's id order).
+and its e-points as 16-bit codes on one float32 offset and quantum per patch, with the
+e-point count of each sub-edge (smooth sub-edges are thinned, as the e-map's edges are);
+for a lattice its ``(n+1)^2`` heights as 16-bit codes with one offset and quantum. The
+sub-edge ids are implicit (every sub-edge, in the e-map's id order), the offsets follow
+from the levels and counts.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..grid import ZMap
-from ._emap import CellPatches, EZMap, all_edges, decimate, encode_heights, sub_grid
+from ._emap import CellPatches, EZMap, all_edges, code_patch, decimate, encode_heights, sub_grid
 
 __all__ = ["PATCH_SUBCELLS", "TEST_POINTS", "CellPatches", "cell_test_points", "failing_cells", "misfit", "patch_levels"]
 
@@ -211,8 +212,7 @@ def build_patches(base: ZMap, heights: Heights, cells: np.ndarray, m: int, inter
         _k.despike(s.z, ids, offsets, z, tol, lifted)
         if thin is not None:
             offsets, z = decimate(s.z, s.dx, s.dy, interval, tol, ids, offsets, z, thin)
-        codes, lo, step = encode_heights(offsets, z)
-        out[c] = (m, s.z.copy(), codes, lo, step, np.diff(offsets).astype(np.uint16))
+        out[c] = code_patch(m, s.z, z, np.diff(offsets))
     return out
 
 

@@ -132,7 +132,9 @@ def test_model_round_trip_with_patches_and_lattices(tmp_path):
     back = PrecisionModel.load(m.save(tmp_path / "rib.zpm"))
     assert back.ez.n_patches == ez.n_patches and back.ez.pruned == ez.pruned
     for name, a in ez.patches.to_arrays().items():
-        assert np.array_equal(a, getattr(back.ez.patches, name), equal_nan=True), name
+        assert np.array_equal(a, back.ez.patches.to_arrays()[name], equal_nan=True), name
+    for name in ("nodes", "codes", "lo", "step", "counts", "node_off", "code_off", "edge_off"):
+        assert np.array_equal(getattr(ez.patches, name), getattr(back.ez.patches, name), equal_nan=True), name
     rng = np.random.default_rng(3)
     x, y = rng.uniform(0, 4, 5000), rng.uniform(0, 4, 5000)
     assert np.array_equal(m.height(x, y), back.height(x, y), equal_nan=True)
@@ -224,3 +226,23 @@ def test_real_part_ez_holds_tol_in_3d(sample_data):
 
     assert dist(plain.height(base, x, y)).max() > 0.1
     assert dist(model.height(x, y)).max() <= TOL
+
+
+def test_format_2_patch_arrays_load_recoded_on_one_scale_per_patch():
+    rib = Rib()
+    base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
+    ez = build_ez(base, rib, tol=TOL, thin=False)
+    p = ez.patches
+    # format 2 stored every array as it is held, a scale per sub-edge and float64 nodes
+    legacy = {"cells": p.cells, "level": p.level, "node_off": p.node_off, "nodes": p.nodes, "code_off": p.code_off,
+              "codes": p.codes, "edge_off": p.edge_off, "lo": p.lo, "step": p.step}
+    back = CellPatches.from_arrays(legacy, grid=(base.dx, base.dy, ez.interval))
+    assert np.array_equal(back.counts, p.counts) and np.array_equal(back.code_off, p.code_off)
+    x, y = np.random.default_rng(4).uniform(0, 4, (2, 5000))
+    a, b = np.full(x.size, np.nan), np.full(x.size, np.nan)
+    p.evaluate(base, ez.interval, ez.tol, x, y, a)
+    back.evaluate(base, ez.interval, ez.tol, x, y, b)
+    # re-coded on the patch's range: heights move by at most one quantum of it
+    assert np.nanmax(np.abs(a - b)) <= 2 * float(back.step.max()) and np.array_equal(np.isnan(a), np.isnan(b))
+    with pytest.raises(ValueError, match="format 2"):
+        CellPatches.from_arrays(legacy)
