@@ -14,13 +14,18 @@ region, region borders kept), with its measured vertical error.
 
 ``local_update_ms``: a real run, flower_mold.nc with the stock and tools of its .camotics
 project (rays at 0.26 mm, treap history), followed by :class:`zmap.mesh.LocalMesh`
-(64 x 64 regions, allowance 0.01 mm) in stage ranges of ``--step`` positions from the
-stock to the end: the median time of re-meshing the regions a range touched (ranges that
-touched none left out), beside the regions per update and the time per region; reading
-the run's display image is reported apart (``local_display_ms``). ``local_end_region_*``:
-re-meshing one region of the finished part, ours and pydelatin's (median of the 16).
+(64 x 64 regions, allowance 0.01 mm, decimation period ``--period``, default 8: touched
+regions updated incrementally, re-decimated afresh every 8th update) in stage ranges of
+``--step`` positions from the stock to the end: the median time of re-meshing the regions
+a range touched (ranges that touched none left out), with its 90th percentile and mean,
+the regions per update, the triangles at the end against a fresh decimation of the end,
+and the same figures with ``period=1`` (every update decimates afresh:
+``local_period1``); reading the run's display image is reported apart
+(``local_display_ms_median``). ``local_scrub_*``: from the end back to half way and
+forward again (regions touched, triangles, ms). ``local_end_region_*``: decimating one
+region of the finished part afresh, ours and pydelatin's (median of the 16).
 
-Usage: ``python bench/mesh.py [--step N] [--no-real]``; prints one JSON object.
+Usage: ``python bench/mesh.py [--step N] [--period S] [--no-real]``; prints one JSON object.
 """
 
 from __future__ import annotations
@@ -34,7 +39,6 @@ import numpy as np
 
 from zmap.grid import ZMap
 from zmap.mesh import LocalMesh, decimate
-from zmap.mesh import _decimate_kernels as K
 from zmap.mesh.decimate import _Regions, crack_rays, max_error
 
 ALLOWANCE = 0.01
@@ -95,17 +99,40 @@ def region_ms(zm: ZMap) -> float:
     reg = _Regions(zm.z, ALLOWANCE, REGION)
     todo = reg.all_regions()
     reg.remesh(todo)
-    dense = np.zeros((reg.nrx, reg.nry), dtype=np.bool_)
     ms = []
     for k in range(len(todo)):
         one = todo[k:k + 1]
-        _, t = best(lambda: K.remesh_regions(reg.z, REGION, reg.tol, False, dense, one, reg.vpool,
-                                             reg.tpool, reg.nv, reg.nt), 3)
+        _, t = best(lambda: reg.remesh(one), 3)
         ms.append(1000 * t)
     return round(float(np.median(ms)), 4)
 
 
-def local_figures(step: int) -> dict:
+def follow(run, step: int, period: int) -> tuple[LocalMesh, dict]:
+    """LocalMesh following ``run`` in stage ranges of ``step`` positions; update figures."""
+    warm = LocalMesh(run, allowance=ALLOWANCE, region=REGION, period=period)
+    warm.goto(step), warm.goto(0)
+    lm = LocalMesh(run, allowance=ALLOWANCE, region=REGION, period=period)
+    ms, regions, disp = [], [], []
+    for k in list(range(step, run.n_stages, step)) + [run.n_stages]:
+        c = lm.goto(k)
+        disp.append(c["display_ms"])
+        if c["regions_touched"]:
+            ms.append(c["ms"])
+            regions.append(c["regions_touched"])
+    ms_a, reg_a = np.array(ms), np.array(regions)
+    return lm, {
+        "update_ms": round(float(np.median(ms_a)), 4),
+        "update_ms_p90": round(float(np.percentile(ms_a, 90)), 4),
+        "update_ms_mean": round(float(np.mean(ms_a)), 4),
+        "regions_per_update_median": float(np.median(reg_a)),
+        "updates": len(ms), "updates_touching_none": len(disp) - len(ms),
+        "display_ms_median": round(float(np.median(disp)), 4),
+        "triangles_end": int(lm.n_triangles),
+        "max_err_end": round(lm.max_error(), 7),
+    }
+
+
+def local_figures(step: int, period: int) -> dict:
     from zmap.sim.session import simulate
     from zmap.sim.tools import load_camotics_project
 
@@ -115,20 +142,15 @@ def local_figures(step: int) -> dict:
     tools, bounds, _units = load_camotics_project(project)
     default = tools[min(tools)] if tools else None
     run = simulate(nc, bounds, tool=default, tools=tools, pitch=0.26, history="treap")
-    warm = LocalMesh(run, allowance=ALLOWANCE, region=REGION)
-    warm.goto(step), warm.goto(0)
-    lm = LocalMesh(run, allowance=ALLOWANCE, region=REGION)
-    ms, regions, disp = [], [], []
-    for k in list(range(step, run.n_stages, step)) + [run.n_stages]:
-        c = lm.goto(k)
-        disp.append(c["display_ms"])
-        if c["regions_touched"]:
-            ms.append(c["ms"])
-            regions.append(c["regions_touched"])
-    ms_a, reg_a = np.array(ms), np.array(regions)
-    # the 16 regions of the finished part, one at a time: ours and pydelatin's
-    reg = lm._reg
-    dense = np.zeros((reg.nrx, reg.nry), dtype=np.bool_)
+    lm, f = follow(run, step, period)
+    _, f1 = follow(run, step, 1)
+    fresh_end = LocalMesh(run.display("end"), allowance=ALLOWANCE, region=REGION).n_triangles
+    # scrubbing: from the end back to half way and forward to the end again
+    scrub = [lm.goto(run.n_stages // 2), lm.goto(run.n_stages)]
+    scrub_err = lm.max_error()
+    # the 16 regions of the finished part, one at a time, afresh: ours and pydelatin's
+    reg = _Regions(lm.z, ALLOWANCE, REGION)
+    reg.remesh(reg.all_regions())
     ours, theirs = [], []
     try:
         from pydelatin import Delatin
@@ -136,27 +158,25 @@ def local_figures(step: int) -> dict:
         Delatin = None
     for one in reg.all_regions():
         one = one[None, :]
-        _, t = best(lambda: K.remesh_regions(reg.z, REGION, reg.tol, False, dense, one, reg.vpool,
-                                             reg.tpool, reg.nv, reg.nt), 3)
+        _, t = best(lambda: reg.remesh(one), 3)
         ours.append(1000 * t)
         i0, j0 = int(one[0, 0]) * REGION, int(one[0, 1]) * REGION
         sub = np.ascontiguousarray(reg.z[i0:i0 + REGION + 1, j0:j0 + REGION + 1].T)
         if Delatin is not None and sub.shape[0] > 1 and sub.shape[1] > 1 and not np.isnan(sub).any():
             _, t = best(lambda: Delatin(sub, max_error=ALLOWANCE), 3)
             theirs.append(1000 * t)
-    back = lm.goto(run.n_stages // 2)
     return {
-        "local_update_ms": round(float(np.median(ms_a)), 4),
-        "local_update_ms_p90": round(float(np.percentile(ms_a, 90)), 4),
-        "local_regions_per_update_median": float(np.median(reg_a)),
-        "local_ms_per_region_median": round(float(np.median(ms_a / reg_a)), 4),
-        "local_updates": len(ms), "local_updates_touching_none": len(disp) - len(ms),
-        "local_step_positions": step, "local_display_ms_median": round(float(np.median(disp)), 4),
+        "local_update_ms": f["update_ms"],
+        "local_period": period,
+        "local_step_positions": step,
         "local_rays": [int(run.stock.nx), int(run.stock.ny)],
         "local_regions": [int(lm._reg.nrx), int(lm._reg.nry)],
-        "local_triangles_end": int(lm.updates[-2]["triangles"]),
-        "local_backwards_to_half": {k: back[k] for k in ("regions_touched", "triangles", "ms")},
-        "local_max_err": round(lm.max_error(), 6),
+        **{f"local_{k}": v for k, v in f.items() if k != "update_ms"},
+        "local_fresh_triangles_end": int(fresh_end),
+        "local_period1": f1,
+        "local_scrub_end_to_half": {k: scrub[0][k] for k in ("stage", "regions_touched", "triangles", "ms")},
+        "local_scrub_half_to_end": {k: scrub[1][k] for k in ("stage", "regions_touched", "triangles", "ms")},
+        "local_scrub_max_err": round(scrub_err, 7),
         "local_end_region_ms_median": round(float(np.median(ours)), 4),
         "local_end_region_pydelatin_ms_median": round(float(np.median(theirs)), 4) if theirs else None,
     }
@@ -165,6 +185,7 @@ def local_figures(step: int) -> dict:
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--step", type=int, default=20, help="positions per stage range (20)")
+    ap.add_argument("--period", type=int, default=8, help="LocalMesh decimation period (8)")
     ap.add_argument("--no-real", action="store_true", help="skip the real run")
     args = ap.parse_args(argv)
     zm = die()
@@ -190,7 +211,7 @@ def main(argv=None) -> dict:
     except ImportError:
         result["decimatepro"] = "VTK not installed"
     if not args.no_real:
-        result.update(local_figures(args.step))
+        result.update(local_figures(args.step, args.period))
     checks = {"max_err<=allowance": result["max_err"] <= ALLOWANCE, "crack_rays==0": result["crack_rays"] == 0}
     if "pydelatin_triangles" in result:
         checks["triangles<=1.2x_pydelatin"] = result["triangles"] <= 1.2 * result["pydelatin_triangles"]

@@ -13,7 +13,8 @@ import numpy as np
 from numba import njit
 
 __all__ = ["refine_line", "refine_kernel", "full_kernel", "measure_kernel", "remesh_regions",
-           "region_has_nan", "changed_regions", "rays_to_regions", "assemble", "cover_counts", "keep_changed"]
+           "refine_more_kernel",
+           "region_has_nan", "changed_regions", "rays_to_regions", "assemble", "cover_counts", "changed_boxes"]
 
 
 @njit(cache=True, inline="always")
@@ -361,18 +362,8 @@ def _flush(z, i0, j0, NX, NY, tri, vx, vy, cand, q, qerr, qidx, pend, inpend, st
 
 
 @njit(cache=True)
-def refine_kernel(z, i0, j0, W, H, tol, side0, side1, side2, side3, vout, tout):
-    """Greedy refinement of the region z[i0:i0+W, j0:j0+H] to vertical error ``tol``.
-
-    side0..side3: sorted positions of the border vertices (corners excluded) on the sides
-    i=0 (positions in j), j=H-1 (in i), i=W-1 (in j), j=0 (in i). Writes vertex node
-    offsets (i*H + j, local) into ``vout`` and triangles counter-clockwise in (i, j) (local
-    vertex indices) into ``tout``; returns (n_vertices, n_triangles), or (-1, -1) if a
-    work array overflowed. Internally x runs along j (contiguous in memory), y along i.
-    """
-    NX = H
-    NY = W
-    nmax = W * H
+def _work(nmax):
+    """Work arrays of one region's refinement (room for every node as a vertex)."""
     tmax = 2 * nmax + 8
     vx = np.empty(nmax, dtype=np.float64)
     vy = np.empty(nmax, dtype=np.float64)
@@ -386,68 +377,38 @@ def refine_kernel(z, i0, j0, W, H, tol, side0, side1, side2, side3, vout, tout):
     inpend = np.zeros(tmax, dtype=np.bool_)
     stack = np.empty(6 * tmax + 64, dtype=np.int32)
     st = np.zeros(4, dtype=np.int64)
-    x1 = NX - 1
-    y1 = NY - 1
-    # corners p0 (0,0), p1 (x1,0), p2 (0,y1), p3 (x1,y1)
-    vx[0] = 0.0
-    vy[0] = 0.0
-    vx[1] = x1
-    vy[1] = 0.0
-    vx[2] = 0.0
-    vy[2] = y1
-    vx[3] = x1
-    vy[3] = y1
-    st[0] = 4
-    t0 = _add_tri(tri, he, qidx, pend, inpend, st, 3, 0, 2, -1, -1, -1, -1)
-    _add_tri(tri, he, qidx, pend, inpend, st, 0, 3, 1, t0, -1, -1, -1)
+    return vx, vy, tri, he, cand, q, qerr, qidx, pend, inpend, stack, st
+
+
+@njit(cache=True)
+def _side_point(s, p, x1, y1):
+    """Internal (x, y) of position p on side s (0: i=0, 1: j=H-1, 2: i=W-1, 3: j=0)."""
+    if s == 0:
+        return float(p), 0.0
+    if s == 1:
+        return x1, float(p)
+    if s == 2:
+        return float(p), y1
+    return 0.0, float(p)
+
+
+@njit(cache=True)
+def _hull_edge(tri, he, nt, u, v):
+    """Half-edge of the hull edge between vertices u and v, or -1."""
+    for h in range(3 * nt):
+        if he[h] < 0:
+            a = tri[h]
+            b = tri[h - h % 3 + (h + 1) % 3]
+            if (a == u and b == v) or (a == v and b == u):
+                return h
+    return -1
+
+
+@njit(cache=True)
+def _greedy(z, i0, j0, NX, NY, tol, nmax, tri, he, vx, vy, cand, q, qerr, qidx, pend, inpend, st, stack):
+    """Candidates of the pending triangles, then Garland-Heckbert insertion of the worst
+    node until every triangle is within ``tol``. Returns False if a work array overflowed."""
     ok = True
-    for s in range(4):
-        if s == 0:
-            pos = side0
-            start = 0
-            end = 1
-        elif s == 1:
-            pos = side1
-            start = 1
-            end = 3
-        elif s == 2:
-            pos = side2
-            start = 2
-            end = 3
-        else:
-            pos = side3
-            start = 0
-            end = 2
-        prev = start
-        for k in range(pos.shape[0]):
-            p = pos[k]
-            n = st[0]
-            if s == 0:
-                vx[n] = p
-                vy[n] = 0.0
-            elif s == 1:
-                vx[n] = x1
-                vy[n] = p
-            elif s == 2:
-                vx[n] = p
-                vy[n] = y1
-            else:
-                vx[n] = 0.0
-                vy[n] = p
-            st[0] = n + 1
-            # the hull edge prev-end holds the new point
-            e = -1
-            for h in range(3 * st[1]):
-                if he[h] < 0:
-                    u = tri[h]
-                    v = tri[h - h % 3 + (h + 1) % 3]
-                    if (u == prev and v == end) or (u == end and v == prev):
-                        e = h
-                        break
-            if e < 0:
-                return -1, -1
-            ok &= _collinear(n, e, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
-            prev = n
     _flush(z, i0, j0, NX, NY, tri, vx, vy, cand, q, qerr, qidx, pend, inpend, st)
     while st[2] > 0 and qerr[0] > tol:
         if st[0] >= nmax:
@@ -488,8 +449,14 @@ def refine_kernel(z, i0, j0, W, H, tol, side0, side1, side2, side3, vout, tout):
             ok &= _legalize(a1, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
             ok &= _legalize(a2, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
         _flush(z, i0, j0, NX, NY, tri, vx, vy, cand, q, qerr, qidx, pend, inpend, st)
-    if not ok:
-        return -1, -1
+    return ok
+
+
+@njit(cache=True)
+def _write(H, vx, vy, tri, he, st, vout, tout, keep_tri, keep_he):
+    """Vertex node offsets (i*H + j) into ``vout``, triangles counter-clockwise in (i, j)
+    into ``tout``; the triangulation itself (internal order, half-edges) into ``keep_tri`` /
+    ``keep_he`` when they are given (non-empty), for a later incremental update."""
     nv = st[0]
     nt = st[1]
     for v in range(nv):
@@ -506,7 +473,166 @@ def refine_kernel(z, i0, j0, W, H, tol, side0, side1, side2, side3, vout, tout):
         else:
             tout[t, 1] = b
             tout[t, 2] = c
+    if keep_tri.shape[0] > 0:
+        for e in range(3 * nt):
+            keep_tri[e] = tri[e]
+            keep_he[e] = he[e]
     return nv, nt
+
+
+@njit(cache=True)
+def refine_kernel(z, i0, j0, W, H, tol, side0, side1, side2, side3, vout, tout, keep_tri, keep_he):
+    """Greedy refinement of the region z[i0:i0+W, j0:j0+H] to vertical error ``tol``.
+
+    side0..side3: sorted positions of the border vertices (corners excluded) on the sides
+    i=0 (positions in j), j=H-1 (in i), i=W-1 (in j), j=0 (in i). Writes vertex node
+    offsets (i*H + j, local) into ``vout`` and triangles counter-clockwise in (i, j) (local
+    vertex indices) into ``tout`` (and the triangulation into ``keep_tri``/``keep_he`` when
+    non-empty); returns (n_vertices, n_triangles), or (-1, -1) if a work array
+    overflowed. Internally x runs along j (contiguous in memory), y along i.
+    """
+    NX = H
+    NY = W
+    nmax = W * H
+    vx, vy, tri, he, cand, q, qerr, qidx, pend, inpend, stack, st = _work(nmax)
+    x1 = float(NX - 1)
+    y1 = float(NY - 1)
+    # corners p0 (0,0), p1 (x1,0), p2 (0,y1), p3 (x1,y1)
+    vx[0] = 0.0
+    vy[0] = 0.0
+    vx[1] = x1
+    vy[1] = 0.0
+    vx[2] = 0.0
+    vy[2] = y1
+    vx[3] = x1
+    vy[3] = y1
+    st[0] = 4
+    t0 = _add_tri(tri, he, qidx, pend, inpend, st, 3, 0, 2, -1, -1, -1, -1)
+    _add_tri(tri, he, qidx, pend, inpend, st, 0, 3, 1, t0, -1, -1, -1)
+    ok = True
+    for s in range(4):
+        if s == 0:
+            pos = side0
+            start = 0
+            end = 1
+        elif s == 1:
+            pos = side1
+            start = 1
+            end = 3
+        elif s == 2:
+            pos = side2
+            start = 2
+            end = 3
+        else:
+            pos = side3
+            start = 0
+            end = 2
+        prev = start
+        for k in range(pos.shape[0]):
+            n = st[0]
+            px, py = _side_point(s, pos[k], x1, y1)
+            vx[n] = px
+            vy[n] = py
+            st[0] = n + 1
+            e = _hull_edge(tri, he, st[1], prev, end)  # the hull edge prev-end holds the new point
+            if e < 0:
+                return -1, -1
+            ok &= _collinear(n, e, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+            prev = n
+    ok &= _greedy(z, i0, j0, NX, NY, tol, nmax, tri, he, vx, vy, cand, q, qerr, qidx, pend, inpend,
+                  st, stack)
+    if not ok:
+        return -1, -1
+    return _write(H, vx, vy, tri, he, st, vout, tout, keep_tri, keep_he)
+
+
+@njit(cache=True)
+def refine_more_kernel(z, i0, j0, W, H, tol, side0, side1, side2, side3, vout, tout, keep_tri, keep_he,
+                       nv0, nt0, ci0, cj0, ci1, cj1):
+    """Incremental update of a region refined before (by :func:`refine_kernel` or this).
+
+    The region's triangulation (``nv0`` vertices in ``vout``, ``nt0`` triangles in
+    ``keep_tri``/``keep_he``) is taken as it is; border positions of ``side0..side3`` it
+    does not hold yet are inserted into their hull edges; every triangle whose box meets the
+    changed nodes (local rows ci0..ci1, columns cj0..cj1) gets its worst node again, and
+    the greedy insertion runs until every triangle is within ``tol`` of the current heights.
+    Vertices are only added, so the bound holds for every node while the mesh may keep
+    vertices a fresh refinement would not need. Returns as :func:`refine_kernel`.
+    """
+    NX = H
+    NY = W
+    nmax = W * H
+    vx, vy, tri, he, cand, q, qerr, qidx, pend, inpend, stack, st = _work(nmax)
+    x1 = float(NX - 1)
+    y1 = float(NY - 1)
+    vid = np.full(nmax, -1, dtype=np.int32)
+    for v in range(nv0):
+        o = vout[v]
+        yy = o // H
+        vx[v] = float(o - yy * H)
+        vy[v] = float(yy)
+        vid[o] = v
+    for e in range(3 * nt0):
+        tri[e] = keep_tri[e]
+        he[e] = keep_he[e]
+    st[0] = nv0
+    st[1] = nt0
+    ok = True
+    for s in range(4):
+        if s == 0:
+            pos = side0
+        elif s == 1:
+            pos = side1
+        elif s == 2:
+            pos = side2
+        else:
+            pos = side3
+        n_side = NX if (s == 0 or s == 2) else NY
+        for k in range(pos.shape[0]):
+            px, py = _side_point(s, pos[k], x1, y1)
+            o = int(py) * H + int(px)
+            if vid[o] >= 0:
+                continue
+            # the vertices either side of it along the side (corners are always vertices)
+            u = -1
+            for p2 in range(pos[k] - 1, -1, -1):
+                ax, ay = _side_point(s, p2, x1, y1)
+                u = vid[int(ay) * H + int(ax)]
+                if u >= 0:
+                    break
+            w = -1
+            for p2 in range(pos[k] + 1, n_side):
+                ax, ay = _side_point(s, p2, x1, y1)
+                w = vid[int(ay) * H + int(ax)]
+                if w >= 0:
+                    break
+            e = _hull_edge(tri, he, st[1], u, w)
+            if e < 0:
+                return -1, -1
+            n = st[0]
+            vx[n] = px
+            vy[n] = py
+            vid[o] = n
+            st[0] = n + 1
+            ok &= _collinear(n, e, tri, he, vx, vy, q, qerr, qidx, pend, inpend, st, stack)
+    # triangles over the changed nodes (internal x = j, y = i) get their worst node again
+    for t in range(st[1]):
+        if inpend[t]:
+            continue
+        a = tri[3 * t]
+        b = tri[3 * t + 1]
+        c = tri[3 * t + 2]
+        if (max(vx[a], vx[b], vx[c]) < cj0 or min(vx[a], vx[b], vx[c]) > cj1
+                or max(vy[a], vy[b], vy[c]) < ci0 or min(vy[a], vy[b], vy[c]) > ci1):
+            continue
+        inpend[t] = True
+        pend[st[3]] = t
+        st[3] += 1
+    ok &= _greedy(z, i0, j0, NX, NY, tol, nmax, tri, he, vx, vy, cand, q, qerr, qidx, pend, inpend,
+                  st, stack)
+    if not ok:
+        return -1, -1
+    return _write(H, vx, vy, tri, he, st, vout, tout, keep_tri, keep_he)
 
 
 @njit(cache=True)
@@ -643,18 +769,27 @@ def changed_regions(a, b, r, nrx, nry, hit):
 
 
 @njit(cache=True)
-def _line_keep(z, tol, fixed, i0, j0, di, dj, n, keep, h):
-    for k in range(n):
-        h[k] = z[i0 + k * di, j0 + k * dj]
-    if fixed:
-        for k in range(n):
-            keep[k] = True
-    else:
-        refine_line(h[:n], tol, keep)
+def _refine_more_line(h, tol, keep, tmp):
+    """Extend ``keep`` (its two ends kept) so that every node of ``h`` is within ``tol`` of
+    the polyline through the kept nodes: each span between kept nodes refined greedily."""
+    n = h.shape[0]
+    keep[0] = True
+    keep[n - 1] = True
+    a = 0
+    for b in range(1, n):
+        if not keep[b]:
+            continue
+        if b - a >= 2:
+            refine_line(h[a:b + 1], tol, tmp[:b - a + 1])
+            for k in range(a + 1, b):
+                if tmp[k - a]:
+                    keep[k] = True
+        a = b
 
 
 @njit(cache=True)
 def _side(keep, n):
+    """Positions 1..n-2 that ``keep`` marks (a region side's border vertices, corners out)."""
     c = 0
     for k in range(1, n - 1):
         if keep[k]:
@@ -669,20 +804,89 @@ def _side(keep, n):
 
 
 @njit(cache=True)
-def remesh_regions(z, r, tol, full, dense, todo, vpool, tpool, nv, nt):
+def _line_side(h, tol, keep, tmp, any_dense, all_fresh):
+    """The border vertices of one side shared by up to two regions, in ``keep``: every node
+    next to a dense region; refined afresh when every region on it is meshed afresh;
+    otherwise extended from what the regions already hold (so both keep the same)."""
+    n = h.shape[0]
+    if any_dense:
+        for k in range(n):
+            keep[k] = True
+    elif all_fresh:
+        refine_line(h, tol, keep)
+    else:
+        _refine_more_line(h, tol, keep, tmp)
+
+
+@njit(cache=True)
+def _sides(z, r, tol, dense, todo, mode, keep_i, keep_j):
+    """Border vertices of every side of the regions in ``todo``, each side once.
+
+    ``keep_i[li, j]``: node j of the grid row i = min(li*r, nx-1) is a border vertex;
+    ``keep_j[lj, i]``: node i of the grid column j = min(lj*r, ny-1)."""
+    nx, ny = z.shape
+    nrx, nry = dense.shape
+    done_i = np.zeros((nrx + 1, nry), dtype=np.bool_)
+    done_j = np.zeros((nry + 1, nrx), dtype=np.bool_)
+    h = np.empty(r + 1, dtype=np.float64)
+    tmp = np.empty(r + 1, dtype=np.bool_)
+    for k in range(todo.shape[0]):
+        bi = todo[k, 0]
+        bj = todo[k, 1]
+        i0, j0, i1, j1 = _region_box(bi, bj, r, nx, ny)
+        for li in (bi, bi + 1):  # the rows i0 and i1, between regions (li-1, bj) and (li, bj)
+            if done_i[li, bj]:
+                continue
+            done_i[li, bj] = True
+            i = min(li * r, nx - 1)
+            any_dense = False
+            all_fresh = True
+            for a in (li - 1, li):
+                if a >= 0 and a < nrx:
+                    any_dense |= dense[a, bj]
+                    all_fresh &= mode[a, bj] == 1
+            n = j1 - j0 + 1
+            for m in range(n):
+                h[m] = z[i, j0 + m]
+            _line_side(h[:n], tol, keep_i[li, j0:j1 + 1], tmp, any_dense, all_fresh)
+        for lj in (bj, bj + 1):  # the columns j0 and j1
+            if done_j[lj, bi]:
+                continue
+            done_j[lj, bi] = True
+            j = min(lj * r, ny - 1)
+            any_dense = False
+            all_fresh = True
+            for b in (lj - 1, lj):
+                if b >= 0 and b < nry:
+                    any_dense |= dense[bi, b]
+                    all_fresh &= mode[bi, b] == 1
+            n = i1 - i0 + 1
+            for m in range(n):
+                h[m] = z[i0 + m, j]
+            _line_side(h[:n], tol, keep_j[lj, i0:i1 + 1], tmp, any_dense, all_fresh)
+
+
+@njit(cache=True)
+def remesh_regions(z, r, tol, full, dense, todo, mode, vpool, tpool, nv, nt, keep_i, keep_j,
+                   ktri, khe, has, cbox):
     """Mesh the regions listed in ``todo`` (pairs bi, bj) into the pools.
 
     A region is meshed in full (two triangles per valid cell) when ``full`` is set or it is
-    marked ``dense`` (it holds a NaN node, or waits for its periodic decimation); a border
-    side shared with a dense region keeps every node. Otherwise
-    each side is refined as a polyline to ``tol`` (the same answer from both regions that
-    share it) and the interior by :func:`refine_kernel`. Returns the number of regions
+    ``dense`` (it holds a NaN node); a border side shared with a dense region keeps every
+    node. Otherwise the sides are refined as polylines to ``tol`` (:func:`_sides`: one
+    answer per side, shared by both its regions) and the interior by
+    :func:`refine_kernel` (``mode`` 1: afresh) or :func:`refine_more_kernel` (``mode`` 2, a
+    region with a kept triangulation, ``has``: incrementally, over the changed nodes'
+    box ``cbox[bi, bj]`` = global i0, j0, i1, j1). ``ktri``/``khe`` (regions, 3 * room)
+    keep each region's triangulation when they are non-empty. Returns the number of regions
     whose work arrays overflowed (meshed in full instead).
     """
     nx, ny = z.shape
     nrx, nry = dense.shape
-    keep = np.empty(r + 1, dtype=np.bool_)
-    h = np.empty(r + 1, dtype=np.float64)
+    keeping = ktri.shape[0] > 0
+    empty = np.zeros(0, dtype=np.int32)
+    if not full:
+        _sides(z, r, tol, dense, todo, mode, keep_i, keep_j)
     bad = 0
     for k in range(todo.shape[0]):
         bi = todo[k, 0]
@@ -695,21 +899,22 @@ def remesh_regions(z, r, tol, full, dense, todo, vpool, tpool, nv, nt):
             a, b = full_kernel(z, i0, j0, W, H, vpool[reg], tpool[reg])
             nv[reg] = a
             nt[reg] = b
+            has[reg] = False
             continue
         # side i=0 (shared with region bi-1), j=H-1 (bj+1), i=W-1 (bi+1), j=0 (bj-1)
-        fx0 = bi > 0 and dense[bi - 1, bj]
-        _line_keep(z, tol, fx0, i0, j0, 0, 1, H, keep, h)
-        s0 = _side(keep, H)
-        fx1 = bj + 1 < nry and dense[bi, bj + 1]
-        _line_keep(z, tol, fx1, i0, j0 + H - 1, 1, 0, W, keep, h)
-        s1 = _side(keep, W)
-        fx2 = bi + 1 < nrx and dense[bi + 1, bj]
-        _line_keep(z, tol, fx2, i0 + W - 1, j0, 0, 1, H, keep, h)
-        s2 = _side(keep, H)
-        fx3 = bj > 0 and dense[bi, bj - 1]
-        _line_keep(z, tol, fx3, i0, j0, 1, 0, W, keep, h)
-        s3 = _side(keep, W)
-        a, b = refine_kernel(z, i0, j0, W, H, tol, s0, s1, s2, s3, vpool[reg], tpool[reg])
+        s0 = _side(keep_i[bi, j0:j1 + 1], H)
+        s1 = _side(keep_j[bj + 1, i0:i1 + 1], W)
+        s2 = _side(keep_i[bi + 1, j0:j1 + 1], H)
+        s3 = _side(keep_j[bj, i0:i1 + 1], W)
+        kt = ktri[reg] if keeping else empty
+        kh = khe[reg] if keeping else empty
+        if keeping and mode[bi, bj] == 2 and has[reg]:
+            a, b = refine_more_kernel(z, i0, j0, W, H, tol, s0, s1, s2, s3, vpool[reg], tpool[reg],
+                                      kt, kh, nv[reg], nt[reg], cbox[bi, bj, 0] - i0,
+                                      cbox[bi, bj, 1] - j0, cbox[bi, bj, 2] - i0, cbox[bi, bj, 3] - j0)
+        else:
+            a, b = refine_kernel(z, i0, j0, W, H, tol, s0, s1, s2, s3, vpool[reg], tpool[reg], kt, kh)
+        has[reg] = keeping and a >= 0
         if a < 0:
             bad += 1
             a, b = full_kernel(z, i0, j0, W, H, vpool[reg], tpool[reg])
@@ -804,9 +1009,10 @@ def cover_counts(vi, vj, faces, px, py, ny1, cell_off, cell_pts, count):
 
 
 @njit(cache=True)
-def keep_changed(a, b, r, hit):
-    """Clear hit[bi, bj] where no node of the region (borders included) differs between
-    ``a`` and ``b`` (NaN equal to NaN): history events below the top surface."""
+def changed_boxes(a, b, r, hit, box):
+    """For every region marked in ``hit``: the box of its nodes (borders included) that
+    differ between ``a`` and ``b`` (NaN equal to NaN) into ``box[bi, bj]`` (i0, j0, i1, j1);
+    ``hit`` cleared where none does (history events below the top surface)."""
     nx, ny = a.shape
     nrx, nry = hit.shape
     for bi in range(nrx):
@@ -814,15 +1020,23 @@ def keep_changed(a, b, r, hit):
             if not hit[bi, bj]:
                 continue
             i0, j0, i1, j1 = _region_box(bi, bj, r, nx, ny)
-            same = True
+            lo_i = i1 + 1
+            lo_j = j1 + 1
+            hi_i = -1
+            hi_j = -1
             for i in range(i0, i1 + 1):
                 for j in range(j0, j1 + 1):
                     u = a[i, j]
                     v = b[i, j]
                     if u != v and not (np.isnan(u) and np.isnan(v)):
-                        same = False
-                        break
-                if not same:
-                    break
-            if same:
+                        lo_i = min(lo_i, i)
+                        hi_i = max(hi_i, i)
+                        lo_j = min(lo_j, j)
+                        hi_j = max(hi_j, j)
+            if hi_i < 0:
                 hit[bi, bj] = False
+            else:
+                box[bi, bj, 0] = lo_i
+                box[bi, bj, 1] = lo_j
+                box[bi, bj, 2] = hi_i
+                box[bi, bj, 3] = hi_j

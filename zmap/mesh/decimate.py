@@ -70,9 +70,15 @@ def _tolerance(allowance: float, zscale: float) -> float:
 
 
 class _Regions:
-    """Per-region meshes of one map in flat pools (the state behind decimate and LocalMesh)."""
+    """Per-region meshes of one map in flat pools (the state behind decimate and LocalMesh).
 
-    def __init__(self, z: np.ndarray, allowance: float, region: int, zscale: float | None = None):
+    ``keep_i``/``keep_j`` hold the border vertices of every region side (one answer per
+    side, shared by the two regions on it). With ``stateful`` each region also keeps its
+    triangulation, so that :meth:`remesh` can update it incrementally (``fresh=False``).
+    """
+
+    def __init__(self, z: np.ndarray, allowance: float, region: int, zscale: float | None = None,
+                 stateful: bool = False):
         from . import _decimate_kernels as K
 
         self.K = K
@@ -88,12 +94,19 @@ class _Regions:
         self.tol = _tolerance(allowance, zscale)
         self.full = self.tol <= 0
         nreg = self.nrx * self.nry
+        room = 2 * region * region
         self.vpool = np.zeros((nreg, (region + 1) ** 2), dtype=np.int64)
-        self.tpool = np.zeros((nreg, 2 * region * region, 3), dtype=np.int32)
+        self.tpool = np.zeros((nreg, room, 3), dtype=np.int32)
         self.nv = np.zeros(nreg, dtype=np.int64)
         self.nt = np.zeros(nreg, dtype=np.int64)
         self.nan = np.zeros((self.nrx, self.nry), dtype=np.bool_)
-        self.pending = np.zeros((self.nrx, self.nry), dtype=np.bool_)
+        self.keep_i = np.zeros((self.nrx + 1, ny), dtype=np.bool_)
+        self.keep_j = np.zeros((self.nry + 1, nx), dtype=np.bool_)
+        keeping = stateful and not self.full and nreg > 0
+        self.ktri = np.zeros((nreg, 3 * room) if keeping else (0, 0), dtype=np.int32)
+        self.khe = np.zeros_like(self.ktri)
+        self.has = np.zeros(nreg, dtype=np.bool_)
+        self.box = np.zeros((self.nrx, self.nry, 4), dtype=np.int64)
         self.ids = np.full(nx * ny, -1, dtype=np.int32) if nreg else np.zeros(0, dtype=np.int32)
         self._mesh_cache = None
 
@@ -101,30 +114,29 @@ class _Regions:
         bi, bj = np.meshgrid(np.arange(self.nrx), np.arange(self.nry), indexing="ij")
         return np.stack([bi.ravel(), bj.ravel()], axis=1).astype(np.int64)
 
-    def remesh(self, todo: np.ndarray, pending_now: np.ndarray | None = None) -> int:
-        """Re-mesh the regions ``todo`` (k, 2) of the current ``z``, and the neighbours whose
-        shared side changed density. ``pending_now`` marks regions left in full until the next
-        periodic decimation. Returns the number of regions meshed."""
+    def remesh(self, todo: np.ndarray, *, fresh: bool = True) -> int:
+        """Re-mesh the regions ``todo`` (k, 2) of the current ``z``: afresh, or with
+        ``fresh=False`` incrementally from their kept triangulations over the changed boxes
+        in ``self.box``. Neighbours whose shared side changed density (a region gained or
+        lost a NaN node) are re-meshed afresh too. Returns the number of regions meshed."""
         K = self.K
         if self.nrx == 0 or len(todo) == 0:
             return 0
-        old = self.nan | self.pending
+        old = self.nan.copy()
         K.region_has_nan(self.z, self.r, todo, self.nan)
-        if pending_now is not None:
-            self.pending = pending_now
-        dense = self.nan | self.pending
-        flip = dense != old
+        mode = np.zeros((self.nrx, self.nry), dtype=np.int8)
+        mode[todo[:, 0], todo[:, 1]] = 1 if fresh else 2
+        flip = self.nan != old
         if flip.any():
-            hit = np.zeros_like(dense)
-            hit[todo[:, 0], todo[:, 1]] = True
             fb, fj = np.nonzero(flip)
             for di, dj in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)):
                 a, b = fb + di, fj + dj
                 ok = (a >= 0) & (a < self.nrx) & (b >= 0) & (b < self.nry)
-                hit[a[ok], b[ok]] = True
-            todo = np.argwhere(hit).astype(np.int64)
-        bad = K.remesh_regions(self.z, self.r, self.tol, self.full, dense, todo,
-                               self.vpool, self.tpool, self.nv, self.nt)
+                mode[a[ok], b[ok]] = 1
+            todo = np.argwhere(mode > 0).astype(np.int64)
+        bad = K.remesh_regions(self.z, self.r, self.tol, self.full, self.nan, todo, mode,
+                               self.vpool, self.tpool, self.nv, self.nt, self.keep_i, self.keep_j,
+                               self.ktri, self.khe, self.has, self.box)
         if bad:  # pragma: no cover - the work arrays are sized for the full mesh
             raise RuntimeError(f"{bad} regions overflowed their work arrays")
         self._mesh_cache = None
@@ -435,7 +447,8 @@ def refine_region(z: Any, x0: float = 0.0, y0: float = 0.0, dx: float = 1.0, dy:
                 raise ValueError(f"boundary must have the shape of z {z.shape}, got {b.shape}")
             sides = [np.flatnonzero(m[1:-1]).astype(np.int64) + 1
                      for m in (b[0, :], b[:, -1], b[-1, :], b[:, 0])]
-        nv, nt = K.refine_kernel(z, 0, 0, nx, ny, tol, *sides, vout, tout)
+        empty = np.zeros(0, dtype=np.int32)
+        nv, nt = K.refine_kernel(z, 0, 0, nx, ny, tol, *sides, vout, tout, empty, empty)
         if nv < 0:  # pragma: no cover
             raise RuntimeError("the refinement overflowed its work arrays")
     o = vout[:nv]

@@ -72,12 +72,15 @@ class LocalMesh:
     region : int
         Region size in cells, >= 2.
     period : int
-        Decimation period in updates (paper 003, step 4): with ``period=1`` every
-        :meth:`goto` decimates the regions it touched; ``period=-1`` decimates once, when
-        the mesh is made, and touched regions stay meshed in full; with ``period=p`` the touched
-        regions are meshed in full (and their seams kept dense, crack-free) until every
-        p-th update, which decimates all of them.
-
+        Decimation period in updates (paper 003, step 4). Between decimations a touched
+        region is updated incrementally: its triangulation is kept, the triangles over the
+        changed nodes get their worst node again and vertices are inserted until every node
+        is within the allowance (vertices are only added, so the bound always holds, and
+        the cost follows the changed area, not the region). Every ``period``-th update
+        decimates afresh every region touched since the last decimation. ``period=1``
+        decimates the touched regions afresh at every update (the mesh then equals a fresh
+        one of that stage); ``period=-1`` decimates once, when the mesh is made, and only
+        updates incrementally after that. Default 8.
     Attributes
     ----------
     stage : int or None
@@ -97,7 +100,7 @@ class LocalMesh:
     (True, True)
     """
 
-    def __init__(self, source: Any, *, allowance: float = 0.01, region: int = 64, period: int = 1):
+    def __init__(self, source: Any, *, allowance: float = 0.01, region: int = 64, period: int = 8):
         a = check_allowance(allowance)
         r = check_region(region)
         if (isinstance(period, bool) or not isinstance(period, (int, np.integer))
@@ -124,7 +127,8 @@ class LocalMesh:
             self.stage = None
             dms = 0.0
             zs = None
-        self._reg = _Regions(z, a, r, zscale=zs)
+        self._reg = _Regions(z, a, r, zscale=zs, stateful=self.run is not None and self.period != 1)
+        self._pending = np.zeros((self._reg.nrx, self._reg.nry), dtype=np.bool_)
         t = time.perf_counter()
         n = self._reg.remesh(self._reg.all_regions())
         self.last = {"stage": self.stage, "regions_touched": n, "triangles": self._reg.triangles(),
@@ -164,12 +168,13 @@ class LocalMesh:
             self._events_done = True
         if self._events is None:
             K.changed_regions(reg.z, z_new, reg.r, reg.nrx, reg.nry, hit)
-            return hit
-        stage, rays = self._events
-        lo, hi = min(a, b), max(a, b)
-        i, j = np.searchsorted(stage, [lo, hi], side="right")
-        K.rays_to_regions(rays[i:j], reg.ny, reg.r, reg.nrx, reg.nry, hit)
-        K.keep_changed(reg.z, z_new, reg.r, hit)  # events below the top surface change nothing
+        else:
+            stage, rays = self._events
+            lo, hi = min(a, b), max(a, b)
+            i, j = np.searchsorted(stage, [lo, hi], side="right")
+            K.rays_to_regions(rays[i:j], reg.ny, reg.r, reg.nrx, reg.nry, hit)
+        # the box of the changed nodes per region; events below the top surface change nothing
+        K.changed_boxes(reg.z, z_new, reg.r, hit, reg.box)
         return hit
 
     def goto(self, stage: Any) -> dict:
@@ -200,14 +205,15 @@ class LocalMesh:
         n = 0
         if k != self.stage:
             self._count += 1
+            todo = np.argwhere(hit).astype(np.int64)
             if self.period == 1:
-                n = reg.remesh(np.argwhere(hit).astype(np.int64))
+                n = reg.remesh(todo)
             elif self.period == -1 or self._count % self.period:
-                pend = reg.pending | hit
-                n = reg.remesh(np.argwhere(hit).astype(np.int64), pend)
+                n = reg.remesh(todo, fresh=False)
+                self._pending |= hit
             else:
-                todo = np.argwhere(hit | reg.pending).astype(np.int64)
-                n = reg.remesh(todo, np.zeros_like(reg.pending))
+                n = reg.remesh(np.argwhere(hit | self._pending).astype(np.int64))
+                self._pending[:] = False
         self.stage = k
         self.last = {"stage": k, "regions_touched": n, "triangles": reg.triangles(),
                      "ms": round(1000 * (time.perf_counter() - t), 4), "display_ms": round(dms, 4)}
