@@ -237,18 +237,22 @@ def write_vtp(mesh: TriMesh, path: str | os.PathLike) -> Path:
     return _write(path, "VTP", write, suffix=".vtp")
 
 
-def write_gltf(mesh: TriMesh, path: str | os.PathLike) -> Path:
+def write_gltf(mesh: TriMesh, path: str | os.PathLike, *, scalars: str | None = None) -> Path:
     """Write a glTF 2.0 file (``.gltf``, buffers inline) through ``pyvista.Plotter.export_gltf``.
 
     The plotter renders off screen (no display needed). Positions are float32 in zmap's
     coordinates, under a node matrix that turns +z into glTF's up axis +y (pyvista's
-    ``rotate_scene``); the mesh is coloured by ``height``.
+    ``rotate_scene``). The colours (a colour-map texture, glTF's way of carrying a scalar)
+    follow ``scalars``: by default the mesh's ``deviation`` where it has one (diverging
+    colours, symmetric about 0), else ``height``.
 
     Parameters
     ----------
     mesh : TriMesh
     path : str or PathLike
         Target file, written through a temporary name.
+    scalars : str, optional
+        ``'height'`` or the name of one of the mesh's point scalars.
 
     Returns
     -------
@@ -271,14 +275,24 @@ def write_gltf(mesh: TriMesh, path: str | os.PathLike) -> Path:
     '2.0'
     """
     mesh = _check_mesh(mesh, "write_gltf")
+    if scalars is None:
+        scalars = "deviation" if "deviation" in mesh.point_data else "height"
+    if scalars != "height" and scalars not in mesh.point_data:
+        raise ValueError(f"scalars={scalars!r} is not 'height' or one of the mesh's point scalars "
+                         f"({', '.join(mesh.point_data) or 'none'})")
     pv = _pyvista("write_gltf", path)
     poly = mesh.to_pyvista()
+    style: dict[str, Any] = {"cmap": "viridis"}
+    if scalars != "height":
+        v = np.asarray(mesh.point_data[scalars], dtype=np.float64)
+        m = float(np.nanmax(np.abs(v))) if np.isfinite(v).any() else 0.0
+        style = {"cmap": "RdBu_r", "clim": (-m, m) if m > 0 else (-1.0, 1.0), "nan_color": "grey"}
 
     def write(tmp: str) -> None:
         plotter = pv.Plotter(off_screen=True)
         try:
             if mesh.n_faces:
-                plotter.add_mesh(poly, scalars="height", show_scalar_bar=False)
+                plotter.add_mesh(poly, scalars=scalars, show_scalar_bar=False, **style)
             plotter.export_gltf(tmp, inline_data=True)
         finally:
             plotter.close()

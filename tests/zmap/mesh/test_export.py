@@ -202,3 +202,32 @@ def test_simulated_stock_exports_as_a_closed_solid(tmp_path):
     vol = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0
     assert vol == pytest.approx(solid.volume(), rel=1e-6)
     assert vol < 6 * 4 * 2 - 1.0
+
+
+def _accessor(doc: dict, k: int) -> np.ndarray:
+    acc = doc["accessors"][k]
+    view = doc["bufferViews"][acc["bufferView"]]
+    uri = doc["buffers"][view["buffer"]]["uri"]
+    data = base64.b64decode(uri.split(",", 1)[1])[view.get("byteOffset", 0):][acc.get("byteOffset", 0):]
+    dt = {5126: "<f4", 5125: "<u4"}[acc["componentType"]]
+    width = {"VEC3": 3, "VEC2": 2, "SCALAR": 1}[acc["type"]]
+    return np.frombuffer(data, dt, acc["count"] * width).reshape(acc["count"], width)
+
+
+def test_gltf_colours_follow_the_deviation(tmp_path):
+    """glTF carries a scalar as a colour-map texture: each vertex's texture coordinate is its
+    deviation mapped linearly onto the symmetric range (-max |d|, max |d|), so a deviation of
+    0 sits in the middle of the (diverging) map, at its white."""
+    dev = np.linspace(-0.2, 0.05, 20).reshape(4, 5)
+    m = triangulate(np.zeros((4, 5)), grid=(0, 0, 1, 1), point_data={"deviation": dev})
+    doc = json.load(open(write_gltf(m, tmp_path / "dev.gltf")))
+    prim = doc["meshes"][0]["primitives"][0]
+    u = _accessor(doc, prim["attributes"]["TEXCOORD_0"])[:, 0]
+    d = m.point_data["deviation"]
+    slope, mid = np.polyfit(d, u, 1)  # u = mid + slope * d
+    assert slope > 0 and np.allclose(u, mid + slope * d, atol=1e-5)
+    assert abs(mid - 0.5) < 0.01 and abs(slope * 0.4 - 1) < 0.02
+    doc_h = json.load(open(write_gltf(m, tmp_path / "h.gltf", scalars="height")))
+    assert doc_h["meshes"][0]["primitives"][0]["attributes"].keys() >= {"POSITION"}
+    with pytest.raises(ValueError, match="scalars='depth'"):
+        write_gltf(m, tmp_path / "x.gltf", scalars="depth")
