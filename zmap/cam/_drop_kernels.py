@@ -41,12 +41,18 @@ def envelope_many(code, radius, corner, r, out):
 
 
 @njit(cache=True)
-def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, qx, qy, ub, bid):
+def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, ub, bid, kv, kd, ki, kj):
     nx, ny = z.shape
     nbx, nby = bmax.shape
     best = -np.inf
+    bd = np.inf
     bi_ = -1
     bj_ = -1
+    for q in range(kv.shape[0]):
+        kv[q] = -np.inf
+        kd[q] = np.inf
+        ki[q] = -1
+        kj[q] = -1
     # warm start: the sample nearest the axis
     ic = int(math.floor((qx - x0) / dx + 0.5))
     jc = int(math.floor((qy - y0) / dy + 0.5))
@@ -55,6 +61,7 @@ def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, qx, qy, ub, bid):
         d = math.hypot(x0 + ic * dx - qx, y0 + jc * dy - qy)
         if v == v and d <= R:
             best = v - _envelope(code, R, rc, d)
+            bd = d
             bi_ = ic
             bj_ = jc
     Rs = R + slack
@@ -87,7 +94,7 @@ def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, qx, qy, ub, bid):
             dmin = math.sqrt(ddx * ddx + ddy * ddy)
             if dmin > Rs:
                 continue
-            ub[m] = mx - _envelope(code, R, rc, min(dmin, R))
+            ub[m] = mx - _envelope(code, R, rc, min(max(dmin - cell, 0.0), R))
             bid[m] = bi * nby + bj
             m += 1
     RR = Rs * Rs
@@ -107,26 +114,47 @@ def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, qx, qy, ub, bid):
             ex = x0 + i * dx - qx
             for j in range(max(bj * B, j_lo), min(bj * B + B - 1, j_hi) + 1):
                 v = z[i, j]
-                if not (v == v) or v <= best:
+                if not (v == v) or v < best:
                     continue
                 ey = y0 + j * dy - qy
                 d2 = ex * ex + ey * ey
                 if d2 > RR:
                     continue
-                g = v - _envelope(code, R, rc, min(math.sqrt(d2), R))
-                if g > best:
+                d = math.sqrt(d2)
+                g = v - _envelope(code, R, rc, min(d, R))
+                if g > best or (g == best and d < bd):  # ties: the sample nearest the axis
                     best = g
+                    bd = d
                     bi_ = i
                     bj_ = j
+                # the most the surface around this sample (within ``cell``) could give
+                gu = v - _envelope(code, R, rc, min(max(d - cell, 0.0), R))
+                # keep the K best bounds (ties: the sample nearest the axis first)
+                K = kv.shape[0]
+                if gu > kv[K - 1] or (gu == kv[K - 1] and d < kd[K - 1]):
+                    q = K - 1
+                    while q > 0 and (gu > kv[q - 1] or (gu == kv[q - 1] and d < kd[q - 1])):
+                        kv[q] = kv[q - 1]
+                        kd[q] = kd[q - 1]
+                        ki[q] = ki[q - 1]
+                        kj[q] = kj[q - 1]
+                        q -= 1
+                    kv[q] = gu
+                    kd[q] = d
+                    ki[q] = i
+                    kj[q] = j
     return best, bi_, bj_
 
 
 @njit(cache=True, parallel=True)
-def drop_samples(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, qx, qy, out, oi, oj):
+def drop_samples(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, out, oi, oj, uout, ui, uj):
     """Highest ``z[i, j] - envelope(min(|sample - axis|, R))`` over the samples within
     ``R + slack`` of each axis ``(qx[k], qy[k])``: ``out[k]`` (-inf: no sample) and the sample
     ``(oi[k], oj[k])``. With ``slack`` > 0 a sample just outside the disk stands for the
-    surface between it and the rim (an upper bound, to be replaced by an exact contact)."""
+    surface between it and the rim (an upper bound, to be replaced by an exact contact).
+    ``uout[k, :]``, ``(ui[k, :], uj[k, :])``: the K best bounds over the samples of what the
+    surface within ``cell`` of a sample could give (its height, its distance less ``cell``),
+    best first: where one beats ``out[k]``, the true contact may be near that sample instead."""
     n = qx.shape[0]
     nbx, nby = bmax.shape
     cap = int((2.0 * (R + slack) / (dx * B) + 3.0) * (2.0 * (R + slack) / (dy * B) + 3.0)) + 4
@@ -135,8 +163,10 @@ def drop_samples(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, qx, qy, out, oi
     for c in prange(nch):
         ub = np.empty(cap, dtype=np.float64)
         bid = np.empty(cap, dtype=np.int64)
+        kd = np.empty(uout.shape[1], dtype=np.float64)
         for k in range(c * chunk, min(n, c * chunk + chunk)):
-            v, a, b = _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, qx[k], qy[k], ub, bid)
+            v, a, b = _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx[k], qy[k],
+                                ub, bid, uout[k], kd, ui[k], uj[k])
             out[k] = v
             oi[k] = a
             oj[k] = b

@@ -38,6 +38,7 @@ from ..errors import ZMapError
 __all__ = ["drop_cutter", "model_heights", "as_cutter"]
 
 _B = 8
+_K = 4  # candidate samples by bound, searched from while their bound beats the contact found
 _MAX_SAMPLES = 200_000_000
 
 
@@ -142,7 +143,7 @@ def _pattern_search(hf, cut, qx, qy, ux, uy, g, step, xtol, max_iter=400):
 
 
 def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None = None,
-                xtol: float = 1e-7, return_contact: bool = False, refine: bool = True) -> Any:
+                xtol: float = 1e-6, return_contact: bool = False, refine: bool = True) -> Any:
     """Cutter-location heights of a cutter dropped onto a design at axis positions (x, y).
 
     Parameters
@@ -168,9 +169,11 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
     --------
     >>> import numpy as np
     >>> from zmap import ZMap
-    >>> step = ZMap.from_function(lambda x, y: np.where(x > 0.01, 2.0, 0.0), (-10, -10, 10, 10), 0.1)
-    >>> round(float(drop_cutter(step, "ball:6", -1.0, 0.0)), 3)   # 2 - (3 - sqrt(9 - 1.01**2))
-    1.825
+    >>> step = lambda x, y: np.where(x > 0.01, 2.0, 0.0)      # a wall at x = 0.01, 2 mm high
+    >>> round(float(drop_cutter(step, "ball:6", -1.0, 0.0, pitch=0.1)), 6)
+    1.824872
+    >>> round(2 - (3 - float(np.sqrt(9 - 1.01 ** 2))), 6)          # the ball touches its top edge
+    1.824872
     """
     from ..grid import ZMap
     from . import _drop_kernels as K
@@ -213,8 +216,12 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
     oi = np.empty(n, dtype=np.int64)
     oj = np.empty(n, dtype=np.int64)
     slack = 0.75 * math.hypot(dx, dy) if refine else 0.0
+    cell = 0.5 * math.hypot(dx, dy) if refine else 0.0
+    uval = np.empty((n, _K))
+    ui = np.empty((n, _K), dtype=np.int64)
+    uj = np.empty((n, _K), dtype=np.int64)
     K.drop_samples(Z, float(x0), float(y0), float(dx), float(dy), bm, _B, cut.code, R, cut.corner_radius,
-                   slack, qx, qy, val, oi, oj)
+                   slack, cell, qx, qy, val, oi, oj, uval, ui, uj)
     ok = oi >= 0
     ux = np.where(ok, x0 + oi * dx, np.nan)
     uy = np.where(ok, y0 + oj * dy, np.nan)
@@ -254,7 +261,7 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
         if cut.code == 2:  # a bull's envelope has a kink where the flat bottom meets the torus
             r0 = R - cut.corner_radius
             db = np.hypot(ux[idx] - qx[idx], uy[idx] - qy[idx])
-            smooth &= np.abs(db - r0) > 1.5 * max(dx, dy)
+            smooth &= np.abs(db - r0) > 3.0 * max(dx, dy)
         tx = np.where(smooth, tx, 0.0)
         ty = np.where(smooth, ty, 0.0)
         px = ux[idx] + tx * dx
@@ -271,6 +278,21 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
             sx, sy, sg = _pattern_search(hf, cut, qx[rough], qy[rough], ux[rough].copy(), uy[rough].copy(),
                                          val[rough].copy(), 0.5 * max(dx, dy), xtol)
             ux[rough], uy[rough], val[rough] = sx, sy, sg
+        # a sample whose cell could hold a higher contact than the one found (an edge between
+        # samples near the rim, where the envelope is steep): search from it too
+        for kk in range(_K):
+            other = np.flatnonzero(ok & (uval[:, kk] > val + 1e-9))
+            if other.size:
+                sx0 = x0 + ui[other, kk] * dx
+                sy0 = y0 + uj[other, kk] * dy
+                ox, oy = sx0 - qx[other], sy0 - qy[other]
+                rr = np.hypot(ox, oy)
+                f = np.where(rr > R, R / np.maximum(rr, 1e-300), 1.0)
+                sx0, sy0 = qx[other] + ox * f, qy[other] + oy * f
+                g0 = _contact(hf, cut, qx[other], qy[other], sx0, sy0)
+                sx, sy, sg = _pattern_search(hf, cut, qx[other], qy[other], sx0, sy0, g0, 0.5 * max(dx, dy), xtol)
+                b = sg > val[other]
+                ux[other[b]], uy[other[b]], val[other[b]] = sx[b], sy[b], sg[b]
     cl = np.where(np.isfinite(val), val, np.nan).reshape(shape)
     if not return_contact:
         return cl[()] if cl.ndim == 0 else cl

@@ -1,0 +1,303 @@
+"""Raster (zig-zag) finishing programs from the CL surface of a design.
+
+Passes run along the direction ``angle`` (radians from +x) and step across by ``stepover``;
+each pass is sampled every ``step`` mm, dropped onto the design with :func:`drop_cutter`,
+then thinned with a chord tolerance: a point is left out only if the straight feed that
+replaces it stays within ``tol`` of every dropped CL height it spans, above and below. Where
+no surface lies under the cutter a pass is broken. Two pass ends are joined by a straight
+feed when that link stays above the CL surface along it (checked by dropping the cutter
+every ``step``); otherwise by a safe retract: G0 up to the clearance height, G0 across, and
+a feed down at the plunge rate.
+
+The program is plain RS274 that LinuxCNC and GRBL both take: G21 G90 G17, G0/G1 with X Y Z,
+F and S words, M3/M5/M2, comments in parentheses naming the tool, the parameters and the
+predicted scallop height.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..grid import atomic_write
+from .drop import as_cutter, drop_cutter
+
+__all__ = ["raster_program", "RasterProgram", "scallop_height", "simplify_chords"]
+
+
+def scallop_height(cutter: Any, stepover: float) -> float:
+    """Scallop (cusp) height in mm left between two parallel passes on a flat floor.
+
+    Ball: ``R - sqrt(R^2 - (s/2)^2)``; flat: 0 (for ``s <= D``); bull: 0 while ``s`` is within
+    the flat bottom ``2 (R - r)``, then the torus' cusp.
+
+    Examples
+    --------
+    >>> round(scallop_height("ball:6", 0.4), 6)
+    0.006674
+    >>> scallop_height("flat:6", 2.0)
+    0.0
+    """
+    c = as_cutter(cutter)
+    s = float(stepover)
+    if not (math.isfinite(s) and s > 0):
+        raise ValueError(f"stepover must be a positive number of mm, got {stepover!r}")
+    if s > c.diameter:
+        raise ValueError(f"stepover {s:g} mm is more than the cutter diameter {c.diameter:g} mm")
+    R, rc = c.radius, c.corner_radius
+    flat = 2.0 * (R - rc)
+    if c.code == 0 or s <= flat:
+        return 0.0
+    h = (s - flat) / 2.0
+    return float(rc - math.sqrt(max(rc * rc - h * h, 0.0)))
+
+
+def simplify_chords(u: np.ndarray, z: np.ndarray, tol: float) -> np.ndarray:
+    """Indices of the points to keep so that each straight chord between kept points stays
+    within ``tol`` (vertically) of every point it spans (Douglas-Peucker on (u, z)).
+
+    Examples
+    --------
+    >>> u = np.linspace(0, 1, 11)
+    >>> simplify_chords(u, 0 * u, 1e-3).tolist()
+    [0, 10]
+    """
+    n = len(u)
+    if n <= 2:
+        return np.arange(n)
+    keep = np.zeros(n, dtype=bool)
+    keep[0] = keep[-1] = True
+    stack = [(0, n - 1)]
+    while stack:
+        a, b = stack.pop()
+        if b - a < 2:
+            continue
+        uu = u[a + 1:b]
+        t = (uu - u[a]) / (u[b] - u[a])
+        dev = np.abs(z[a] + t * (z[b] - z[a]) - z[a + 1:b])
+        k = int(np.argmax(dev))
+        if dev[k] > tol:
+            m = a + 1 + k
+            keep[m] = True
+            stack.append((a, m))
+            stack.append((m, b))
+    return np.flatnonzero(keep)
+
+
+@dataclass
+class RasterProgram:
+    """A finishing program: its text and what made it.
+
+    Attributes
+    ----------
+    text : str — the G-code.
+    passes : list of ndarray of shape (m, 3) — the CL points kept on each pass (tool tip, mm),
+        in cutting order.
+    scallop : float — predicted scallop height on a flat floor, mm.
+    params : dict — tool, stepover, angle, tol, step, feeds, spindle, clearance.
+    stats : dict — passes, points dropped, points kept, retracts, links, seconds.
+    """
+
+    text: str
+    passes: list
+    scallop: float
+    params: dict
+    stats: dict = field(default_factory=dict)
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the program atomically."""
+        def write(tmp: str) -> None:
+            with open(tmp, "w", encoding="ascii", newline="\n") as fh:
+                fh.write(self.text)
+
+        return atomic_write(path, write, suffix=Path(path).suffix or ".nc")
+
+
+def _bounds_of(model: Any) -> tuple:
+    from ..grid import ZMap
+    from ..model import PrecisionModel
+
+    if isinstance(model, PrecisionModel):
+        return model.base.bounds
+    if isinstance(model, ZMap):
+        return model.bounds
+    if hasattr(model, "bbox"):
+        b = model.bbox
+        return (b[0], b[1], b[3], b[4])
+    raise ValueError("bounds must be given for a heights callable")
+
+
+def _f(v: float) -> str:
+    s = f"{v:.4f}"
+    return "0.0000" if s == "-0.0000" else s
+
+
+def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0.0, tol: float = 0.005,
+                   bounds: Any = None, step: float | None = None, feed: float = 1000.0,
+                   plunge_feed: float | None = None, spindle: float = 10000.0, clearance: float = 5.0,
+                   name: str = "design", pitch: float | None = None, progress: Any = None) -> RasterProgram:
+    """A zig-zag finishing program over a design, from its drop-cutter CL surface.
+
+    Parameters
+    ----------
+    model : ZMap, PrecisionModel, cad_io.Part or callable — the design (see :func:`drop_cutter`).
+    cutter : Cutter or str — e.g. ``"ball:6"``.
+    stepover : float — mm between passes (0 < stepover <= diameter).
+    angle : float — pass direction in radians from +x.
+    tol : float — chord tolerance, mm (> 0).
+    bounds : (xmin, ymin, xmax, ymax), optional — region the tool axis covers; default the
+        model's extent.
+    step : float, optional — CL sampling along a pass, mm; default ``min(stepover / 2, 0.1)``.
+    feed, plunge_feed, spindle : float — mm/min (plunge default feed / 3), rev/min.
+    clearance : float — mm above the highest CL point for rapids.
+    name : str — the design's name for the header comment.
+    pitch : float, optional — sample pitch of the discrete drop (see :func:`drop_cutter`).
+    progress : callable, optional — ``progress(done, total)`` after each block of passes.
+
+    Returns
+    -------
+    RasterProgram
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from zmap import ZMap
+    >>> dome = ZMap.from_function(lambda x, y: 5 - 0.01 * (x * x + y * y), (-10, -10, 10, 10), 0.25)
+    >>> prog = raster_program(dome, "ball:6", stepover=2.0, bounds=(-5, -5, 5, 5))
+    >>> prog.stats["passes"], prog.text.splitlines()[0]
+    (6, '(zmap toolpath: raster finishing of design)')
+    """
+    import time
+
+    t0 = time.perf_counter()
+    cut = as_cutter(cutter)
+    for nm, v in (("stepover", stepover), ("tol", tol), ("feed", feed), ("spindle", spindle)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ValueError(f"{nm} must be a positive number, got {v!r}")
+    if not (math.isfinite(angle)):
+        raise ValueError(f"angle must be a finite number of radians, got {angle!r}")
+    if not (math.isfinite(clearance) and clearance > 0):
+        raise ValueError(f"clearance must be a positive number of mm, got {clearance!r}")
+    scallop = scallop_height(cut, stepover)
+    step = float(step) if step is not None else min(stepover / 2.0, 0.1)
+    if not (math.isfinite(step) and step > 0):
+        raise ValueError(f"step must be a positive number of mm, got {step!r}")
+    plunge_feed = feed / 3.0 if plunge_feed is None else float(plunge_feed)
+    b = tuple(float(v) for v in (bounds if bounds is not None else _bounds_of(model)))
+    if len(b) != 4 or not (b[2] > b[0] and b[3] > b[1]):
+        raise ValueError(f"bounds must be (xmin, ymin, xmax, ymax) with xmin < xmax, ymin < ymax, got {b}")
+    ca, sa = math.cos(angle), math.sin(angle)
+    # the region's corners in the pass frame (u along, v across)
+    cx = np.array([b[0], b[2], b[2], b[0]])
+    cy = np.array([b[1], b[1], b[3], b[3]])
+    u_c = cx * ca + cy * sa
+    v_c = -cx * sa + cy * ca
+    nu = int(math.floor((u_c.max() - u_c.min()) / step + 1e-9)) + 1
+    nv = int(math.floor((v_c.max() - v_c.min()) / stepover + 1e-9)) + 1
+    us = u_c.min() + step * np.arange(nu)
+    vs = v_c.min() + stepover * np.arange(nv)
+    U, V = np.meshgrid(us, vs, indexing="ij")
+    X = U * ca - V * sa
+    Y = U * sa + V * ca
+    inside = (X >= b[0] - 1e-9) & (X <= b[2] + 1e-9) & (Y >= b[1] - 1e-9) & (Y <= b[3] + 1e-9)
+    Z = np.full(X.shape, np.nan)
+    cols = np.array_split(np.arange(nv), max(1, min(nv, 20)))
+    for q, cidx in enumerate(cols):
+        sel = inside[:, cidx]
+        Xs, Ys = X[:, cidx][sel], Y[:, cidx][sel]
+        zc = drop_cutter(model, cut, Xs, Ys, pitch=pitch)
+        block = Z[:, cidx]
+        block[sel] = zc
+        Z[:, cidx] = block
+        if progress is not None:
+            progress(int(cidx[-1]) + 1, nv)
+    if not np.isfinite(Z).any():
+        raise ValueError(f"no surface under the cutter anywhere in bounds {b}")
+    safe = float(np.nanmax(Z)) + clearance
+    # passes: runs of finite CL, thinned, zig-zag
+    passes = []
+    for j in range(nv):
+        z = Z[:, j]
+        ok = np.isfinite(z)
+        if not ok.any():
+            continue
+        edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
+        runs = list(zip(edges[::2], edges[1::2]))
+        if len(passes) % 2 == 1:
+            runs = runs[::-1]
+        for a, e in runs:
+            idx = np.arange(a, e)
+            if len(passes) % 2 == 1:
+                idx = idx[::-1]
+            keep = simplify_chords(us[idx], z[idx], tol)
+            pts = np.column_stack([X[idx[keep], j], Y[idx[keep], j], z[idx[keep]]])
+            passes.append(pts)
+    c = cut
+    kind = {"flat": "flat end mill", "ball": "ball end mill", "bull": "bull nose"}[c.kind]
+    head = [f"(zmap toolpath: raster finishing of {name})",
+            f"(tool: {kind} D{c.diameter:g} mm, corner radius {c.corner_radius:g} mm, spec {c.kind}:{c.diameter:g}"
+            + (f":{c.corner_radius:g}" if c.kind == "bull" else "") + ")",
+            f"(stepover {stepover:g} mm, angle {math.degrees(angle):g} deg, chord tolerance {tol:g} mm, "
+            f"CL step {step:g} mm)",
+            f"(bounds x {b[0]:g}..{b[2]:g} y {b[1]:g}..{b[3]:g} mm, clearance Z {safe:.4f})",
+            f"(predicted scallop height {scallop:.6f} mm on a flat floor)",
+            f"(feed {feed:g} mm/min, plunge {plunge_feed:g} mm/min, spindle {spindle:g} rpm)",
+            "G21 G90 G17",
+            f"G0 Z{_f(safe)}",
+            f"S{spindle:g} M3"]
+    lines = list(head)
+    retracts = links = 0
+    cur = None
+    cur_f = None
+
+    def feed_to(p, f):
+        nonlocal cur_f
+        w = f"G1 X{_f(p[0])} Y{_f(p[1])} Z{_f(p[2])}"
+        if f != cur_f:
+            w += f" F{f:g}"
+            cur_f = f
+        lines.append(w)
+
+    for pts in passes:
+        start = pts[0]
+        if cur is None:
+            lines.append(f"G0 X{_f(start[0])} Y{_f(start[1])}")
+            lines.append(f"G0 Z{_f(start[2] + min(clearance, 1.0))}")
+            feed_to(start, plunge_feed)
+        else:
+            d = float(np.hypot(start[0] - cur[0], start[1] - cur[1]))
+            direct = False
+            if d <= 2.0 * stepover + 1e-9:
+                m = max(2, int(math.ceil(d / step)) + 1)
+                t = np.linspace(0.0, 1.0, m)
+                lx = cur[0] + t * (start[0] - cur[0])
+                ly = cur[1] + t * (start[1] - cur[1])
+                lz = cur[2] + t * (start[2] - cur[2])
+                need = drop_cutter(model, cut, lx, ly, pitch=pitch)
+                direct = bool(np.all(np.isfinite(need)) and np.all(lz >= need - 1e-9))
+            if direct:
+                links += 1
+                feed_to(start, feed)
+            else:
+                retracts += 1
+                lines.append(f"G0 Z{_f(safe)}")
+                lines.append(f"G0 X{_f(start[0])} Y{_f(start[1])}")
+                lines.append(f"G0 Z{_f(start[2] + min(clearance, 1.0))}")
+                feed_to(start, plunge_feed)
+        for p in pts[1:]:
+            feed_to(p, feed)
+        cur = pts[-1]
+    lines += [f"G0 Z{_f(safe)}", "M5", "M2"]
+    text = "\n".join(lines) + "\n"
+    params = {"tool": f"{c.kind}:{c.diameter:g}", "diameter": c.diameter, "corner_radius": c.corner_radius,
+              "stepover": stepover, "angle": angle, "tol": tol, "step": step, "feed": feed,
+              "plunge_feed": plunge_feed, "spindle": spindle, "clearance_z": safe, "bounds": b}
+    stats = {"passes": len(passes), "cl_points": int(np.isfinite(Z).sum()),
+             "kept_points": int(sum(len(p) for p in passes)), "retracts": retracts, "links": links,
+             "seconds": round(time.perf_counter() - t0, 3)}
+    return RasterProgram(text, passes, scallop, params, stats)
