@@ -12,8 +12,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+# tiles of a region that holds NaN nodes (:func:`dense_kernel`), in cells
+DENSE_TILE = 8
+
 __all__ = ["refine_line", "refine_kernel", "full_kernel", "measure_kernel", "remesh_regions",
-           "refine_more_kernel",
+           "refine_more_kernel", "dense_kernel",
            "region_has_nan", "changed_regions", "rays_to_regions", "assemble", "cover_counts", "changed_boxes"]
 
 
@@ -666,6 +669,98 @@ def full_kernel(z, i0, j0, W, H, vout, tout):
     return nv, nt
 
 
+@njit(cache=True)
+def _box_has_nan(z, i0, j0, i1, j1):
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            if np.isnan(z[i, j]):
+                return True
+    return False
+
+
+@njit(cache=True)
+def dense_kernel(z, i0, j0, W, H, tol, tile, vout, tout):
+    """A region that holds NaN nodes: split into tiles of ``tile`` cells; tiles with a NaN node
+    are meshed in full (two triangles per valid cell), the others refined to ``tol`` like a
+    region, with the sides between two such tiles refined as shared polylines and every other
+    side (the region's own sides, sides next to a NaN tile) keeping every node, so the region
+    meets its neighbours (which keep every node on a side shared with it) without cracks.
+    Returns (n_vertices, n_triangles) as :func:`full_kernel`, or (-1, -1) on overflow."""
+    ntx = (W - 2) // tile + 1
+    nty = (H - 2) // tile + 1
+    nan = np.zeros((ntx, nty), dtype=np.bool_)
+    for a in range(ntx):
+        for b in range(nty):
+            nan[a, b] = _box_has_nan(z, i0 + a * tile, j0 + b * tile, i0 + min((a + 1) * tile, W - 1),
+                                     j0 + min((b + 1) * tile, H - 1))
+    # border vertices of the tile sides: rows i = a*tile (local) and columns j = b*tile
+    keep_i = np.zeros((ntx + 1, H), dtype=np.bool_)
+    keep_j = np.zeros((nty + 1, W), dtype=np.bool_)
+    h = np.empty(tile + 1, dtype=np.float64)
+    for la in range(ntx + 1):
+        i = min(la * tile, W - 1)
+        for b in range(nty):
+            jb0 = b * tile
+            jb1 = min(jb0 + tile, H - 1)
+            n = jb1 - jb0 + 1
+            if la == 0 or la == ntx or nan[la - 1, b] or nan[la, b]:
+                for m in range(n):
+                    keep_i[la, jb0 + m] = True
+            else:
+                for m in range(n):
+                    h[m] = z[i0 + i, j0 + jb0 + m]
+                refine_line(h[:n], tol, keep_i[la, jb0:jb1 + 1])
+    for lb in range(nty + 1):
+        j = min(lb * tile, H - 1)
+        for a in range(ntx):
+            ia0 = a * tile
+            ia1 = min(ia0 + tile, W - 1)
+            n = ia1 - ia0 + 1
+            if lb == 0 or lb == nty or nan[a, lb - 1] or nan[a, lb]:
+                for m in range(n):
+                    keep_j[lb, ia0 + m] = True
+            else:
+                for m in range(n):
+                    h[m] = z[i0 + ia0 + m, j0 + j]
+                refine_line(h[:n], tol, keep_j[lb, ia0:ia1 + 1])
+    ids = np.full(W * H, -1, dtype=np.int64)
+    tv = np.empty((tile + 1) * (tile + 1), dtype=np.int64)
+    tt = np.empty((2 * tile * tile, 3), dtype=np.int32)
+    empty = np.zeros(0, dtype=np.int32)
+    nv = 0
+    nt = 0
+    for a in range(ntx):
+        for b in range(nty):
+            ia0 = a * tile
+            jb0 = b * tile
+            ia1 = min(ia0 + tile, W - 1)
+            jb1 = min(jb0 + tile, H - 1)
+            Wt = ia1 - ia0 + 1
+            Ht = jb1 - jb0 + 1
+            if nan[a, b]:
+                cv, ct = full_kernel(z, i0 + ia0, j0 + jb0, Wt, Ht, tv, tt)
+            else:
+                s0 = _side(keep_i[a, jb0:jb1 + 1], Ht)
+                s1 = _side(keep_j[b + 1, ia0:ia1 + 1], Wt)
+                s2 = _side(keep_i[a + 1, jb0:jb1 + 1], Ht)
+                s3 = _side(keep_j[b, ia0:ia1 + 1], Wt)
+                cv, ct = refine_kernel(z, i0 + ia0, j0 + jb0, Wt, Ht, tol, s0, s1, s2, s3, tv, tt, empty, empty)
+                if cv < 0:
+                    return -1, -1
+            for t in range(ct):
+                for c in range(3):
+                    o = tv[tt[t, c]]
+                    x = o // Ht
+                    g = (ia0 + x) * H + jb0 + (o - x * Ht)
+                    if ids[g] < 0:
+                        ids[g] = nv
+                        vout[nv] = g
+                        nv += 1
+                    tout[nt, c] = ids[g]
+                nt += 1
+    return nv, nt
+
+
 # ---- the error measure -------------------------------------------------------------------
 
 @njit(cache=True)
@@ -871,9 +966,9 @@ def remesh_regions(z, r, tol, full, dense, todo, mode, vpool, tpool, nv, nt, kee
                    ktri, khe, has, cbox):
     """Mesh the regions listed in ``todo`` (pairs bi, bj) into the pools.
 
-    A region is meshed in full (two triangles per valid cell) when ``full`` is set or it is
-    ``dense`` (it holds a NaN node); a border side shared with a dense region keeps every
-    node. Otherwise the sides are refined as polylines to ``tol`` (:func:`_sides`: one
+    A region is meshed in full (two triangles per valid cell) when ``full`` is set; a
+    ``dense`` one (it holds a NaN node) by :func:`dense_kernel` (in full only in its tiles
+    that hold a NaN node), and a border side shared with a dense region keeps every node. Otherwise the sides are refined as polylines to ``tol`` (:func:`_sides`: one
     answer per side, shared by both its regions) and the interior by
     :func:`refine_kernel` (``mode`` 1: afresh) or :func:`refine_more_kernel` (``mode`` 2, a
     region with a kept triangulation, ``has``: incrementally, over the changed nodes'
@@ -896,7 +991,11 @@ def remesh_regions(z, r, tol, full, dense, todo, mode, vpool, tpool, nv, nt, kee
         W = i1 - i0 + 1
         H = j1 - j0 + 1
         if full or dense[bi, bj]:
-            a, b = full_kernel(z, i0, j0, W, H, vpool[reg], tpool[reg])
+            a = -1
+            if not full:
+                a, b = dense_kernel(z, i0, j0, W, H, tol, DENSE_TILE, vpool[reg], tpool[reg])
+            if a < 0:
+                a, b = full_kernel(z, i0, j0, W, H, vpool[reg], tpool[reg])
             nv[reg] = a
             nt[reg] = b
             has[reg] = False

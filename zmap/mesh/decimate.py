@@ -16,10 +16,12 @@ margin of 1e-11 * max(1000, max |z|) mm (1e-8 mm for heights up to a metre); an 
 of 0, or one below that margin, gives the full mesh (two triangles per cell), exact at
 every node.
 
-NaN nodes (no surface): a region that holds one is meshed in full over its valid cells
-(cells whose four corners are finite, two triangles each) and its sides keep every node,
-so its neighbours meet it without cracks; no face ever covers a NaN node. Cells with a NaN
-corner are holes in the mesh.
+NaN nodes (no surface, e.g. outside a part's outline): a region that holds one is split into
+tiles of 8 x 8 cells; a tile with a NaN node is meshed in full over its valid cells (cells
+whose four corners are finite, two triangles each), the others are refined like regions,
+with their shared sides refined as polylines and every side next to a NaN tile or another
+region keeping every node, so its neighbours meet it without cracks; no face ever covers a
+NaN node. Cells with a NaN corner are holes in the mesh.
 """
 
 from __future__ import annotations
