@@ -21,7 +21,7 @@ import numpy as np
 from ..grid import ZMap
 
 __all__ = ["BREAK_RATIO", "FORMAT_VERSION", "NAN_CODE", "SERIAL_BELOW", "CellPatches", "EZMap", "all_edges",
-           "break_thresholds", "code_patch", "decimate", "full_counts",
+           "SubLattices", "break_thresholds", "code_patch", "decimate", "full_counts",
            "cells_around", "edge_count", "encode_heights", "sub_grid"]
 
 FORMAT_VERSION = 3
@@ -663,6 +663,7 @@ class CellPatches:
     step: np.ndarray
     counts: np.ndarray | None = None
     shared: bool = True
+    subs: SubLattices | None = None
     _maps: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -743,7 +744,8 @@ class CellPatches:
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         """Stored arrays: cells, level, the sub-grid nodes as 16-bit codes on their patch's
-        scale, the e-point/lattice codes, one lo and step per patch, the sub-edge counts."""
+        scale, the e-point/lattice codes, one lo and step per patch, the sub-edge counts, and
+        the sub-lattices (``sub_*``, :class:`SubLattices`)."""
         first = self.edge_off[:-1]
         lo, step = self.lo[first], self.step[first]
         k = np.repeat(np.arange(self.n_patches), np.diff(self.node_off))
@@ -752,8 +754,9 @@ class CellPatches:
             q = np.where(st_n > 0, np.rint((self.nodes - lo_n) / np.where(st_n > 0, st_n, 1.0)), 0.0)
         node_codes = np.clip(np.nan_to_num(q, nan=0.0), 0, NAN_CODE - 1).astype(np.uint16)
         node_codes[np.isnan(self.nodes)] = NAN_CODE
+        subs = {f"sub_{k}": v for k, v in self.subs.to_arrays().items()} if self.subs is not None else {}
         return {"cells": self.cells, "level": self.level, "node_codes": node_codes, "codes": self.codes, "lo": lo,
-                "step": step, "counts": self.counts}
+                "step": step, "counts": self.counts} | subs
 
     @classmethod
     def from_arrays(cls, a: dict[str, np.ndarray], grid: tuple[float, float, float] | None = None) -> CellPatches:
@@ -795,8 +798,10 @@ class CellPatches:
         nodes[nc == NAN_CODE] = np.nan
         ke = np.repeat(np.arange(K), np.diff(edge_off))
         code_off = off(np.where(ez, _segment_sums(counts, edge_off), (1 - m) ** 2))
+        subs = SubLattices.from_arrays({k[4:]: v for k, v in a.items() if k.startswith("sub_")}) if any(
+            k.startswith("sub_") for k in a) else None
         return cls(a["cells"], a["level"], node_off, nodes, code_off, a["codes"], edge_off, lo_p[ke], st_p[ke],
-                   a["counts"])
+                   a["counts"], subs=subs)
 
     # ---- evaluation -----------------------------------------------------------------------
 
@@ -886,6 +891,8 @@ class CellPatches:
                        st["offsets"], st["codes"], st["lo"], st["step"], st["brk_kind"], st["brk_t"], st["ecell_ids"],
                        st["slots"], st["nb"], st["bk"], st["bt"], st["pts"], st["arc"], hs)
                 h[sel] = hs
+        if self.subs is not None and self.subs.n:
+            h = self.subs.override(cid[hit], base, lx[hit], ly[hit], h)
         ok = ~np.isnan(h)
         out[hit[ok]] = h[ok]
 
@@ -909,3 +916,81 @@ class CellPatches:
 
         return ((1 - fu) * ((1 - fv) * z(at) + fv * z(at + 1))
                 + fu * ((1 - fv) * z(at + n + 1) + fv * z(at + n + 2)))
+
+
+@dataclass(eq=False)
+class SubLattices:
+    """Dense lattices over single sub-cells of level-``m`` cell patches (the last resort, where
+    a patch misses in a few of its sub-cells: see :mod:`zmap.refine.patch`).
+
+    Parameters
+    ----------
+    mn : ndarray of shape (2,), int64
+        ``(m, n)``: sub-cells per base interval of the patches they sit in, and lattice
+        intervals per side of a sub-cell (its diagonal over ``n`` is at most the tolerance).
+    keys : ndarray of shape (S,), int64
+        Sorted ``cell * m * m + si * m + sj``: base cell and sub-cell (``si`` along x).
+    codes : ndarray of shape (S * (n+1)**2,), uint16
+        Lattice heights, C order per sub-cell, :data:`NAN_CODE` = none.
+    lo, step : ndarray of shape (S,), float32
+        Offset and quantum of each sub-lattice's codes.
+    """
+
+    mn: np.ndarray
+    keys: np.ndarray
+    codes: np.ndarray
+    lo: np.ndarray
+    step: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.mn = np.asarray(self.mn, dtype=np.int64).ravel()
+        self.keys = np.ascontiguousarray(self.keys, dtype=np.int64)
+        self.codes = np.ascontiguousarray(self.codes, dtype=np.uint16)
+        self.lo = np.ascontiguousarray(self.lo, dtype=np.float32)
+        self.step = np.ascontiguousarray(self.step, dtype=np.float32)
+        S = self.keys.shape[0]
+        if (self.mn.shape != (2,) or self.mn.min() < 1 or self.lo.shape != (S,) or self.step.shape != (S,)
+                or self.codes.size != S * (self.mn[1] + 1) ** 2 or (S and np.any(np.diff(self.keys) <= 0))):
+            raise ValueError(f"sub-lattices: (m, n) = {self.mn.tolist()}, {S} increasing keys, one lo/step each and "
+                             f"(n+1)^2 codes each expected, got {self.lo.size}, {self.step.size}, {self.codes.size}")
+
+    @property
+    def n(self) -> int:
+        return int(self.keys.shape[0])
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        return {"mn": self.mn, "keys": self.keys, "codes": self.codes, "lo": self.lo, "step": self.step}
+
+    @classmethod
+    def from_arrays(cls, a: dict[str, np.ndarray]) -> SubLattices:
+        return cls(a["mn"], a["keys"], a["codes"], a["lo"], a["step"])
+
+    def override(self, cell: np.ndarray, base: ZMap, lx: np.ndarray, ly: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """``h`` with the points in a sub-lattice (base ``cell`` ids, local xy) answered by it."""
+        m, n = int(self.mn[0]), int(self.mn[1])
+        ci, cj = np.divmod(cell, base.ny - 1)
+        fu = np.clip((lx - base.x0 - ci * base.dx) / base.dx * m, 0.0, m)
+        fv = np.clip((ly - base.y0 - cj * base.dy) / base.dy * m, 0.0, m)
+        si = np.minimum(fu.astype(np.int64), m - 1)
+        sj = np.minimum(fv.astype(np.int64), m - 1)
+        key = cell * m * m + si * m + sj
+        pos = np.minimum(np.searchsorted(self.keys, key), self.n - 1)
+        hit = np.flatnonzero(self.keys[pos] == key)
+        if hit.size == 0:
+            return h
+        k = pos[hit]
+        u = np.clip((fu[hit] - si[hit]) * n, 0.0, n)
+        v = np.clip((fv[hit] - sj[hit]) * n, 0.0, n)
+        i = np.minimum(u.astype(np.int64), n - 1)
+        j = np.minimum(v.astype(np.int64), n - 1)
+        a, b = u - i, v - j
+        at = k * (n + 1) ** 2 + i * (n + 1) + j
+        lo, st = self.lo[k].astype(np.float64), self.step[k].astype(np.float64)
+
+        def z(q):
+            cq = self.codes[q]
+            return np.where(cq == NAN_CODE, np.nan, lo + st * cq.astype(np.float64))
+
+        h = h.copy()
+        h[hit] = ((1 - a) * ((1 - b) * z(at) + b * z(at + 1)) + a * ((1 - b) * z(at + n + 1) + b * z(at + n + 2)))
+        return h

@@ -33,9 +33,10 @@ from collections.abc import Callable
 import numpy as np
 
 from ..grid import ZMap
-from ._emap import CellPatches, EZMap, all_edges, code_patch, decimate, encode_heights, sub_grid
+from ._emap import CellPatches, EZMap, SubLattices, all_edges, code_patch, decimate, encode_heights, sub_grid
 
-__all__ = ["PATCH_SUBCELLS", "TEST_POINTS", "CellPatches", "cell_test_points", "failing_cells", "misfit", "patch_levels"]
+__all__ = ["PATCH_SUBCELLS", "SUB_TEST", "TEST_POINTS", "CellPatches", "build_sub_lattices", "cell_test_points",
+           "failing_cells", "failing_subcells", "misfit", "patch_levels", "sub_lattice_intervals"]
 
 #: finest sub-cell of the cell patches, in tolerances: the levels are 4, 8, 16, ... sub-cells
 #: per base interval down to it (grid 0.5 mm, tol 0.01 mm: 4, 8; grid 2 mm: 4, 8, 16, 32),
@@ -236,6 +237,62 @@ def build_lattices(base: ZMap, heights: Heights, cells: np.ndarray, n: int) -> d
     return out
 
 
+#: test points per sub-cell and axis when the sub-cells of a patch that misses are tested
+SUB_TEST = 4
+
+
+def failing_subcells(model_height: Heights, base: ZMap, heights: Heights, tol: float, cells: np.ndarray, m: int,
+                     n: int = SUB_TEST) -> np.ndarray:
+    """Keys ``cell * m * m + si * m + sj`` of the level-``m`` sub-cells of ``cells`` where the
+    model misses at one of an ``n x n`` lattice of test points (:func:`misfit`), sorted."""
+    cells = np.asarray(cells, dtype=np.int64)
+    if cells.size == 0:
+        return cells
+    G = m * n
+    x, y = cell_points(base, cells, (np.arange(G) + 0.5) / G)
+    bad = np.flatnonzero(misfit(np.asarray(model_height(x, y), dtype=np.float64), x, y,
+                                np.asarray(heights(x, y), dtype=np.float64), heights, tol))
+    c, r = np.divmod(bad, G * G)
+    a, b = np.divmod(r, G)
+    return np.unique(cells[c] * m * m + (a // n) * m + b // n)
+
+
+def sub_lattice_intervals(base: ZMap, tol: float, m: int) -> int:
+    """Intervals per side of a level-``m`` sub-cell's lattice whose diagonal is at most ``tol``."""
+    return max(1, math.ceil(math.hypot(base.dx, base.dy) / m / tol - 1e-9))
+
+
+def build_sub_lattices(base: ZMap, heights: Heights, keys: np.ndarray, m: int, n: int) -> SubLattices:
+    """Dense ``n x n`` lattices over the level-``m`` sub-cells ``keys`` (one ``heights`` call)."""
+    keys = np.asarray(keys, dtype=np.int64)
+    cell, r = np.divmod(keys, m * m)
+    si, sj = np.divmod(r, m)
+    ci, cj = np.divmod(cell, base.ny - 1)
+    t = np.arange(n + 1) / n
+    U, V = np.meshgrid(t, t, indexing="ij")
+    lx = base.x0 + (ci[:, None] + (si[:, None] + U.ravel()[None, :]) / m) * base.dx
+    ly = base.y0 + (cj[:, None] + (sj[:, None] + V.ravel()[None, :]) / m) * base.dy
+    z = np.asarray(heights(*base.local_to_world(lx.ravel(), ly.ravel())), dtype=np.float64)
+    codes, lo, step = encode_heights(np.arange(keys.size + 1, dtype=np.int64) * (n + 1) ** 2, z)
+    return SubLattices(np.array([m, n]), keys, codes, lo, step)
+
+
+def _sub_lattices(model_height: Heights, base: ZMap, heights: Heights, tol: float, tol_check: float,
+                  bad: np.ndarray, m: int) -> tuple[SubLattices | None, np.ndarray]:
+    """Sub-lattices over the missing sub-cells of the level-``m`` patches of ``bad``, for the
+    cells where they cost less than a whole-cell lattice; returns them and the cells that
+    need the whole-cell lattice."""
+    keys = failing_subcells(model_height, base, heights, tol_check, bad, m)
+    n = sub_lattice_intervals(base, tol, m)
+    whole_bytes = 2 * (lattice_intervals(base, tol) + 1) ** 2
+    cells, count = np.unique(keys // (m * m), return_counts=True)
+    cheap = cells[count * (2 * (n + 1) ** 2 + 16) < whole_bytes]
+    # a cell none of whose sub-cells misses on the finer test lattice keeps its patch
+    whole = np.setdiff1d(np.intersect1d(bad, cells), cheap)
+    keys = keys[np.isin(keys // (m * m), cheap)]
+    return (build_sub_lattices(base, heights, keys, m, n) if keys.size else None), whole
+
+
 def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: float, interval: float,
                   cells: np.ndarray, set_patches: Callable[[CellPatches], None],
                   levels: tuple[int, ...] | None = None, n: int = TEST_POINTS,
@@ -268,9 +325,18 @@ def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: floa
             break
         if m:
             per_cell.update(build_patches(base, heights, bad, m, interval, tol, thin))
-        else:  # the last resort: a lattice whose cells' diagonal is tol
-            per_cell.update(build_lattices(base, heights, bad, lattice_intervals(base, tol)))
+        else:  # the last resort: lattices whose cells' diagonal is tol
+            subs = None
+            whole = bad
+            if levels:
+                # over the sub-cells of the finest patch that miss, if cheaper than the whole cell
+                subs, whole = _sub_lattices(model_height, base, heights, tol, tol_check, bad, levels[-1])
+            per_cell.update(build_lattices(base, heights, whole, lattice_intervals(base, tol)))
         patches = CellPatches.pack(per_cell)
+        if not m and subs is not None:
+            keep = np.isin(subs.keys // (levels[-1] ** 2), patches.cells[patches.level > 0])
+            patches.subs = SubLattices(subs.mn, subs.keys[keep], subs.codes.reshape(subs.n, -1)[keep].ravel(),
+                                       subs.lo[keep], subs.step[keep])
         set_patches(patches)
         if not m:
             # within tol by construction (module docstring); the probes of misfit reach

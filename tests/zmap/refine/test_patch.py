@@ -246,3 +246,44 @@ def test_format_2_patch_arrays_load_recoded_on_one_scale_per_patch():
     assert np.nanmax(np.abs(a - b)) <= 2 * float(back.step.max()) and np.array_equal(np.isnan(a), np.isnan(b))
     with pytest.raises(ValueError, match="format 2"):
         CellPatches.from_arrays(legacy)
+
+
+def test_sub_lattices_over_the_missing_sub_cells_hold_tol_and_cost_less(tmp_path):
+    """The last resort over a coarse patch level: lattices on only the sub-cells that miss."""
+    from zmap.refine.patch import build_sub_lattices, sub_lattice_intervals
+
+    rib = Rib(angle=1.1, c=2.4, w=0.13)
+    base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
+    ez = build_ez(base, rib, tol=TOL, se_curves=rib.se_curves(), verify=False)
+    cells = np.flatnonzero(ez.cell_mask().ravel())
+
+    def install(p):
+        ez.patches = p if p.n_patches else None
+        ez._cache = {}
+
+    broken = ez._tables(base)["ecell_ids"][ez._tables(base)["nb"] > 0]
+    patches, still = patch_failing(lambda a, b: ez.height(base, a, b), base, rib, TOL, ez.interval, cells, install,
+                                   levels=(4,), fine_cells=broken)
+    subs = patches.subs
+    assert still.size == 0 and subs is not None and subs.n > 0
+    m, n = subs.mn.tolist()
+    assert m == 4 and n == sub_lattice_intervals(base, TOL, 4) and math.hypot(base.dx / m / n, base.dy / m / n) <= TOL
+    # sub-lattices sit in level-4 patches, and cost less than whole-cell lattices would
+    assert set((subs.keys // 16).tolist()) <= set(patches.cells[patches.level == 4].tolist())
+    assert subs.codes.nbytes < 2 * (lattice_intervals(base, TOL) + 1) ** 2 * np.unique(subs.keys // 16).size
+    rng = np.random.default_rng(1)
+    x, y = near_rib(rib, rng, 30000)
+    assert rib.distance(x, y, ez.height(base, x, y)).max() <= TOL
+    # a sub-lattice answers bilinearly from its own corners: at a lattice node, the exact height
+    k = subs.keys[0]
+    one = build_sub_lattices(base, rib, np.array([k]), m, n)
+    c, r = divmod(int(k), m * m)
+    ci, cj = divmod(c, base.ny - 1)
+    xn = base.x0 + (ci + (r // m + 0.5) / m) * base.dx
+    yn = base.y0 + (cj + (r % m + 0.5) / m) * base.dy
+    assert np.array_equal(one.codes, subs.codes[:one.codes.size])
+    assert abs(float(ez.height(base, np.array([xn]), np.array([yn]))[0]) - float(rib(xn, yn))) <= TOL
+    m_ = PrecisionModel(base, ez=ez, meta={"method": "ez"})
+    back = PrecisionModel.load(m_.save(tmp_path / "subs.zpm"))
+    assert back.ez.patches.subs is not None and np.array_equal(back.ez.patches.subs.keys, subs.keys)
+    assert np.array_equal(back.height(x, y), m_.height(x, y), equal_nan=True)
