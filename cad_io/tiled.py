@@ -18,29 +18,24 @@ workers need zmap installed and the store's folder on a shared file system).
 from __future__ import annotations
 
 import contextlib
-import logging
 import math
 import os
-import resource
 import time
 import warnings
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, Iterator, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
-from zmap.errors import ZMapError
+from zmap.tiled.cluster import CONNECT_TIMEOUT, dask_client, peak_rss_mb
 
 from .part import Part
 
-__all__ = ["DEFAULT_TILE", "CONNECT_TIMEOUT", "TiledGrid", "plan_grid", "sample_tile", "convert_tiled", "convert_cmd_tiled",
-           "dask_client"]
+__all__ = ["DEFAULT_TILE", "CONNECT_TIMEOUT", "TiledGrid", "plan_grid", "sample_tile", "convert_tiled",
+           "convert_cmd_tiled", "dask_client"]
 
 #: tile side in grid nodes when none is given (16.7 M nodes, about 0.45 GB of working memory)
 DEFAULT_TILE = 4096
-#: seconds to wait for a scheduler given by address before giving up (the issue's bound is 10)
-CONNECT_TIMEOUT = 6.0
 
 
 @dataclass(frozen=True)
@@ -64,7 +59,8 @@ def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, a
     """The grid :func:`cad_io.sample` would use for these arguments, without sampling.
 
     The same steps as ``sample`` (bounds from the mesh extents, lines centred on them); the
-    tests check the two agree on real parts. Meshes ``part`` at the deflection (as ``sample`` does) when its meshes are coarser.
+    tests check the two agree on real parts. Meshes ``part`` at the deflection (as ``sample``
+    does) when its meshes are coarser.
     No memory check: the map is never held whole.
 
     Examples
@@ -121,10 +117,6 @@ def _face_set(part: Part, g: TiledGrid):
     return face_set(transform_part(part, g.axis), g.deflection, g.window)
 
 
-def _peak_rss_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
 def sample_tile(fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1: int) -> tuple[np.ndarray, ...]:
     """Heights, face and method layers of nodes ``[i0:i1, j0:j1]`` of the grid ``g``.
 
@@ -171,43 +163,7 @@ def _tile_task(fs: Any, g: TiledGrid, store: Any, ti: int, tj: int, threads: int
     store.write_tile(ti, tj, z, {"face": face, "method": how})
     return {"tile": (ti, tj), "nodes": int(z.size), "seconds": time.perf_counter() - t0,
             "filled": int(np.isfinite(z).sum()), "jacobian": int((how == 1).sum()), "facet": int((how == 2).sum()),
-            "pid": os.getpid(), "peak_rss_mb": _peak_rss_mb()}
-
-
-@contextlib.contextmanager
-def dask_client(scheduler: str | None = None, *, workers: int = 2, threads_per_worker: int = 1) -> Iterator[Any]:
-    """A ``dask.distributed.Client``: on ``scheduler`` (address), else on a new LocalCluster.
-
-    The LocalCluster has ``workers`` worker processes of ``threads_per_worker`` threads and
-    is shut down on exit. A scheduler that does not answer within :data:`CONNECT_TIMEOUT`
-    seconds raises :class:`zmap.errors.ZMapError` naming its address.
-    """
-    from dask.distributed import Client, LocalCluster
-
-    if scheduler:
-        try:
-            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT}s")
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise ZMapError(f"no Dask scheduler answers at {scheduler} within {CONNECT_TIMEOUT:g} s "
-                            f"({type(exc).__name__}: {' '.join(str(exc).split())[:160]})") from None
-        try:
-            yield client
-        finally:
-            client.close()
-        return
-    workers = int(workers)
-    if workers < 1:
-        raise ValueError(f"workers must be at least 1, got {workers}")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # "port 8787 is already in use" and friends
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=int(threads_per_worker), processes=True,
-                               dashboard_address=":0", silence_logs=logging.ERROR)
-    client = Client(cluster)
-    try:
-        yield client
-    finally:
-        client.close()
-        cluster.close()
+            "pid": os.getpid(), "peak_rss_mb": peak_rss_mb()}
 
 
 def convert_tiled(part: Part | str | os.PathLike, grid: Any, output: str | os.PathLike, *, tile: int = DEFAULT_TILE,
@@ -373,5 +329,6 @@ def convert_cmd_tiled(part_path: str, grid: float, bounds, method: str, axis: st
                f"{rep['tiles_skipped']} finished before; {st['filled']:,} points with surface")
     click.echo(f"time     {time.perf_counter() - t0:.2f} s (tiles {rep['seconds']:.2f} s on {rep['workers']} workers, "
                f"{rep['nodes_per_s'] / 1e6:.3f} M nodes/s)")
-    click.echo(f"memory   peak {rep['peak_rss_mb_per_worker']:.0f} MB per worker; store {store.disk_bytes() / 1e6:.1f} MB "
+    click.echo(f"memory   peak {rep['peak_rss_mb_per_worker']:.0f} MB per worker; "
+               f"store {store.disk_bytes() / 1e6:.1f} MB "
                f"on disk, {store.nbytes / 1e6:.1f} MB in memory")

@@ -45,8 +45,13 @@ def _need_file(path: str | None) -> None:
               help="Blocks that loops and subroutine calls may run again (default 100000).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="RUN.zsim to write.")
 @click.option("--progress/--no-progress", default=True, show_default=True)
+@click.option("--tiles", type=int, default=None, metavar="N",
+              help="Simulate in N x N-ray tiles as Dask tasks, a history per tile (same result).")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="With --tiles: a running Dask scheduler (tcp://host:port); default a local cluster.")
+@click.option("--workers", type=int, default=2, show_default=True, help="With --tiles: local worker processes.")
 def simulate_cmd(program, stock, tool, tools_path, project, pitch, history, lenient, max_blocks, output,
-                 progress) -> None:
+                 progress, tiles=None, scheduler=None, workers=2) -> None:
     """Simulate PROGRAM on a dexel stock, recording a history, and save the run."""
     import warnings
 
@@ -74,7 +79,9 @@ def simulate_cmd(program, stock, tool, tools_path, project, pitch, history, leni
     prog = parse(program, lenient=lenient, tool_table=tools or None, **limits)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        run = simulate(prog, stock, tool=tool, tools=tools or None, pitch=pitch, history=history, progress=progress)
+        run = simulate(prog, stock, tool=tool, tools=tools or None, pitch=pitch, history=history, progress=progress,
+                       **({} if tiles is None and scheduler is None else  # tiled on Dask: zmap/sim/tiled.py
+                          {"tiles": tiles, "scheduler": scheduler, "workers": workers}))
     for w in caught:
         click.echo(f"warning: {' '.join(str(w.message).split())}", err=True)
     run.save(output)
@@ -89,6 +96,10 @@ def simulate_cmd(program, stock, tool, tools_path, project, pitch, history, leni
     click.echo(f"history          {s['history']}: {s['history_bytes'] / 1e6:.2f} MB "
                f"({s['history_elements']} elements)")
     click.echo(f"seconds          {s['seconds']:.2f}")
+    if "tiles" in s:
+        t = s["tiles"]
+        click.echo(f"tiles            {t['tiles']} of {t['tile']} x {t['tile']} rays on {t['workers']} workers, "
+                   f"peak {t['peak_rss_mb_per_worker']:.0f} MB per worker")
     click.echo(f"wrote            {output}")
 
 

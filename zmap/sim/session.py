@@ -412,10 +412,17 @@ class Run:
         structure = None
         if kind != "none":
             h = {k[2:]: v for k, v in a.items() if k.startswith("h_")}
-            structure = _STRUCTS[kind].from_arrays(nx * ny, h)
-            off = structure.node_off if kind == "treap" else structure.offsets
-            if off.shape != (nx * ny + 1,):
-                raise ValueError(f"history offsets have shape {off.shape}, expected ({nx * ny + 1},)")
+            if "tiles_layout" in h:  # a tiled run (zmap/sim/tiled.py): one history per tile
+                from .tiled import TiledHistory
+
+                structure = TiledHistory.from_arrays(kind, h)
+                if (structure.nx, structure.ny) != (nx, ny):
+                    raise ValueError(f"tiled history covers {structure.nx}x{structure.ny} rays, the run {nx}x{ny}")
+            else:
+                structure = _STRUCTS[kind].from_arrays(nx * ny, h)
+                off = structure.node_off if kind == "treap" else structure.offsets
+                if off.shape != (nx * ny + 1,):
+                    raise ValueError(f"history offsets have shape {off.shape}, expected ({nx * ny + 1},)")
         return cls(kind, wps["stock"], wps["final"], xyz, slot, np.ascontiguousarray(a["line"], dtype=np.int32),
                    numbers, cutters, structure, dict(header.get("summary", {})))
 
@@ -423,7 +430,8 @@ class Run:
 # ---- the front door ------------------------------------------------------------------------
 
 def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: Any = None,
-             pitch: float = 0.26, history: str = "treap", progress: bool = False) -> Run:
+             pitch: float = 0.26, history: str = "treap", progress: bool = False, tiles: int | None = None,
+             scheduler: str | None = None, workers: int = 2) -> Run:
     """Cut an NC program into a stock with the extended z-buffer, recording a history.
 
     Parameters
@@ -441,6 +449,15 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
     history : {'none', 'ztrace', 'ttrace', 'treap'}
     progress : bool
         Show a tqdm progress bar.
+    tiles : int, optional
+        Simulate in xy tiles of ``tiles`` x ``tiles`` rays as Dask tasks, each tile with its
+        own history (:mod:`zmap.sim.tiled`); the Run equals the single-process one exactly
+        and assembles the tiles when a stage is asked for.
+    scheduler : str, optional
+        With ``tiles``: a running Dask scheduler's address; default a LocalCluster of
+        ``workers`` worker processes.
+    workers : int
+        With ``tiles`` and no scheduler: worker processes of the LocalCluster.
 
     Returns
     -------
@@ -480,23 +497,32 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
     n = len(path.xyz)
     t0 = time.perf_counter()
     rec = None
-    if history != "none":
-        struct = _STRUCTS[history].start(wp, capacity=_capacity_guess(history, wp, n))
-        rec = Recorder(**{history: struct})
-    bar = None
-    if progress:
-        from tqdm import tqdm
+    tiled = None
+    if tiles is not None or scheduler is not None:  # tiled, on Dask (zmap/sim/tiled.py)
+        from .tiled import simulate_tiles
 
-        bar = tqdm(total=n, unit="pos", desc="simulate", leave=False)
-    try:
-        run_cut(wp, path.xyz, slot, cutter_table(cutters), 0, n, 0, rec, progress=bar)
-    finally:
-        if bar is not None:
-            bar.close()
-    structure = None
-    if rec is not None:
-        rec.finalize()
-        structure = getattr(rec, history)
+        if tiles is None:
+            raise ValueError("scheduler needs tiles (the tiled simulation)")
+        wp, structure, tiled = simulate_tiles(wp, path.xyz, slot, cutters, history, tiles=tiles, scheduler=scheduler,
+                                              workers=workers, progress=progress)
+    else:
+        if history != "none":
+            struct = _STRUCTS[history].start(wp, capacity=_capacity_guess(history, wp, n))
+            rec = Recorder(**{history: struct})
+        bar = None
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=n, unit="pos", desc="simulate", leave=False)
+        try:
+            run_cut(wp, path.xyz, slot, cutter_table(cutters), 0, n, 0, rec, progress=bar)
+        finally:
+            if bar is not None:
+                bar.close()
+        structure = None
+        if rec is not None:
+            rec.finalize()
+            structure = getattr(rec, history)
     seconds = time.perf_counter() - t0
     n_elem = (int(getattr(structure, "n_nodes", getattr(structure, "n_elements", 0)))
               if structure is not None else 0)
@@ -513,6 +539,8 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
         "history_bytes_per_element": round(structure.nbytes / n_elem, 3) if n_elem else 0.0,
         "seconds": round(seconds, 4),
     }
+    if tiled is not None:
+        summary["tiles"] = tiled
     return Run(history, stock0, wp, path.xyz, slot, path.line, numbers, cutters, structure, summary)
 
 

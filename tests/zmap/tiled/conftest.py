@@ -7,7 +7,7 @@ import pytest
 
 @pytest.fixture(scope="module")
 def dask_client():
-    from cad_io.tiled import dask_client as make_client
+    from zmap.tiled.cluster import dask_client as make_client
 
     with make_client(workers=2) as client:
         yield client

@@ -83,7 +83,7 @@ def test_tiled_conversion_on_a_local_cluster_equals_in_memory_and_resumes(part_a
 
 
 def test_scheduler_that_does_not_answer_fails_fast_naming_it(tmp_path, capsys, monkeypatch):
-    import cad_io.tiled as ct
+    import zmap.tiled.cluster as ct
 
     assert ct.CONNECT_TIMEOUT <= 8.0  # with the start of the command, within the 10 s
     monkeypatch.setattr(ct, "CONNECT_TIMEOUT", 1.0)
@@ -100,7 +100,8 @@ def test_scheduler_that_does_not_answer_fails_fast_naming_it(tmp_path, capsys, m
 
 
 def test_cli_bad_tiles_and_foreign_output(tmp_path, capsys):
-    assert main(["convert", str(DATA / "boss.step"), "--grid", "1", "--tiles", "1", "-o", str(tmp_path / "a.zarr")]) == 1
+    assert main(["convert", str(DATA / "boss.step"), "--grid", "1", "--tiles", "1", "-o",
+                 str(tmp_path / "a.zarr")]) == 1
     err = capsys.readouterr().err.strip()
     assert "tile=1 nodes is below the 2-node stencil halo" in err and "\n" not in err
     import zarr

@@ -1,0 +1,314 @@
+"""Tiled NC simulation on Dask: the stock split in xy tiles of rays, one task per tile.
+
+The cut of a ray depends only on that ray and the positions whose cutter footprint covers
+it, so each tile simulates, in program order, only the positions whose footprint window
+reaches it, on its own rays, with its own history (z-trace, time-trace or Interval Treap).
+The tile kernel (:mod:`zmap.sim._tiled_kernels`) computes every ray's xy from its global
+index and gives every position its global stage, so each tile's rays end up with the
+dexels and history events of the single-process run. :class:`TiledHistory` answers
+``display(k)`` and ``reconstruct(k)`` by assembling the tiles on demand, so
+:class:`zmap.sim.session.Run` works on it unchanged: ``simulate(..., tiles=N)`` and
+``zmap simulate --tiles N [--scheduler ADDRESS]``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from typing import Any, Callable
+
+import numpy as np
+
+from .dexel import DexelWorkpiece, cutter_table
+from .history import IntervalTreap, Recorder, TimeTrace, ZTrace
+
+__all__ = ["TiledHistory", "simulate_tiles", "tile_positions"]
+
+_STRUCTS = {"ztrace": ZTrace, "ttrace": TimeTrace, "treap": IntervalTreap}
+
+
+def _check_tiles(tiles: Any) -> int:
+    try:
+        t = int(tiles)
+    except (TypeError, ValueError):
+        raise ValueError(f"tiles must be a whole number of rays, got {tiles!r}") from None
+    if t != tiles or t < 2:
+        raise ValueError(f"tiles={tiles!r} rays: a tile needs at least 2 x 2 rays (hundreds for speed)")
+    return t
+
+
+def _tile_rays(nx: int, ny: int, tile: int, ti: int, tj: int) -> tuple[int, int, int, int, np.ndarray]:
+    """First ray and size ``(gi0, gj0, tnx, tny)`` of tile (ti, tj), and its global ray ids (i-major)."""
+    gi0, gj0 = ti * tile, tj * tile
+    tnx, tny = min(tile, nx - gi0), min(tile, ny - gj0)
+    idx = (np.arange(gi0, gi0 + tnx, dtype=np.int64)[:, None] * ny
+           + np.arange(gj0, gj0 + tny, dtype=np.int64)[None, :]).ravel()
+    return gi0, gj0, tnx, tny, idx
+
+
+def tile_positions(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cutters: list,
+                   tile: int) -> tuple[tuple[int, int], list[np.ndarray]]:
+    """The positions whose footprint window reaches each tile, in program order.
+
+    Returns
+    -------
+    (ntx, nty) : tuple of int
+        Tiles along x and y.
+    lists : list of ndarray of int64
+        ``lists[ti * nty + tj]``: indices into ``xyz`` of the positions for tile (ti, tj).
+    """
+    from . import _tiled_kernels as K
+
+    tile = _check_tiles(tile)
+    ntx, nty = -(-stock.nx // tile), -(-stock.ny // tile)
+    _code, radius, _corner, _length = cutter_table(cutters)
+    n = len(xyz)
+    counts = np.zeros(n, dtype=np.int64)
+    none = np.zeros(0, dtype=np.int64)
+    xyz = np.ascontiguousarray(xyz, dtype=np.float64)
+    slot = np.ascontiguousarray(slot, dtype=np.int32)
+    K.positions_reaching(xyz, slot, radius, stock.x0, stock.y0, stock.pitch, stock.nx, stock.ny, tile, nty,
+                         counts, none, False)
+    starts = np.zeros(n, dtype=np.int64)
+    np.cumsum(counts[:-1], out=starts[1:]) if n else None
+    tile_of = np.empty(int(counts.sum()), dtype=np.int64)
+    K.positions_reaching(xyz, slot, radius, stock.x0, stock.y0, stock.pitch, stock.nx, stock.ny, tile, nty,
+                         starts, tile_of, True)
+    pos_of = np.repeat(np.arange(n, dtype=np.int64), counts)
+    order = np.argsort(tile_of, kind="stable")  # stable: program order within each tile
+    bounds = np.searchsorted(tile_of[order], np.arange(ntx * nty + 1))
+    return (ntx, nty), [pos_of[order[bounds[k]:bounds[k + 1]]] for k in range(ntx * nty)]
+
+
+def _assemble_csr(n_rays: int, parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]):
+    """Global CSR ``(offsets, near, far)`` from tiles' ``(global ray ids, offsets, near, far)``."""
+    cnt = np.zeros(n_rays, dtype=np.int64)
+    for idx, off, _near, _far in parts:
+        cnt[idx] = np.diff(off)
+    offsets = np.zeros(n_rays + 1, dtype=np.int64)
+    np.cumsum(cnt, out=offsets[1:])
+    total = int(offsets[-1])
+    near = np.empty(total, dtype=np.float32)
+    far = np.empty(total, dtype=np.float32)
+    for idx, off, tnear, tfar in parts:
+        c = np.diff(off)
+        if not len(tnear):
+            continue
+        dest = np.repeat(offsets[idx] - off[:-1], c) + np.arange(len(tnear))
+        near[dest] = tnear
+        far[dest] = tfar
+    return offsets, near, far
+
+
+def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, xyz: np.ndarray, slot: np.ndarray,
+              gpos: np.ndarray, table: tuple, history: str, x0: float, y0: float, pitch: float, gi0: int, gj0: int,
+              tnx: int, tny: int, chunk: int = 4096) -> dict:
+    """One Dask task: cut the tile's positions into its rays, recording its own history."""
+    from zmap.tiled.cluster import peak_rss_mb
+
+    from . import _dexel_kernels as _k
+    from . import _tiled_kernels as K
+    from .dexel import _empty_history_args
+
+    t0 = time.perf_counter()
+    wp = DexelWorkpiece(x0 + gi0 * pitch, y0 + gj0 * pitch, pitch, tnx, tny, near, far, cnt)
+    n_dexels0 = wp.n_dexels
+    rec = None
+    if history != "none":
+        struct = _STRUCTS[history].start(wp, capacity=int(2 * n_dexels0 + 24 * len(xyz) + 1024))
+        rec = Recorder(**{history: struct})
+    code, radius, corner, length = table
+    stats = np.zeros(_k.N_STATS, dtype=np.int64)
+    if rec is not None:
+        rec.load_counts(stats)
+    p, stop = 0, len(xyz)
+    while p < stop:
+        q = min(stop, p + chunk)
+        args = rec.kernel_args() if rec is not None else _empty_history_args()
+        nxt = K.cut_positions_tile(xyz, slot, code, radius, corner, length, gpos, p, q, 0, x0, y0, pitch,
+                                   gi0, gj0, tnx, tny, wp.near, wp.far, wp.cnt, *args, stats)
+        status = stats[_k.ST_STATUS]
+        if status == _k.NEED_SLOTS:
+            wp.grow(2 * wp.slots)
+            if rec is not None:
+                rec.grow_slots(wp.slots)
+        elif status == _k.NEED_POOL:
+            rec.grow_pools(stats)
+        p = nxt
+    structure = None
+    if rec is not None:
+        rec.store_counts(stats)
+        rec.finalize()
+        structure = getattr(rec, history)
+    off, fnear, ffar = wp.to_csr()
+    return {"off": off, "near": fnear, "far": ffar, "created": int(stats[_k.ST_CREATED]),
+            "deleted": int(stats[_k.ST_DELETED]), "structure": structure, "positions": int(len(xyz)),
+            "rays_cut": int(stats[_k.ST_RAYS_CUT]), "seconds": time.perf_counter() - t0, "pid": os.getpid(),
+            "peak_rss_mb": peak_rss_mb()}
+
+
+class TiledHistory:
+    """One history per tile, read as one: ``display(k)`` and ``reconstruct(k)`` over the whole stock.
+
+    Each call assembles the tiles' answers (nothing is assembled before it is asked for).
+
+    Parameters
+    ----------
+    kind : {'ztrace', 'ttrace', 'treap'}
+    nx, ny : int
+        Rays of the whole stock.
+    tile : int
+        Tile side in rays.
+    structures : list
+        ``structures[ti * nty + tj]``: the finished history of tile (ti, tj).
+    """
+
+    def __init__(self, kind: str, nx: int, ny: int, tile: int, structures: list):
+        self.kind = kind
+        self.nx, self.ny, self.tile = int(nx), int(ny), int(tile)
+        self.ntx, self.nty = -(-self.nx // self.tile), -(-self.ny // self.tile)
+        if len(structures) != self.ntx * self.nty:
+            raise ValueError(f"{len(structures)} tile histories for {self.ntx} x {self.nty} tiles")
+        self.structures = list(structures)
+
+    def _tiles(self):
+        for ti in range(self.ntx):
+            for tj in range(self.nty):
+                yield self.structures[ti * self.nty + tj], _tile_rays(self.nx, self.ny, self.tile, ti, tj)[4]
+
+    @property
+    def n_rays(self) -> int:
+        return self.nx * self.ny
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(s.nbytes for s in self.structures))
+
+    @property
+    def n_nodes(self) -> int:
+        return int(sum(int(getattr(s, "n_nodes", getattr(s, "n_elements", 0))) for s in self.structures))
+
+    n_elements = n_nodes
+
+    def display(self, stage: int) -> np.ndarray:
+        """Top-surface heights at ``stage``, flat (nx*ny,), NaN where no material."""
+        out = np.full(self.n_rays, np.nan)
+        for s, idx in self._tiles():
+            out[idx] = s.display(stage)
+        return out
+
+    def reconstruct(self, stage: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Dexels at ``stage`` as the whole stock's CSR ``(offsets, near, far)``."""
+        if self.kind == "ttrace":
+            raise ValueError("a time-trace has no reconstruction; the run replays instead")
+        parts = [(idx, *s.reconstruct(stage)) for s, idx in self._tiles()]
+        return _assemble_csr(self.n_rays, parts)
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        out = {"tiles_layout": np.array([self.nx, self.ny, self.tile], dtype=np.int64)}
+        for k, s in enumerate(self.structures):
+            for name, arr in s.to_arrays().items():
+                out[f"t{k}_{name}"] = np.asarray(arr)
+        return out
+
+    @classmethod
+    def from_arrays(cls, kind: str, a: dict) -> "TiledHistory":
+        nx, ny, tile = (int(v) for v in a["tiles_layout"])
+        ntx, nty = -(-nx // tile), -(-ny // tile)
+        structures = []
+        for k in range(ntx * nty):
+            ti, tj = divmod(k, nty)
+            tnx, tny = _tile_rays(nx, ny, tile, ti, tj)[2:4]
+            pre = f"t{k}_"
+            arrs = {n[len(pre):]: v for n, v in a.items() if n.startswith(pre)}
+            structures.append(_STRUCTS[kind].from_arrays(tnx * tny, arrs))
+        return cls(kind, nx, ny, tile, structures)
+
+
+def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cutters: list, history: str, *,
+                   tiles: int, scheduler: str | None = None, workers: int = 2, client: Any = None,
+                   progress: bool = False, _on_result: Callable | None = None):
+    """Cut ``xyz`` into ``stock`` tile by tile as Dask tasks; the single-process result, exactly.
+
+    Parameters
+    ----------
+    stock : DexelWorkpiece
+        The stock (not changed).
+    xyz, slot, cutters
+        Positions (n, 3) in mm, cutter slot per position, cutters (as :func:`zmap.sim.session.simulate`).
+    history : {'none', 'ztrace', 'ttrace', 'treap'}
+    tiles : int
+        Tile side in rays (at least 2).
+    scheduler : str, optional
+        A running Dask scheduler's address; default a LocalCluster of ``workers`` processes.
+    client : dask.distributed.Client, optional
+        Use this client instead.
+    progress : bool
+        A tqdm bar over the tiles.
+
+    Returns
+    -------
+    final : DexelWorkpiece
+    structure : TiledHistory or None
+    report : dict
+        ``tiles``, ``tiles_with_positions``, ``workers``, ``seconds`` (tasks), ``positions_cut``
+        (sum over tiles: positions reaching several tiles count in each), ``peak_rss_mb_per_worker``.
+    """
+    from tqdm import tqdm
+
+    from zmap.tiled.cluster import dask_client
+
+    tile = _check_tiles(tiles)
+    (ntx, nty), lists = tile_positions(stock, xyz, slot, cutters, tile)
+    table = cutter_table(cutters)
+    xyz = np.ascontiguousarray(xyz, dtype=np.float64)
+    slot = np.ascontiguousarray(slot, dtype=np.int32)
+    results: dict[int, dict] = {}
+    ctx = contextlib.nullcontext(client) if client is not None else dask_client(scheduler, workers=workers)
+    t0 = time.perf_counter()
+    with ctx as cl:
+        n_workers = len(cl.scheduler_info().get("workers", {}))
+        futures = {}
+        for k in range(ntx * nty):
+            ti, tj = divmod(k, nty)
+            gi0, gj0, tnx, tny, idx = _tile_rays(stock.nx, stock.ny, tile, ti, tj)
+            pos = lists[k]
+            fut = cl.submit(_sim_tile, np.ascontiguousarray(stock.near[idx]), np.ascontiguousarray(stock.far[idx]),
+                            np.ascontiguousarray(stock.cnt[idx]), np.ascontiguousarray(xyz[pos]),
+                            np.ascontiguousarray(slot[pos]), pos, table, history, stock.x0, stock.y0, stock.pitch,
+                            gi0, gj0, tnx, tny, pure=False)
+            futures[fut] = k
+        from dask.distributed import as_completed
+
+        try:
+            with tqdm(total=len(futures), unit="tile", desc="tiles", disable=not progress, leave=False) as bar:
+                for fut in as_completed(list(futures)):
+                    results[futures[fut]] = fut.result()
+                    bar.update(1)
+                    if _on_result is not None:
+                        _on_result(cl, len(results))
+        except BaseException:
+            cl.cancel(list(futures))
+            raise
+    seconds = time.perf_counter() - t0
+    parts = []
+    for k in range(ntx * nty):
+        idx = _tile_rays(stock.nx, stock.ny, tile, *divmod(k, nty))[4]
+        r = results[k]
+        parts.append((idx, r["off"], r["near"], r["far"]))
+    off, near, far = _assemble_csr(stock.n_rays, parts)
+    final = DexelWorkpiece.from_csr(stock.x0, stock.y0, stock.pitch, stock.nx, stock.ny, off, near, far,
+                                    stock.created + sum(r["created"] for r in results.values()),
+                                    stock.deleted + sum(r["deleted"] for r in results.values()))
+    structure = None
+    if history != "none":
+        structure = TiledHistory(history, stock.nx, stock.ny, tile, [results[k]["structure"] for k in range(ntx * nty)])
+    per_worker: dict[int, float] = {}
+    for r in results.values():
+        per_worker[r["pid"]] = max(per_worker.get(r["pid"], 0.0), r["peak_rss_mb"])
+    report = {"tiles": ntx * nty, "tile": tile, "tiles_with_positions": int(sum(len(v) > 0 for v in lists)),
+              "workers": n_workers, "seconds": round(seconds, 3),
+              "positions_cut": int(sum(r["positions"] for r in results.values())),
+              "peak_rss_mb_per_worker": round(max(per_worker.values()), 1) if per_worker else 0.0}
+    return final, structure, report
