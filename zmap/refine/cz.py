@@ -25,7 +25,7 @@ import numpy as np
 
 from ..grid import ZMap
 
-__all__ = ["build_cz", "cz_intervals", "split_runs"]
+__all__ = ["build_cz", "cz_intervals", "cz_layout", "split_runs"]
 
 #: most grid points a single CZ-map may hold (a longer run is split)
 MAX_POINTS = 4_000_000
@@ -150,6 +150,44 @@ def build_cz(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
     >>> len(cz), round(cz[0].dy, 3), round(math.degrees(cz[0].angle), 1)
     (1, 0.05, 90.0)
     """
+    out: list[ZMap] = []
+    for ci, (i, j), (angle, origin, x0, y0, nx, ny), ddx, ddy in _frames(base, tol, curves, theta_x, eps_r, margin):
+        xs = x0 + ddx * np.arange(nx)
+        ys = y0 + ddy * np.arange(ny)
+        LX, LY = np.meshgrid(xs, ys, indexing="ij")
+        ca, sa = math.cos(angle), math.sin(angle)
+        WX = origin[0] + ca * LX - sa * LY
+        WY = origin[1] + sa * LX + ca * LY
+        z = np.asarray(heights(WX, WY), dtype=np.float64).reshape(nx, ny)
+        out.append(ZMap(x0, y0, ddx, ddy, z, angle=angle, origin=origin,
+                        meta={"kind": "cz", "curve": ci, "run": [int(i), int(j)], "tol": float(tol),
+                              "theta_x": float(theta_x)}))
+    return out
+
+
+def cz_layout(base: ZMap, *, tol: float, curves: Sequence[np.ndarray] | None = None,
+              theta_x: float = math.radians(20.0), eps_r: float | None = None, margin: float = 2.0) -> np.ndarray:
+    """The grid shapes :func:`build_cz` would sample, without sampling (same arguments).
+
+    Returns
+    -------
+    ndarray of shape (D, 2), int64
+        ``(nx, ny)`` of each CZ domain: the CZ model stores ``8 * sum(nx * ny)`` bytes of
+        heights and samples that many points.
+
+    Examples
+    --------
+    >>> wall = lambda x, y: np.where(x < 2.02, 0.0, 5.0)
+    >>> base = ZMap.from_function(wall, (0, 0, 4, 2), 0.5)
+    >>> cz_layout(base, tol=0.05, curves=[np.array([[2.02, 0.0], [2.02, 2.0]])]).tolist()
+    [[31, 41]]
+    """
+    return np.array([[nx, ny] for _c, _r, (_a, _o, _x0, _y0, nx, ny), _dx, _dy
+                     in _frames(base, tol, curves, theta_x, eps_r, margin)], dtype=np.int64).reshape(-1, 2)
+
+
+def _frames(base, tol, curves, theta_x, eps_r, margin):
+    """Yield ``(curve index, run, (angle, origin, x0, y0, nx, ny), delta_x, delta_y)`` per CZ domain."""
     ddx, ddy = cz_intervals(tol, theta_x)
     h = max(base.dx, base.dy)
     if not tol < min(base.dx, base.dy):
@@ -169,7 +207,6 @@ def build_cz(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
     # a run is at most as long as MAX_POINTS allows across a band of the widest spread
     ny_max = (2 * (pad + h)) / ddy + 2
     max_len = max(MAX_POINTS / ny_max * ddx - 2 * pad, h)
-    out: list[ZMap] = []
     for ci, curve in enumerate(curves):
         c = np.asarray(curve, dtype=np.float64).reshape(-1, 2)
         c = c[np.all(np.isfinite(c), axis=1)]
@@ -183,15 +220,5 @@ def build_cz(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
         else:
             frames = [((i, j), _domain(c[i:j + 1], c[j] - c[i], pad, ddx, ddy))
                       for i, j in split_runs(c, theta_x, h, max_len)]
-        for (i, j), (angle, origin, x0, y0, nx, ny) in frames:
-            xs = x0 + ddx * np.arange(nx)
-            ys = y0 + ddy * np.arange(ny)
-            LX, LY = np.meshgrid(xs, ys, indexing="ij")
-            ca, sa = math.cos(angle), math.sin(angle)
-            WX = origin[0] + ca * LX - sa * LY
-            WY = origin[1] + sa * LX + ca * LY
-            z = np.asarray(heights(WX, WY), dtype=np.float64).reshape(nx, ny)
-            out.append(ZMap(x0, y0, ddx, ddy, z, angle=angle, origin=origin,
-                            meta={"kind": "cz", "curve": ci, "run": [int(i), int(j)], "tol": float(tol),
-                                  "theta_x": float(theta_x)}))
-    return out
+        for (i, j), frame in frames:
+            yield ci, (i, j), frame, ddx, ddy

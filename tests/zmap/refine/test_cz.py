@@ -9,7 +9,7 @@ import pytest
 
 from zmap import ZMap
 from zmap.model import PrecisionModel
-from zmap.refine.cz import build_cz, cz_intervals, split_runs
+from zmap.refine.cz import build_cz, cz_intervals, cz_layout, split_runs
 
 TOL = 0.01
 
@@ -59,3 +59,20 @@ def test_wall_held_inside_domains():
     hb = base_only.height(x, y)
     db = np.minimum(np.where(x < xw, np.abs(hb), np.abs(hb - 5.0)), np.where((hb >= 0) & (hb <= 5), dwall, np.inf))
     assert db.max() > 0.1
+
+
+def test_layout_is_what_build_samples():
+    base = ZMap.from_function(_wall, (0, 0, 4, 3), 0.5)
+    curves = [np.array([[2.013 + 0.2 * y, y] for y in np.linspace(0, 3, 7)]),
+              np.array([[0.5, 0.5], [1.5, 0.6], [1.6, 2.5]])]
+    calls = []
+
+    def counting(x, y):
+        calls.append(np.size(x))
+        return _wall(x, y)
+
+    cz = build_cz(base, counting, tol=TOL, curves=curves)
+    lay = cz_layout(base, tol=TOL, curves=curves)
+    assert lay.tolist() == [list(c.shape) for c in cz] and int(lay.prod(axis=1).sum()) == sum(calls)
+    with pytest.raises(ValueError, match="grid interval"):
+        cz_layout(base, tol=0.5, curves=curves)
