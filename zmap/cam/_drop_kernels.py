@@ -42,6 +42,7 @@ def envelope_many(code, radius, corner, r, out):
 
 @njit(cache=True)
 def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, ub, bid, kv, kd, ki, kj):
+    band = -np.inf
     nx, ny = z.shape
     nbx, nby = bmax.shape
     best = -np.inf
@@ -70,7 +71,7 @@ def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, ub, 
     j_lo = max(0, int(math.ceil((qy - Rs - y0) / dy)))
     j_hi = min(ny - 1, int(math.floor((qy + Rs - y0) / dy)))
     if i_lo > i_hi or j_lo > j_hi:
-        return best, bi_, bj_
+        return best, bi_, bj_, band
     m = 0
     for bi in range(i_lo // B, i_hi // B + 1):
         xa = x0 + bi * B * dx
@@ -129,6 +130,8 @@ def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, ub, 
                     bj_ = j
                 # the most the surface around this sample (within ``cell``) could give
                 gu = v - _envelope(code, R, rc, min(max(d - cell, 0.0), R))
+                if d > R - cell and gu > band:
+                    band = gu
                 # keep the K best bounds (ties: the sample nearest the axis first)
                 K = kv.shape[0]
                 if gu > kv[K - 1] or (gu == kv[K - 1] and d < kd[K - 1]):
@@ -143,18 +146,20 @@ def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, ub, 
                     kd[q] = d
                     ki[q] = i
                     kj[q] = j
-    return best, bi_, bj_
+    return best, bi_, bj_, band
 
 
 @njit(cache=True, parallel=True)
-def drop_samples(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, out, oi, oj, uout, ui, uj):
+def drop_samples(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, out, oi, oj, uout, ui, uj, bout):
     """Highest ``z[i, j] - envelope(min(|sample - axis|, R))`` over the samples within
     ``R + slack`` of each axis ``(qx[k], qy[k])``: ``out[k]`` (-inf: no sample) and the sample
     ``(oi[k], oj[k])``. With ``slack`` > 0 a sample just outside the disk stands for the
     surface between it and the rim (an upper bound, to be replaced by an exact contact).
     ``uout[k, :]``, ``(ui[k, :], uj[k, :])``: the K best bounds over the samples of what the
     surface within ``cell`` of a sample could give (its height, its distance less ``cell``),
-    best first: where one beats ``out[k]``, the true contact may be near that sample instead."""
+    best first: where one beats ``out[k]``, the true contact may be near that sample instead.
+    ``bout[k]``: the best such bound over the samples within ``cell`` of the rim, where a
+    sliver of a feature may reach into the disk between samples."""
     n = qx.shape[0]
     nbx, nby = bmax.shape
     cap = int((2.0 * (R + slack) / (dx * B) + 3.0) * (2.0 * (R + slack) / (dy * B) + 3.0)) + 4
@@ -165,8 +170,9 @@ def drop_samples(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, o
         bid = np.empty(cap, dtype=np.int64)
         kd = np.empty(uout.shape[1], dtype=np.float64)
         for k in range(c * chunk, min(n, c * chunk + chunk)):
-            v, a, b = _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx[k], qy[k],
-                                ub, bid, uout[k], kd, ui[k], uj[k])
+            v, a, b, bb = _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx[k], qy[k],
+                                    ub, bid, uout[k], kd, ui[k], uj[k])
+            bout[k] = bb
             out[k] = v
             oi[k] = a
             oj[k] = b

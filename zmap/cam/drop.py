@@ -96,7 +96,7 @@ def _pattern_search(hf, cut, qx, qy, ux, uy, g, step, xtol, max_iter=400):
     a curved edge needs the two at once), all kept on the cutter's disk; a step that finds
     nothing better is halved, down to ``xtol``."""
     R = cut.radius
-    s = np.full(qx.shape, float(step))
+    s = np.array(step, dtype=np.float64) * np.ones(qx.shape)
     c8 = np.array([[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [-1, 1], [1, -1], [-1, -1]], dtype=np.float64)
     cart = c8.copy()
     cart[4:] *= 0.7071067811865476
@@ -220,8 +220,9 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
     uval = np.empty((n, _K))
     ui = np.empty((n, _K), dtype=np.int64)
     uj = np.empty((n, _K), dtype=np.int64)
+    band = np.empty(n)
     K.drop_samples(Z, float(x0), float(y0), float(dx), float(dy), bm, _B, cut.code, R, cut.corner_radius,
-                   slack, cell, qx, qy, val, oi, oj, uval, ui, uj)
+                   slack, cell, qx, qy, val, oi, oj, uval, ui, uj, band)
     ok = oi >= 0
     ux = np.where(ok, x0 + oi * dx, np.nan)
     uy = np.where(ok, y0 + oj * dy, np.nan)
@@ -272,12 +273,11 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
         ux[idx[better]] = px[better]
         uy[idx[better]] = py[better]
         val[idx[better]] = gs[better]
-        # exact height at the sample itself (a ZMap's nodes are exact already)
+        # starts of the pattern search (all searched together, one height call per step):
+        # the contacts that are not smooth (walls, edges, rim, kinks)
         rough = idx[~smooth]
-        if rough.size:
-            sx, sy, sg = _pattern_search(hf, cut, qx[rough], qy[rough], ux[rough].copy(), uy[rough].copy(),
-                                         val[rough].copy(), 0.5 * max(dx, dy), xtol)
-            ux[rough], uy[rough], val[rough] = sx, sy, sg
+        st_p, st_x, st_y, st_g, st_s = [rough], [ux[rough]], [uy[rough]], [val[rough]], \
+            [np.full(rough.size, 0.5 * max(dx, dy))]
         # a sample whose cell could hold a higher contact than the one found (an edge between
         # samples near the rim, where the envelope is steep): search from it too
         for kk in range(_K):
@@ -289,10 +289,42 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
                 rr = np.hypot(ox, oy)
                 f = np.where(rr > R, R / np.maximum(rr, 1e-300), 1.0)
                 sx0, sy0 = qx[other] + ox * f, qy[other] + oy * f
-                g0 = _contact(hf, cut, qx[other], qy[other], sx0, sy0)
-                sx, sy, sg = _pattern_search(hf, cut, qx[other], qy[other], sx0, sy0, g0, 0.5 * max(dx, dy), xtol)
-                b = sg > val[other]
-                ux[other[b]], uy[other[b]], val[other[b]] = sx[b], sy[b], sg[b]
+                st_p.append(other)
+                st_x.append(sx0)
+                st_y.append(sy0)
+                st_g.append(_contact(hf, cut, qx[other], qy[other], sx0, sy0))
+                st_s.append(np.full(other.size, 0.5 * max(dx, dy)))
+        # the rim: a feature may reach into the disk between samples there; sample a band of
+        # three rings every pitch/4 of arc exactly, and search from the best ring point
+        ring = np.flatnonzero(ok & (band > val + 1e-9))
+        if ring.size:
+            h = 0.25 * min(dx, dy)
+            m = max(16, int(math.ceil(2 * math.pi * R / h)))
+            th = 2 * math.pi * np.arange(m) / m
+            rad = np.array([R, R - cell / 2, R - cell])
+            ox = (rad[:, None] * np.cos(th)[None, :]).ravel()
+            oy = (rad[:, None] * np.sin(th)[None, :]).ravel()
+            for part in np.array_split(ring, max(1, ring.size * ox.size // 2_000_000)):
+                px = qx[part, None] + ox[None, :]
+                py = qy[part, None] + oy[None, :]
+                gr = _contact(hf, cut, qx[part, None], qy[part, None], px, py)
+                k = np.argmax(gr, axis=1)
+                r_ = np.arange(part.size)
+                st_p.append(part)
+                st_x.append(px[r_, k])
+                st_y.append(py[r_, k])
+                st_g.append(gr[r_, k])
+                st_s.append(np.full(part.size, h))
+        sp = np.concatenate(st_p)
+        if sp.size:
+            sx, sy, sg = _pattern_search(hf, cut, qx[sp], qy[sp], np.concatenate(st_x).astype(np.float64),
+                                         np.concatenate(st_y).astype(np.float64),
+                                         np.concatenate(st_g).astype(np.float64), np.concatenate(st_s), xtol)
+            order = np.lexsort((-sg, sp))  # per point, its best search first
+            first = np.r_[True, sp[order][1:] != sp[order][:-1]]
+            w = order[first]
+            b = sg[w] > val[sp[w]]
+            ux[sp[w][b]], uy[sp[w][b]], val[sp[w][b]] = sx[w][b], sy[w][b], sg[w][b]
     cl = np.where(np.isfinite(val), val, np.nan).reshape(shape)
     if not return_contact:
         return cl[()] if cl.ndim == 0 else cl
