@@ -160,6 +160,21 @@ def _boundary_triangles(tris: np.ndarray) -> np.ndarray:
     return bnodes[tris].any(axis=1)
 
 
+#: |n_z| below which a mesh triangle may border a silhouette of its face in the view
+STEEP_NZ = 0.25
+
+
+def _steep_triangles(nodes: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """True for triangles steeper than ~75 degrees in the view (|n_z| < :data:`STEEP_NZ`)."""
+    if len(tris) == 0:
+        return np.zeros(0, dtype=np.bool_)
+    a, b, c = nodes[tris[:, 0]], nodes[tris[:, 1]], nodes[tris[:, 2]]
+    n = np.cross(b - a, c - a)
+    nn = np.linalg.norm(n, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return ~(np.abs(n[:, 2]) >= STEEP_NZ * nn)
+
+
 def _trim_slack_uv(packed, face_loops: dict[int, list[np.ndarray]], F: int,
                    tol_mm: np.ndarray | None = None) -> dict[int, np.ndarray]:
     """Per face, per loop edge, the uv distance across the edge that spans
@@ -380,6 +395,12 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
         tface_l.append(np.full(len(tri), k, dtype=np.int64))
         # a lattice covers the untrimmed domain: every solution is tested against the loops
         check = np.ones(len(tri), dtype=np.bool_) if on_lattice else _boundary_triangles(tri)
+        if fs.face_mode[k] == 1 and not on_lattice:
+            # a silhouette of the face seen from the view axis (a fold: the top of a torus
+            # seen from the side, a fillet's tangent line) lies up to the deflection outside
+            # the mesh's outline, where no triangle covers a grid row on it: steep triangles
+            # pair with points that far outside too, and their solutions are trim-tested
+            check |= _steep_triangles(np.asarray(m.nodes, dtype=np.float64), tri)
         check_l.append(check)
         # a mesh's boundary polygon may cut up to its deflection inside a curved trim
         # boundary: boundary triangles of an exact face pair with points that far outside
