@@ -103,6 +103,9 @@ cli.add_command(report_cmd)  # cad commands
 # verify command (zmap/verify/commands.py): compare a run's stock with its design
 from .verify.commands import compare_cmd  # noqa: E402  (verify command)
 cli.add_command(compare_cmd)  # verify command
+# cam command (zmap/cam/commands.py): raster finishing programs from a design
+from .cam.commands import toolpath_cmd  # noqa: E402  (cam command)
+cli.add_command(toolpath_cmd)  # cam command
 
 
 def _one_line(exc: BaseException) -> str:
