@@ -25,7 +25,7 @@ from cad_io.part import Part
 from zmap.access.voxelmap import (AccessModelError, AccessResult, Tool, VoxelMap, accessibility,
                                   global_visibility, set_cover, three_axis)
 
-__all__ = ["Samples", "surface_samples", "voxelize", "analyse", "reference_visibility",
+__all__ = ["Samples", "surface_samples", "voxelize", "analyse", "agreement", "reference_visibility",
            "reference_tool", "read_part"]
 
 
@@ -45,12 +45,42 @@ class Samples:
         return int(len(self.points))
 
 
-def _subdivide(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Barycentric (b1, b2) of the centroids of the n^2 sub-triangles of a triangle."""
-    up = [((i + 1 / 3) / n, (j + 1 / 3) / n) for i in range(n) for j in range(n - i)]
-    down = [((i + 2 / 3) / n, (j + 2 / 3) / n) for i in range(n - 1) for j in range(n - 1 - i)]
-    b = np.array(up + down)
-    return b[:, 0], b[:, 1]
+def _lattice(xyz: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sample points of triangles on a lattice of pitch ``step`` in each triangle's own frame.
+
+    Returns ``(tri, b1, b2)``: the triangle of each sample and its barycentric weights of
+    corners 1 and 2. Each triangle gets the lattice nodes inside it (its centroid when none).
+    """
+    a, b, c = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    e1 = b - a
+    l1 = np.linalg.norm(e1, axis=1)
+    ok = l1 > 0
+    e1 = np.where(ok[:, None], e1 / np.maximum(l1, 1e-300)[:, None], 0.0)
+    ac = c - a
+    x2 = np.einsum("ij,ij->i", ac, e1)
+    y2v = ac - x2[:, None] * e1
+    y2 = np.linalg.norm(y2v, axis=1)
+    # frame: a at (0, 0), b at (l1, 0), c at (x2, y2)
+    xmin, xmax = np.minimum(0.0, x2), np.maximum(l1, x2)
+    nxs = np.maximum(1, np.ceil((xmax - xmin) / step).astype(np.int64))
+    nys = np.maximum(1, np.ceil(y2 / step).astype(np.int64))
+    cnt = nxs * nys
+    tri = np.repeat(np.arange(len(xyz)), cnt)
+    local = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    ix, iy = local // nys[tri], local % nys[tri]
+    px = xmin[tri] + (ix + 0.5) * (xmax - xmin)[tri] / nxs[tri]
+    py = (iy + 0.5) * y2[tri] / nys[tri]
+    # barycentric of (px, py) in the frame triangle
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w2 = py / y2[tri]
+        w1 = (px - w2 * x2[tri]) / l1[tri]
+    keep = (w1 >= 0) & (w2 >= 0) & (w1 + w2 <= 1) & np.isfinite(w1) & np.isfinite(w2)
+    tri, w1, w2 = tri[keep], w1[keep], w2[keep]
+    empty = np.setdiff1d(np.arange(len(xyz)), tri)
+    tri = np.concatenate([tri, empty])
+    w1 = np.concatenate([w1, np.full(len(empty), 1 / 3)])
+    w2 = np.concatenate([w2, np.full(len(empty), 1 / 3)])
+    return tri, w1, w2
 
 
 def _curvatures(der: np.ndarray, normal: np.ndarray) -> np.ndarray:
@@ -98,45 +128,39 @@ def surface_samples(part: Part, step: float, *, deflection: float | None = None)
             continue
         tri = m.triangles
         xyz = m.nodes[tri]  # (t, 3, 3)
-        edge = np.max(np.linalg.norm(xyz - np.roll(xyz, 1, axis=1), axis=2), axis=1)
         area = 0.5 * np.linalg.norm(np.cross(xyz[:, 1] - xyz[:, 0], xyz[:, 2] - xyz[:, 0]), axis=1)
-        nsub = np.maximum(1, np.ceil(edge / step)).astype(np.int64)
         tnorm = np.cross(xyz[:, 1] - xyz[:, 0], xyz[:, 2] - xyz[:, 0])
-        for n in np.unique(nsub):
-            sel = np.flatnonzero(nsub == n)
-            b1, b2 = _subdivide(int(n))
-            w = (area[sel] / (n * n))[:, None] * np.ones(len(b1))
-            if face.surface is not None and m.uv is not None:
-                uv = m.uv[tri[sel]]  # (s, 3, 2)
-                u = uv[:, 0, 0, None] + b1 * (uv[:, 1, 0, None] - uv[:, 0, 0, None]) + b2 * (uv[:, 2, 0, None] - uv[:, 0, 0, None])
-                v = uv[:, 0, 1, None] + b1 * (uv[:, 1, 1, None] - uv[:, 0, 1, None]) + b2 * (uv[:, 2, 1, None] - uv[:, 0, 1, None])
-                der = evaluate_packed(packed, face.index, u.ravel(), v.ravel(), derivs=2)
-                cr = np.cross(der[:, 1], der[:, 2])
-                ln = np.linalg.norm(cr, axis=1)
-                fb = np.repeat(tnorm[sel], len(b1), axis=0)
-                scale = np.linalg.norm(der[:, 1], axis=1) * np.linalg.norm(der[:, 2], axis=1)
-                good = ln > 1e-9 * np.maximum(scale, 1e-300)
-                nrm = np.where(good[:, None], cr / np.maximum(ln, 1e-300)[:, None], 0.0)
-                if face.reversed:
-                    nrm = -nrm
-                # the mesh triangles are wound outward: agree with them where the NURBS is singular
-                fbn = fb / np.maximum(np.linalg.norm(fb, axis=1), 1e-300)[:, None]
-                nrm[~good] = fbn[~good]
-                k = _curvatures(der, nrm)
-                k[~good] = np.inf  # a singular point (a pole): no curvature, treated as too sharp
-                pts = der[:, 0]
-            else:
-                x0 = xyz[sel, 0][:, None]
-                pts = (x0 + b1[:, None] * (xyz[sel, 1] - xyz[sel, 0])[:, None]
-                       + b2[:, None] * (xyz[sel, 2] - xyz[sel, 0])[:, None]).reshape(-1, 3)
-                nrm = np.repeat(tnorm[sel] / np.maximum(np.linalg.norm(tnorm[sel], axis=1), 1e-300)[:, None],
-                                len(b1), axis=0)
-                k = np.zeros(len(pts))
-            P.append(pts)
-            Nn.append(nrm)
-            C.append(k)
-            Fc.append(np.full(len(pts), face.index, dtype=np.int64))
-            Wt.append(w.ravel())
+        tnorm /= np.maximum(np.linalg.norm(tnorm, axis=1), 1e-300)[:, None]
+        ti, b1, b2 = _lattice(xyz, step)
+        per = np.bincount(ti, minlength=len(tri))
+        w = area[ti] / per[ti]
+        b0 = 1.0 - b1 - b2
+        if face.surface is not None and m.uv is not None:
+            uv = m.uv[tri[ti]]  # (s, 3, 2)
+            u = b0 * uv[:, 0, 0] + b1 * uv[:, 1, 0] + b2 * uv[:, 2, 0]
+            v = b0 * uv[:, 0, 1] + b1 * uv[:, 1, 1] + b2 * uv[:, 2, 1]
+            der = evaluate_packed(packed, face.index, u, v, derivs=2)
+            cr = np.cross(der[:, 1], der[:, 2])
+            ln = np.linalg.norm(cr, axis=1)
+            scale = np.linalg.norm(der[:, 1], axis=1) * np.linalg.norm(der[:, 2], axis=1)
+            good = ln > 1e-9 * np.maximum(scale, 1e-300)
+            nrm = cr / np.maximum(ln, 1e-300)[:, None]
+            if face.reversed:
+                nrm = -nrm
+            # the mesh triangles are wound outward: use them where the NURBS is singular
+            nrm[~good] = tnorm[ti][~good]
+            k = _curvatures(der, nrm)
+            k[~good] = np.inf  # a singular point (a pole): no curvature, treated as too sharp
+            pts = der[:, 0]
+        else:
+            pts = b0[:, None] * xyz[ti, 0] + b1[:, None] * xyz[ti, 1] + b2[:, None] * xyz[ti, 2]
+            nrm = tnorm[ti]
+            k = np.zeros(len(pts))
+        P.append(pts)
+        Nn.append(nrm)
+        C.append(k)
+        Fc.append(np.full(len(pts), face.index, dtype=np.int64))
+        Wt.append(w)
     if not P:
         raise AccessModelError(f"{part.source or 'part'}: no face could be meshed for sampling")
     return Samples(np.concatenate(P), np.concatenate(Nn), np.concatenate(C), np.concatenate(Fc),
@@ -159,7 +183,7 @@ def _check_args(d, step, q) -> tuple[float, float, int]:
     return d, step, int(q)
 
 
-def voxelize(part: Part, d: float, *, step: float | None = None, q: int = 4, exact: bool = False,
+def voxelize(part: Part, d: float, *, step: float | None = None, q: int = 4, exact: bool = True,
              crease_deg: float = 10.0, check: bool = True) -> VoxelMap:
     """The visibility voxel map of ``part`` at voxel ``d`` (mm), sampled at ``step`` (d/4).
 
@@ -175,7 +199,7 @@ def voxelize(part: Part, d: float, *, step: float | None = None, q: int = 4, exa
 
 
 def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float | None = None,
-            cone: float | None = None, exact: bool = False, progress=None) -> AccessResult:
+            cone: float | None = None, exact: bool = True, progress=None) -> AccessResult:
     """The whole pipeline: voxel map, V'_g, A', 3-axis verdict and set-ups, with timings.
 
     ``progress(message)`` is called at each stage (the CLI prints it).
@@ -332,3 +356,42 @@ def reference_tool(shape: Any, points, normals, directions, tool: Tool, *, tol: 
                     continue
             out[i, j] = True
     return out
+
+
+def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int = 0,
+              tool: bool = False, samples: Samples | None = None) -> dict:
+    """Compare the voxel map with the OCC reference on random surface points x all k directions.
+
+    ``tool=False`` compares ``V'_g`` with thin rays (:func:`reference_visibility`); ``tool=True``
+    compares ``A'`` with :func:`reference_tool` (slow: one distance query per pair).
+
+    Returns
+    -------
+    dict
+        ``pairs``, ``agree_share``; ``voxel_only`` (the map says free, the reference blocked:
+        a non-conservative answer), split into ``voxel_only_near`` (the blocking hit within one
+        voxel diagonal of the point) and ``voxel_only_far``; ``reference_only`` (the map is
+        conservative there).
+    """
+    from zmap.access.directions import to_bool
+
+    vm = result.vm
+    ds = vm.directions
+    s = samples if samples is not None else surface_samples(part, vm.step)
+    rng = np.random.default_rng(seed)
+    vox = vm.voxel_of(s.points)
+    pick = rng.choice(np.flatnonzero(vox >= 0), size=min(n_points, int((vox >= 0).sum())), replace=False)
+    pts, nrm, vb = s.points[pick], s.normals[pick], vox[pick]
+    if tool:
+        ref = reference_tool(part.shape, pts, nrm, ds.normals, result.tool)
+        mine = to_bool(result.amap[vb], ds.k)
+        hit = np.where(ref, np.inf, 0.0)
+    else:
+        ref, hit = reference_visibility(part.shape, pts, ds.normals)
+        mine = to_bool(result.vg[vb], ds.k)
+    diag = np.sqrt(3.0) * vm.d
+    vo = mine & ~ref
+    return {"pairs": int(ref.size), "agree_share": float((mine == ref).mean()),
+            "voxel_only": int(vo.sum()), "voxel_only_near": int((vo & (hit <= diag)).sum()),
+            "voxel_only_far": int((vo & (hit > diag)).sum()), "reference_only": int((ref & ~mine).sum()),
+            "points": pts, "voxels": vb}

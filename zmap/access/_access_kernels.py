@@ -11,15 +11,15 @@ from numba import njit, prange
 
 from ._direction_kernels import lookup_one
 
-__all__ = ["accumulate", "paint_exterior", "cast_directions", "ball_neighbours", "access_kernel",
-           "orientation_votes"]
+__all__ = ["accumulate", "paint_exterior", "cast_directions", "ball_neighbours", "local_conditions",
+           "tool_kernel", "greedy_cover", "orientation_votes"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
 
 
 @njit(cache=True)
 def accumulate(vox, pts, nrm, kmax, face, weight, centres, frames, q, hv, hl, exact, dirs,
-               vl, light, curv, surf, crease, cos_crease, psum, nsum, area, nsamp, first):
+               vl, light, curv, surf, crease, cos_crease, psum, nsum, area, nsamp, first, pmin, pmax):
     """Fold each sample into its boundary voxel: V' &= H_V(t), L' |= H_L(t), curvature, surface.
 
     ``vox[s]`` is the boundary voxel of sample s; ``exact`` = 1 replaces H_V / H_L of the tessel
@@ -57,6 +57,10 @@ def accumulate(vox, pts, nrm, kmax, face, weight, centres, frames, q, hv, hl, ex
         nsamp[b] += 1
         for c in range(3):
             psum[b, c] += pts[s, c]
+            if pts[s, c] < pmin[b, c]:
+                pmin[b, c] = pts[s, c]
+            if pts[s, c] > pmax[b, c]:
+                pmax[b, c] = pts[s, c]
             nsum[b, c] += nrm[s, c]
         area[b] += weight[s]
 
@@ -142,18 +146,18 @@ def orientation_votes(pts, nrm, face, origin, d, state, out):
 
 
 @njit(cache=True, inline="always")
-def _slab(bx, by, bz, nx, ny, nz, cx, cy, cz, h):
+def _slab(bx, by, bz, nx, ny, nz, cx, cy, cz, hx, hy, hz):
     """Parameter interval [s0, s1] of the line base + s n inside the cube (centre c, half h);
     s0 > s1 when it misses."""
     s0 = -1.0e300
     s1 = 1.0e300
     for m in range(3):
         if m == 0:
-            b, n, c = bx, nx, cx
+            b, n, c, h = bx, nx, cx, hx
         elif m == 1:
-            b, n, c = by, ny, cy
+            b, n, c, h = by, ny, cy, hy
         else:
-            b, n, c = bz, nz, cz
+            b, n, c, h = bz, nz, cz, hz
         if abs(n) < 1e-12:
             if abs(b - c) > h:
                 return 1.0, -1.0
@@ -188,34 +192,36 @@ def _basis(nx, ny, nz):
 
 
 @njit(cache=True, parallel=True)
-def cast_directions(dirs, opp, bxyz, skin, light, vl, d, cell, radius, lo, out):
+def cast_directions(dirs, opp, bxyz, bhalf, skin, light, vl, d, cell, radius, lo, out):
     """Cylinder casting of paper 002 §4.5 for every direction at once, one depth buffer each.
 
-    For direction n: the lines parallel to n through the cell centres of a plane grid (pitch
-    ``cell``) are the cylinder's rays. Blockers are the interior skin voxels and the boundary
-    voxels w with -n in L'(w); per line the buffer keeps the largest exit parameter of a
-    blocker cube (and the second largest with the blocker's number, to skip v itself). Voxel v
-    keeps n when no line through its cube meets a blocker cube ahead of v's entry.
-    ``out[i, b]`` = 1 where direction i stays in V'_g(b); ``opp[i]`` is the index of -dirs[i].
+    For direction n, the lines parallel to n through the cell centres of a plane grid of
+    pitch ``cell`` stand for the cylinder's rays. Blockers are the interior skin voxels
+    (cubes) and the boundary voxels w with -n in L'(w) (their surface boxes). Per line the
+    buffer keeps the largest exit parameter of a blocker box (and the second largest with the
+    blocker's number, to skip v itself). Voxel v keeps n when no line through its box meets
+    a blocker box beyond v's entry. Every box is grown by half a cell diagonal first, so that
+    a true ray from v's box into a blocker's shows on the centre line of its cell: the test
+    is conservative. ``out[i, b]`` = 1 where direction i stays in V'_g(b); ``opp[i]`` is the
+    index of -dirs[i].
 
-    bxyz : (mb, 3) boundary voxel centres; skin : (ms, 3) interior skin voxel centres;
-    radius : half the diagonal of the part's box (projected extents are within it);
-    lo : (3,) centre of the part's box.
+    bxyz, bhalf : (mb, 3) centres and half extents of the boundary voxels' surface boxes;
+    skin : (ms, 3) interior skin voxel centres (cubes of edge d);
+    radius : half the diagonal of the part's box; lo : (3,) centre of the part's box.
     """
     k = dirs.shape[0]
     mb = bxyz.shape[0]
     ms = skin.shape[0]
+    g = 0.5 * np.sqrt(2.0) * cell
     h = 0.5 * d
+    u0 = -(radius + 2 * d)
     nc = int(np.ceil(2.0 * (radius + 2 * d) / cell)) + 1
     for i in prange(k):
         nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
         ex, ey, ez, fx, fy, fz = _basis(nx, ny, nz)
-        u0 = -(radius + 2 * d)
         b1 = np.full((nc, nc), -1.0e300)
         b2 = np.full((nc, nc), -1.0e300)
         id1 = np.full((nc, nc), -1, dtype=np.int64)
-        ae = h * (abs(ex) + abs(ey) + abs(ez))
-        af = h * (abs(fx) + abs(fy) + abs(fz))
         wi = i >> 6
         o = opp[i]
         ow = o >> 6
@@ -225,8 +231,12 @@ def cast_directions(dirs, opp, bxyz, skin, light, vl, d, cell, radius, lo, out):
                 if (light[m, ow] >> ob) & np.uint64(1) == 0:
                     continue
                 cx, cy, cz = bxyz[m, 0], bxyz[m, 1], bxyz[m, 2]
+                hx, hy, hz = bhalf[m, 0] + g, bhalf[m, 1] + g, bhalf[m, 2] + g
             else:
                 cx, cy, cz = skin[m - mb, 0], skin[m - mb, 1], skin[m - mb, 2]
+                hx, hy, hz = h, h, h
+            ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
+            af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
             rx, ry, rz = cx - lo[0], cy - lo[1], cz - lo[2]
             pu = rx * ex + ry * ey + rz * ez
             pv = rx * fx + ry * fy + rz * fz
@@ -238,10 +248,8 @@ def cast_directions(dirs, opp, bxyz, skin, light, vl, d, cell, radius, lo, out):
                 uc = u0 + (a + 0.5) * cell
                 for b in range(ja, jb + 1):
                     vc = u0 + (b + 0.5) * cell
-                    bx = uc * ex + vc * fx
-                    by = uc * ey + vc * fy
-                    bz = uc * ez + vc * fz
-                    s0, s1 = _slab(bx, by, bz, nx, ny, nz, rx, ry, rz, h)
+                    s0, s1 = _slab(uc * ex + vc * fx, uc * ey + vc * fy, uc * ez + vc * fz, nx, ny, nz,
+                                   rx, ry, rz, hx, hy, hz)
                     if s0 >= s1:
                         continue
                     if s1 > b1[a, b]:
@@ -257,6 +265,9 @@ def cast_directions(dirs, opp, bxyz, skin, light, vl, d, cell, radius, lo, out):
                 out[i, m] = 0
                 continue
             rx, ry, rz = bxyz[m, 0] - lo[0], bxyz[m, 1] - lo[1], bxyz[m, 2] - lo[2]
+            hx, hy, hz = bhalf[m, 0], bhalf[m, 1], bhalf[m, 2]
+            ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
+            af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
             pu = rx * ex + ry * ey + rz * ez
             pv = rx * fx + ry * fy + rz * fz
             ia = max(0, int(np.floor((pu - ae - u0) / cell)))
@@ -264,22 +275,31 @@ def cast_directions(dirs, opp, bxyz, skin, light, vl, d, cell, radius, lo, out):
             ja = max(0, int(np.floor((pv - af - u0) / cell)))
             jb = min(nc - 1, int(np.floor((pv + af - u0) / cell)))
             ok = 1
+            hits = 0
             for a in range(ia, ib + 1):
                 if ok == 0:
                     break
                 uc = u0 + (a + 0.5) * cell
                 for b in range(ja, jb + 1):
                     vc = u0 + (b + 0.5) * cell
-                    bx = uc * ex + vc * fx
-                    by = uc * ey + vc * fy
-                    bz = uc * ez + vc * fz
-                    s0, s1 = _slab(bx, by, bz, nx, ny, nz, rx, ry, rz, h)
+                    s0, s1 = _slab(uc * ex + vc * fx, uc * ey + vc * fy, uc * ez + vc * fz, nx, ny, nz,
+                                   rx, ry, rz, hx, hy, hz)
                     if s0 >= s1:
                         continue
+                    hits += 1
                     top = b2[a, b] if id1[a, b] == m else b1[a, b]
                     if top > s0 + eps:
                         ok = 0
                         break
+            if hits == 0:
+                # a box thinner than the cell: no centre line crosses it; test the cell under
+                # its centre from its nearest depth
+                a = min(nc - 1, max(0, int(np.floor((pu - u0) / cell))))
+                b = min(nc - 1, max(0, int(np.floor((pv - u0) / cell))))
+                s0 = rx * nx + ry * ny + rz * nz - (hx * abs(nx) + hy * abs(ny) + hz * abs(nz))
+                top = b2[a, b] if id1[a, b] == m else b1[a, b]
+                if top > s0 + eps:
+                    ok = 0
             out[i, m] = ok
 
 
@@ -322,86 +342,147 @@ def ball_neighbours(centre, origin, d, index, state, r_in, r_out, ptr, nb, insid
 
 
 @njit(cache=True, parallel=True)
-def access_kernel(dirs, vg, bxyz, centre, ptr, nb, inside, curv, crease, kmax_ok, occ, d,
-                  a, cell2, stick, holder_r, lo, radius, check_holder, out):
-    """Accessibility map A' for a ball-end tool: per direction, the paper's three conditions
-    over E_n(v) and the shank / holder cylinders against a max-depth buffer of the occupied
-    (boundary and interior skin) voxels. ``out[i, b]`` = 1 where direction i is in A'(b)."""
-    k = dirs.shape[0]
+def local_conditions(vg, bxyz, centre, ptr, nb, inside, bad, cap, centres, frames, q, out):
+    """Conditions 1-3 of paper 002 §4.6 as bitsets, for all directions at once.
+
+    w of the shell list of v belongs to E_n(v) unless n lies in ``cap[t]`` (t: the tessel of
+    x_w - c_v), the directions for which w lies beyond the eraser's equator. So
+    ``A(v) = V'_g(v) & AND_w (V'_g(w) | cap[t_w])`` with ``V'_g(w)`` replaced by nothing where
+    w is bad (curvature above 1/a, crease); v itself must not be bad, and the ball must fit.
+    """
     mb = bxyz.shape[0]
+    W = vg.shape[1]
+    for b in prange(mb):
+        for w in range(W):
+            out[b, w] = np.uint64(0) if (inside[b] or bad[b]) else vg[b, w]
+        if inside[b] or bad[b]:
+            continue
+        cx, cy, cz = centre[b, 0], centre[b, 1], centre[b, 2]
+        for e in range(ptr[b], ptr[b + 1]):
+            m = nb[e]
+            t = lookup_one(bxyz[m, 0] - cx, bxyz[m, 1] - cy, bxyz[m, 2] - cz, centres, frames, q)
+            if bad[m]:
+                for w in range(W):
+                    out[b, w] &= cap[t, w]
+            else:
+                for w in range(W):
+                    out[b, w] &= vg[m, w] | cap[t, w]
+
+
+@njit(cache=True, inline="always")
+def _rasterise_max(buf, u0, cell, pu, pv, ae, af, top):
+    nc = buf.shape[0]
+    ia = max(0, int(np.floor((pu - ae - u0) / cell)))
+    ib = min(nc - 1, int(np.floor((pu + ae - u0) / cell)))
+    ja = max(0, int(np.floor((pv - af - u0) / cell)))
+    jb = min(nc - 1, int(np.floor((pv + af - u0) / cell)))
+    for p in range(ia, ib + 1):
+        for r in range(ja, jb + 1):
+            if top > buf[p, r]:
+                buf[p, r] = top
+
+
+@njit(cache=True, inline="always")
+def _disc_clear(buf, u0, cell, pu, pv, rr, h0):
+    """True when no buffer cell meeting the disc (centre pu, pv, radius rr) is above h0."""
+    nc = buf.shape[0]
+    ia = max(0, int(np.floor((pu - rr - u0) / cell)))
+    ib = min(nc - 1, int(np.floor((pu + rr - u0) / cell)))
+    ja = max(0, int(np.floor((pv - rr - u0) / cell)))
+    jb = min(nc - 1, int(np.floor((pv + rr - u0) / cell)))
+    r2 = rr * rr
+    for p in range(ia, ib + 1):
+        ua = u0 + p * cell
+        du = 0.0 if ua <= pu <= ua + cell else min(abs(ua - pu), abs(ua + cell - pu))
+        for r in range(ja, jb + 1):
+            va = u0 + r * cell
+            dv = 0.0 if va <= pv <= va + cell else min(abs(va - pv), abs(va + cell - pv))
+            if du * du + dv * dv >= r2:
+                continue
+            if buf[p, r] > h0:
+                return False
+    return True
+
+
+@njit(cache=True, parallel=True)
+def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, holder_r, lo, radius, out):
+    """Shank and holder cylinders: per direction, max-depth buffers of the occupied voxels
+    (boundary sample boxes and interior skin cubes: footprint box and far end along n), at pitch
+    ``cell`` for the shank (radius a, from the ball's centre up) and ``cell_h`` for the holder
+    (radius holder_r, from ``stick`` above the ball's centre up; holder_r = 0: none).
+    ``out[i, b]`` = 1 where direction i of ``local[b]`` survives."""
+    k = dirs.shape[0]
+    mb = centre.shape[0]
     h = 0.5 * d
-    hd = np.sqrt(3.0) * h
-    u0 = -(radius + 2 * d + holder_r)
-    nc = int(np.ceil(-2.0 * u0 / cell2)) + 1
+    u0 = -(radius + 2 * d + holder_r + cell_h)
+    nc = int(np.ceil(-2.0 * u0 / cell)) + 1
+    nch = int(np.ceil(-2.0 * u0 / cell_h)) + 1
     for i in prange(k):
         nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
         wi = i >> 6
         bit = np.uint64(i & 63)
         ex, ey, ez, fx, fy, fz = _basis(nx, ny, nz)
         buf = np.full((nc, nc), -1.0e300)
-        ext = h * (abs(nx) + abs(ny) + abs(nz))
-        ae = h * (abs(ex) + abs(ey) + abs(ez))
-        af = h * (abs(fx) + abs(fy) + abs(fz))
+        bufh = np.full((nch, nch), -1.0e300)
         for m in range(occ.shape[0]):
+            hx, hy, hz = ohalf[m, 0], ohalf[m, 1], ohalf[m, 2]
+            ext = hx * abs(nx) + hy * abs(ny) + hz * abs(nz)
+            ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
+            af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
             rx, ry, rz = occ[m, 0] - lo[0], occ[m, 1] - lo[1], occ[m, 2] - lo[2]
             pu = rx * ex + ry * ey + rz * ez
             pv = rx * fx + ry * fy + rz * fz
             top = rx * nx + ry * ny + rz * nz + ext
-            ia = max(0, int(np.floor((pu - ae - u0) / cell2)))
-            ib = min(nc - 1, int(np.floor((pu + ae - u0) / cell2)))
-            ja = max(0, int(np.floor((pv - af - u0) / cell2)))
-            jb = min(nc - 1, int(np.floor((pv + af - u0) / cell2)))
-            for p in range(ia, ib + 1):
-                for q in range(ja, jb + 1):
-                    if top > buf[p, q]:
-                        buf[p, q] = top
+            _rasterise_max(buf, u0, cell, pu, pv, ae, af, top)
+            if holder_r > 0:
+                _rasterise_max(bufh, u0, cell_h, pu, pv, ae, af, top)
         for b in range(mb):
             out[i, b] = 0
-            if inside[b] or (vg[b, wi] >> bit) & np.uint64(1) == 0:
+            if (local[b, wi] >> bit) & np.uint64(1) == 0:
                 continue
-            cx, cy, cz = centre[b, 0], centre[b, 1], centre[b, 2]
-            ok = 1
-            # conditions 1-3 over E_n(v): shell voxels on the eraser's lower side, and v
-            for e in range(ptr[b], ptr[b + 1]):
-                w = nb[e]
-                if (bxyz[w, 0] - cx) * nx + (bxyz[w, 1] - cy) * ny + (bxyz[w, 2] - cz) * nz > hd:
-                    continue
-                if (vg[w, wi] >> bit) & np.uint64(1) == 0 or curv[w] > kmax_ok or crease[w]:
-                    ok = 0
-                    break
-            if ok == 0 or curv[b] > kmax_ok or crease[b]:
-                continue
-            # shank (radius a, from the ball's centre up) and holder (radius holder_r, from
-            # the stick-out up): no occupied voxel may reach above their bottoms
-            rx, ry, rz = cx - lo[0], cy - lo[1], cz - lo[2]
+            rx, ry, rz = centre[b, 0] - lo[0], centre[b, 1] - lo[1], centre[b, 2] - lo[2]
             pu = rx * ex + ry * ey + rz * ez
             pv = rx * fx + ry * fy + rz * fz
             hc = rx * nx + ry * ny + rz * nz
-            for stage in range(2):
-                if stage == 0:
-                    rr, h0 = a, hc
-                else:
-                    if check_holder == 0:
-                        break
-                    rr, h0 = holder_r, hc + stick
-                ia = max(0, int(np.floor((pu - rr - u0) / cell2)))
-                ib = min(nc - 1, int(np.floor((pu + rr - u0) / cell2)))
-                ja = max(0, int(np.floor((pv - rr - u0) / cell2)))
-                jb = min(nc - 1, int(np.floor((pv + rr - u0) / cell2)))
-                for p in range(ia, ib + 1):
-                    if ok == 0:
-                        break
-                    # nearest point of the cell to the axis, within the radius?
-                    ua = u0 + p * cell2
-                    du = 0.0 if ua <= pu <= ua + cell2 else min(abs(ua - pu), abs(ua + cell2 - pu))
-                    for q in range(ja, jb + 1):
-                        va = u0 + q * cell2
-                        dv = 0.0 if va <= pv <= va + cell2 else min(abs(va - pv), abs(va + cell2 - pv))
-                        if du * du + dv * dv >= rr * rr:
-                            continue
-                        if buf[p, q] > h0:
-                            ok = 0
-                            break
-                if ok == 0:
-                    break
-            out[i, b] = ok
+            if not _disc_clear(buf, u0, cell, pu, pv, a, hc):
+                continue
+            if holder_r > 0 and not _disc_clear(bufh, u0, cell_h, pu, pv, holder_r, hc + stick):
+                continue
+            out[i, b] = 1
+
+
+@njit(cache=True)
+def greedy_cover(amap, area, cand, max_setups, chosen, gains):
+    """Greedy set cover by area over bitsets: gains kept up to date by subtracting the voxels
+    each choice covers. Returns the number chosen; ``chosen[s]`` the direction of set-up s and
+    ``gains[s]`` the area it newly covered."""
+    mb, W = amap.shape
+    k = cand.shape[0]
+    gain = np.zeros(k)
+    left = np.zeros(mb, dtype=np.uint8)
+    for b in range(mb):
+        for i in range(k):
+            if cand[i] and (amap[b, i >> 6] >> np.uint64(i & 63)) & np.uint64(1):
+                gain[i] += area[b]
+                left[b] = 1
+    n = 0
+    while n < max_setups:
+        j = -1
+        best = 0.0
+        for i in range(k):
+            if gain[i] > best:
+                best = gain[i]
+                j = i
+        if j < 0:
+            break
+        chosen[n] = j
+        gains[n] = best
+        n += 1
+        for b in range(mb):
+            if left[b] and (amap[b, j >> 6] >> np.uint64(j & 63)) & np.uint64(1):
+                left[b] = 0
+                for i in range(k):
+                    if cand[i] and (amap[b, i >> 6] >> np.uint64(i & 63)) & np.uint64(1):
+                        gain[i] -= area[b]
+        gain[j] = 0.0
+    return n

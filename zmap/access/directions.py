@@ -10,7 +10,9 @@ Precomputed, as in the paper: ``H(v) = {n in N : n . v > 0}`` for every vertex, 
 ``t = (v1, v2, v3)`` its visibility hemisphere ``H_V(t) = H(v1) & H(v2) & H(v3)`` and light
 hemisphere ``H_L(t) = H(v1) | H(v2) | H(v3)``. :meth:`DirectionSet.lookup` finds the tessel
 whose patch holds a direction in O(1): the nearest of the 20 face centres, then the flat
-barycentric coordinates of the direction's hit with that face's plane.
+barycentric coordinates of the direction's hit with that face's plane. The icosahedron is
+turned so that a face centre points along +z: when 3 does not divide q, +z and -z are
+directions of the set.
 
 Examples
 --------
@@ -42,6 +44,16 @@ def _icosahedron() -> tuple[np.ndarray, np.ndarray]:
                   [0, -1, p], [0, 1, p], [0, -1, -p], [0, 1, -p],
                   [p, 0, -1], [p, 0, 1], [-p, 0, -1], [-p, 0, 1]], dtype=np.float64)
     v /= np.linalg.norm(v, axis=1)[:, None]
+    # turn face 0's centre onto +z (and so face 0's opposite onto -z): when 3 does not divide
+    # q, +z and -z are then exact directions of the set (centres of the middle sub-triangles)
+    c = v[[0, 11, 5]].sum(axis=0)
+    c /= np.linalg.norm(c)
+    axis = np.cross(c, [0.0, 0.0, 1.0])
+    s, co = np.linalg.norm(axis), c[2]
+    axis /= s
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    R = np.eye(3) + s * K + (1 - co) * K @ K
+    v = v @ R.T
     f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11],
                   [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
                   [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],

@@ -1,0 +1,233 @@
+"""The voxel map without the CAD kernel: analytic samples of boxes and spheres."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from zmap.access.directions import count, to_bool
+from zmap.access.voxelmap import (AccessModelError, Tool, VoxelMap, accessibility, global_visibility,
+                                  node_directions, paint, parse_holder, parse_tool, set_cover, three_axis)
+
+
+def box_samples(lo, hi, step, *, flip=(), fid0=0):
+    """Samples of the six faces of an axis box (outward normals; faces in ``flip`` inward)."""
+    P, N, F = [], [], []
+    fid = fid0
+    for ax in range(3):
+        for side in (0, 1):
+            o = [a for a in range(3) if a != ax]
+            u = np.arange(lo[o[0]] + step / 2, hi[o[0]], step)
+            v = np.arange(lo[o[1]] + step / 2, hi[o[1]], step)
+            U, V = np.meshgrid(u, v, indexing="ij")
+            p = np.zeros(U.shape + (3,))
+            p[..., o[0]], p[..., o[1]] = U, V
+            p[..., ax] = hi[ax] if side else lo[ax]
+            n = np.zeros(3)
+            n[ax] = 1.0 if side else -1.0
+            if fid - fid0 in flip:
+                n = -n
+            P.append(p.reshape(-1, 3))
+            N.append(np.tile(n, (p.size // 3, 1)))
+            F.append(np.full(p.size // 3, fid))
+            fid += 1
+    P, N, F = np.concatenate(P), np.concatenate(N), np.concatenate(F)
+    return P, N, np.full(len(P), -0.0), F, np.full(len(P), step * step)
+
+
+def sphere_samples(centre, r, n, seed=0, fid=0):
+    rng = np.random.default_rng(seed)
+    p = rng.normal(size=(n, 3))
+    p /= np.linalg.norm(p, axis=1)[:, None]
+    return (np.asarray(centre) + r * p, p, np.full(n, -1.0 / r), np.full(n, fid),
+            np.full(n, 4 * np.pi * r * r / n))
+
+
+@pytest.fixture(scope="module")
+def box():
+    vm = VoxelMap.from_samples(*box_samples(np.zeros(3), np.array([12.0, 10.0, 6.0]), 0.2), d=0.8, q=2,
+                               step=0.2)
+    vg = global_visibility(vm)
+    return vm, vg
+
+
+def test_paint_spreading_of_a_hollow_cube():
+    b = np.zeros((6, 6, 6), bool)
+    b[1:5, 1:5, 1:5] = True
+    b[2:4, 2:4, 2:4] = False
+    st = paint(b)
+    assert (st == 2).sum() == 8 and (st == 1).sum() == b.sum() and (st == 0).sum() == 216 - 64
+
+
+def test_box_classification_and_local_maps(box):
+    vm, vg = box
+    assert vm.n_interior > 0
+    # every interior voxel lies strictly inside the box, every exterior one outside it
+    c = vm.origin + vm.d * (np.argwhere(vm.state == 2) + 0.5)
+    assert ((c > 0) & (c < [12, 10, 6])).all()
+    # V'_g is within V'_l, and on a convex box V'_l is each face's open hemisphere
+    assert not (vg & ~vm.vl).any()
+    ds = vm.directions
+    top = vm.voxel_of([[6.0, 5.0, 6.0]])[0]
+    assert (to_bool(vm.vl[top], ds.k) == (ds.normals[:, 2] > 0)).all()
+    # a convex part hides nothing from a face centre: V'_g = V'_l there
+    assert (vg[top] == vm.vl[top]).all()
+    assert vm.surface[top] == 5 and not vm.crease[top]
+    edge = vm.voxel_of([[6.0, 0.0, 6.0]])[0]
+    assert vm.surface[edge] == -1 and vm.crease[edge]
+
+
+def test_box_access_verdict_and_setups(box):
+    vm, vg = box
+    A = accessibility(vm, vg, Tool(2.0))
+    assert not (A & ~vg).any()  # A' within V'_g
+    v = three_axis(vm, A)
+    top_area = 12 * 10
+    # the top face, less a band of about one ball radius plus a voxel at its edges, is reachable
+    assert 0.5 * top_area < v["area_reachable"] <= top_area + 1e-9
+    assert v["area_total"] == pytest.approx(2 * (120 + 72 + 60), rel=1e-9)
+    setups = set_cover(vm, A)
+    covered = sum(s["area"] for s in setups)
+    assert covered == pytest.approx(v["area_reachable"] + v["area_other"], rel=1e-9)
+    # the first set-up looks at one of the two largest faces (top or bottom, 120 mm^2 each)
+    assert abs(setups[0]["vector"][2]) > 0.9 and setups[0]["area"] >= 0.5 * top_area
+    assert all(a["area"] >= b["area"] for a, b in zip(setups, setups[1:]))
+    # a tilt cone of 30 degrees about +z reaches only the top
+    cone = set_cover(vm, A, cone=np.radians(30))
+    got = np.concatenate([c["voxels"] for c in cone])
+    assert (vm.point[got, 2] > 5.0).all()  # the top face, or the edge voxels beside it
+    assert sum(c["area"] for c in cone) >= v["area_reachable"] - 1e-9
+    assert all(np.degrees(np.arccos(c["vector"][2])) <= 30 + 1e-9 for c in cone)
+    vox, n = node_directions(vm, A, np.array([6.0, 50.0]), np.array([5.0, 5.0]))
+    assert vox[0] == vm.voxel_of([[6.0, 5.0, 6.0]])[0] and vox[1] == -1 and n[1] == 0 and n[0] > 0
+
+
+def bowl_samples(r=6.0, half=10.0, depth=10.0, step=0.15):
+    """A block [-half, half]^2 x [-depth, 0] with a hemispherical cavity of radius r at the origin."""
+    P, N, F = [], [], []
+    g = np.arange(-half + step / 2, half, step)
+    X, Y = np.meshgrid(g, g, indexing="ij")
+    top = np.hypot(X, Y) > r
+    P.append(np.c_[X[top], Y[top], np.zeros(top.sum())])
+    N.append(np.tile([0, 0, 1.0], (top.sum(), 1)))
+    F.append(np.zeros(top.sum(), int))
+    P.append(np.c_[X.ravel(), Y.ravel(), np.full(X.size, -depth)])
+    N.append(np.tile([0, 0, -1.0], (X.size, 1)))
+    F.append(np.ones(X.size, int))
+    zz = np.arange(-depth + step / 2, 0, step)
+    A, Z = np.meshgrid(g, zz, indexing="ij")
+    for f, (ax, sgn) in enumerate(((0, 1), (0, -1), (1, 1), (1, -1))):
+        p = np.zeros((A.size, 3))
+        p[:, ax] = sgn * half
+        p[:, 1 - ax] = A.ravel()
+        p[:, 2] = Z.ravel()
+        n = np.zeros(3)
+        n[ax] = sgn
+        P.append(p)
+        N.append(np.tile(n, (A.size, 1)))
+        F.append(np.full(A.size, 2 + f))
+    m = int(2 * np.pi * r * r / (step * step))
+    rng = np.random.default_rng(5)
+    u = rng.normal(size=(m, 3))
+    u[:, 2] = -np.abs(u[:, 2])
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    P.append(r * u)
+    N.append(-u)
+    F.append(np.full(m, 6))
+    P, N, F = np.concatenate(P), np.concatenate(N), np.concatenate(F)
+    k = np.where(F == 6, 1.0 / r, 0.0)
+    w = np.full(len(P), step * step)
+    w[F == 6] = 2 * np.pi * r * r / m
+    return P, N, k, F, w
+
+
+@pytest.fixture(scope="module")
+def bowl():
+    vm = VoxelMap.from_samples(*bowl_samples(), d=0.5, q=3, step=0.15)
+    return vm, global_visibility(vm)
+
+
+def test_bowl_bottom_sees_a_cone_of_45_degrees(bowl):
+    """Thin rays from the bottom of a hemispherical cavity escape within 45 degrees of +z."""
+    vm, vg = bowl
+    ds = vm.directions
+    b = vm.voxel_of([[0.0, 0.0, -6.0]])[0]
+    got = to_bool(vg[b], ds.k)
+    tilt = np.degrees(np.arccos(np.clip(ds.normals[:, 2], -1, 1)))
+    # conservative: nothing beyond the cone (plus the voxel's own spread, 0.5 mm over 6 mm)
+    assert not (got & (tilt > 45 + 6)).any()
+    # and it keeps the cone's core
+    assert got[tilt < 45 - 12].all()
+
+
+def test_bowl_access_shrinks_as_the_ball_grows(bowl):
+    vm, vg = bowl
+    cav = vm.surface == 6
+    maps = [accessibility(vm, vg, Tool(dia)) for dia in (4.0, 6.0, 9.0, 13.0)]
+    counts = [int(count(m[cav]).sum()) for m in maps]
+    assert counts[0] >= counts[1] >= counts[2] > counts[3] == 0  # a 13 mm ball does not fit in r = 6
+    # not pair by pair: the ball's centre moves with a, so E_n(v) and the shank's start are
+    # not nested, and the voxel margins weigh more on a small ball (see the hand-over note)
+    # the curvature condition: the 13 mm ball is refused for the curvature 1/6 > 1/6.5
+    assert (vm.curvature[cav] == pytest.approx(1 / 6.0))
+
+
+def test_open_surface_and_pieces_are_reported():
+    p, n, k, f, w = box_samples(np.zeros(3), np.array([6.0, 6.0, 6.0]), 0.2)
+    keep = f != 5  # no top face: the paint leaks in
+    with pytest.raises(AccessModelError, match="no interior voxels"):
+        VoxelMap.from_samples(p[keep], n[keep], k[keep], f[keep], w[keep], d=1.0, q=1, step=0.2)
+    a = box_samples(np.zeros(3), np.array([4.0, 4.0, 4.0]), 0.2)
+    b = box_samples(np.array([10.0, 0, 0]), np.array([14.0, 4.0, 4.0]), 0.2, fid0=6)
+    both = [np.concatenate([x, y]) for x, y in zip(a, b)]
+    with pytest.raises(AccessModelError, match=r"2 pieces .* faces 6-11 near \(12.0, 2.0, 2.0\)"):
+        VoxelMap.from_samples(*both, d=1.0, q=1, step=0.2)
+
+
+def test_inward_faces_are_turned_and_mixed_ones_refused():
+    vm = VoxelMap.from_samples(*box_samples(np.zeros(3), np.array([6.0, 6.0, 6.0]), 0.2, flip=(5,)),
+                               d=1.0, q=2, step=0.2)
+    assert vm.flipped == [5]
+    top = vm.voxel_of([[3.0, 3.0, 6.0]])[0]
+    assert vm.normal[top] @ [0, 0, 1] > 0.99
+    p, n, k, f, w = box_samples(np.zeros(3), np.array([6.0, 6.0, 6.0]), 0.2)
+    half = (f == 5) & (p[:, 0] < 3)
+    n[half] *= -1
+    with pytest.raises(AccessModelError, match=r"no consistent outward side: face 5"):
+        VoxelMap.from_samples(p, n, k, f, w, d=1.0, q=2, step=0.2)
+
+
+@pytest.mark.parametrize("kw,match", [(dict(d=0.0), "voxel size d must be a positive"),
+                                      (dict(d=-1.0), "voxel size d must be a positive"),
+                                      (dict(d=1.0, step=1.0), "d' must be positive and smaller"),
+                                      (dict(d=1.0, q=0), "q must be an integer >= 1")])
+def test_bad_arguments(kw, match):
+    args = dict(d=1.0, q=1, step=0.2)
+    args.update(kw)
+    with pytest.raises(AccessModelError, match=match):
+        VoxelMap.from_samples(*box_samples(np.zeros(3), np.array([3.0, 3.0, 3.0]), 0.2), **args)
+
+
+def test_tool_larger_than_the_part(box):
+    vm, vg = box
+    with pytest.raises(AccessModelError, match="tool diameter 40 mm is larger than the part"):
+        accessibility(vm, vg, Tool(40.0))
+
+
+@pytest.mark.parametrize("spec,value", [("ball:6", 6.0), ("ball:0.5", 0.5)])
+def test_parse_tool(spec, value):
+    assert parse_tool(spec) == value
+
+
+@pytest.mark.parametrize("spec", ["flat:6", "ball:-2", "ball:", "ball:x", "6"])
+def test_parse_tool_refuses(spec):
+    with pytest.raises(AccessModelError, match="is not 'ball:DIAMETER'"):
+        parse_tool(spec)
+
+
+def test_parse_holder():
+    assert parse_holder("20x40") == (20.0, 40.0)
+    with pytest.raises(AccessModelError, match="DIAMETERxLENGTH"):
+        parse_holder("20")
+    with pytest.raises(AccessModelError, match="holder diameter 4 mm is smaller"):
+        Tool(6.0, holder_diameter=4.0, holder_length=10.0)
