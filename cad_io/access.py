@@ -234,7 +234,8 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     setups = set_cover(vm, amap, cone=cone)
     sec["setups"] = time.perf_counter() - t
     sec["total"] = time.perf_counter() - t0
-    return AccessResult(vm=vm, vg=vg, amap=amap, tool=tool, verdict=verdict, setups=setups, seconds=sec)
+    return AccessResult(vm=vm, vg=vg, amap=amap, tool=tool, verdict=verdict, setups=setups, seconds=sec,
+                        source=str(part.source or ""))
 
 
 def read_part(path) -> Part:

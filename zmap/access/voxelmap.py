@@ -669,6 +669,39 @@ class AccessResult:
     verdict: dict
     setups: list
     seconds: dict
+    source: str = ""
+
+    def summary(self) -> str:
+        """A markdown table of the verdict and the set-ups."""
+        v = self.verdict
+        tot = v["area_total"]
+        lines = ["| figure | value |", "|---|---:|",
+                 f"| surface area | {tot:,.1f} mm^2 |",
+                 f"| reachable from +z (3-axis) | {v['area_reachable']:,.1f} mm^2 ({100 * v['share']:.1f} %) |",
+                 f"| reachable only from other directions | {v['area_other']:,.1f} mm^2 "
+                 f"({100 * v['area_other'] / tot if tot else 0:.1f} %) |",
+                 f"| inaccessible with this tool | {v['area_inaccessible']:,.1f} mm^2 "
+                 f"({100 * v['area_inaccessible'] / tot if tot else 0:.1f} %) |",
+                 f"| set-ups found | {len(self.setups)} |"]
+        acc = v["area_reachable"] + v["area_other"]
+        run = 0.0
+        for need in (0.9, 0.99):
+            n = 0
+            run = 0.0
+            for s in self.setups:
+                run += s["area"]
+                n += 1
+                if run >= need * acc:
+                    break
+            lines.append(f"| set-ups for {100 * need:.0f} % of the accessible area | {n} |")
+        out = "\n".join(lines) + "\n\n| set-up | direction (x, y, z) | tilt from +z (deg) | area (mm^2) |\n|---:|---|---:|---:|\n"
+        for i, s in enumerate(self.setups[:10]):
+            x, y, z = s["vector"]
+            out += (f"| {i + 1} | ({x:+.3f}, {y:+.3f}, {z:+.3f}) | {np.degrees(np.arccos(np.clip(z, -1, 1))):.1f} "
+                    f"| {s['area']:,.1f} |\n")
+        if len(self.setups) > 10:
+            out += f"| ... | {len(self.setups) - 10} more | | {sum(s['area'] for s in self.setups[10:]):,.1f} |\n"
+        return out
 
     def save(self, path) -> None:
         """Write atomically (temporary name, then rename)."""

@@ -1,0 +1,79 @@
+"""CLI command ``zmap access``: tool access directions of a STEP part (paper 002).
+
+Registered on the ``zmap`` group in :mod:`zmap.cli`; OCP, numba and pyvista load only when
+the command runs.
+"""
+
+from __future__ import annotations
+
+import os
+
+import click
+
+__all__ = ["access_cmd"]
+
+
+@click.command("access")
+@click.argument("part_path", metavar="PART.step", type=click.Path(dir_okay=False))
+@click.option("--voxel", "d", default=0.5, show_default=True, type=float, metavar="MM", help="Voxel edge d.")
+@click.option("--step", default=None, type=float, metavar="MM", help="Sampling step d' (default d/4; < d).")
+@click.option("--q", default=4, show_default=True, type=int, help="Direction set frequency (k = 20 q^2).")
+@click.option("--tool", "tool_spec", default="ball:6", show_default=True, metavar="ball:DIAMETER",
+              help="Ball-end cutter, diameter in mm.")
+@click.option("--holder", default=None, metavar="DxL", help="Holder cylinder diameter x length, mm (e.g. 20x40).")
+@click.option("--stickout", default=25.0, show_default=True, type=float, metavar="MM",
+              help="Tool tip to holder face, mm (with --holder).")
+@click.option("--cone", default=None, type=float, metavar="DEG",
+              help="Set-ups only within this tilt from +z (a 3+2 head's range).")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="PART.access.npz to write.")
+@click.option("--png", "png", default=None, metavar="PREFIX",
+              help="Write PREFIX_count.png, PREFIX_setups.png and PREFIX_sphere.png (default: beside -o).")
+@click.option("--no-png", is_flag=True, default=False, help="Write no pictures.")
+def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output, png, no_png) -> None:
+    """Tool access directions from a visibility voxel map (paper 002): 3-axis verdict and set-ups."""
+    import math
+    import time
+
+    from cad_io.access import analyse
+    from cad_io.step import read_step
+    from zmap.errors import StepImportError
+
+    from .voxelmap import AccessModelError, Tool, parse_holder, parse_tool
+
+    t0 = time.perf_counter()
+    if not os.path.exists(part_path):
+        raise StepImportError(f"{part_path}: no such file")
+    dia = parse_tool(tool_spec)
+    hd, hl = parse_holder(holder) if holder else (0.0, 0.0)
+    tool = Tool(dia, stickout=stickout, holder_diameter=hd, holder_length=hl)
+    if cone is not None and not (0 < cone <= 180):
+        raise AccessModelError(f"--cone must be an angle in (0, 180] degrees, got {cone!r}")
+    if d <= 0 or not math.isfinite(d):
+        raise AccessModelError(f"voxel size d must be a positive number of mm, got {d!r}")
+    if step is not None and not (0 < step < d):
+        raise AccessModelError(f"sampling step d' must be positive and smaller than the voxel d = {d:g} mm, "
+                               f"got d' = {step!r} mm")
+    if q < 1:
+        raise AccessModelError(f"q must be an integer >= 1, got {q!r}")
+
+    def say(msg: str) -> None:
+        click.echo(f"[{time.perf_counter() - t0:6.1f} s] {msg}", err=True)
+
+    say(f"reading {part_path}")
+    part = read_step(part_path)
+    result = analyse(part, d=d, q=q, tool=tool, step=step, cone=None if cone is None else math.radians(cone),
+                     progress=say)
+    result.save(output)
+    click.echo(result.summary())
+    if not no_png:
+        from .plot import sphere_3d, voxels_3d
+
+        prefix = png or (output[:-len(".access.npz")] if output.endswith(".access.npz") else os.path.splitext(output)[0])
+        say("pictures")
+        for path in (voxels_3d(result, f"{prefix}_count.png", by="count"),
+                     voxels_3d(result, f"{prefix}_setups.png", by="setup"),
+                     sphere_3d(result, f"{prefix}_sphere.png")):
+            click.echo(f"wrote {path}")
+    s = result.seconds
+    click.echo(f"wrote {output}  ({result.vm.n_boundary:,} boundary voxels x k = {result.vm.directions.k}; "
+               f"pipeline {s['total']:.1f} s)")
