@@ -80,6 +80,7 @@ def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods
     t_base = time.perf_counter() - t0 - t_read
     print(f"  base {base.nx} x {base.ny} in {t_base:.1f} s", file=sys.stderr, flush=True)
     models = refine_models(part, base, tol, methods, deflection=deflection)
+    cz_plan = _cz_plan(part, base, tol) if "cz" not in methods else None
     for m, (_, info) in models.items():
         print(f"  {m}: {info['seconds']:.1f} s, {info['sampled']:,} points sampled", file=sys.stderr, flush=True)
     rep = report_rows(part, grid, tol, n_points=points, models=models, base=base, deflection=deflection,
@@ -97,6 +98,7 @@ def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods
         "cz_kb": kb(r["cz"]["extra_bytes"]) if "cz" in r else None,
         "cz_total_kb": kb(r["cz"]["total_bytes"]) if "cz" in r else None,
         "n_cz": r["cz"]["n_cz"] if "cz" in r else None,
+        "cz_planned": cz_plan,
         "emap_ratio_pct": round(100 * r["ez"]["emap_ratio"], 3) if "ez" in r else None,
         "ez_over_base": round(r["ez"]["total_bytes"] / r["base"]["total_bytes"], 3) if "ez" in r else None,
         "plain_fine_kb": kb(rep["plain_fine_bytes"]), "plain_fine_shape": rep["plain_fine_shape"],
@@ -120,6 +122,22 @@ def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods
         "seconds": round(time.perf_counter() - t0, 2),
     }
     return out
+
+
+def _cz_plan(part, base, tol: float) -> dict:
+    """What the CZ model of ``refine_models`` would sample and store on this part, from its
+    domain layout (:func:`zmap.refine.cz.cz_layout`), without sampling: points, KB, domains."""
+    import math
+
+    from cad_io.commands import CZ_DELTA_Y_SHARE
+    from zmap.features import default_eps_r, sharp_edge_curves, vertical_wall_curves
+    from zmap.refine.cz import cz_layout
+
+    eps_r = default_eps_r(tol, base.dx, base.dy)
+    curves = vertical_wall_curves(base, max(eps_r, 1.0)) + list(sharp_edge_curves(part.edges))
+    lay = cz_layout(base, tol=CZ_DELTA_Y_SHARE * tol, curves=curves, theta_x=math.radians(20.0))
+    n = int(lay.prod(axis=1).sum()) if lay.size else 0
+    return {"points": n, "kb": round(8 * n / 1024, 1), "domains": int(lay.shape[0])}
 
 
 def _takes_progress() -> bool:
@@ -188,6 +206,10 @@ def markdown(res: dict) -> str:
         ("", "E-map", lambda r: kb(r["emap_kb"])),
         ("", "EZ-map", lambda r: kb(r["ez_total_kb"])),
         ("", "CZ-maps", lambda r: kb(r["cz_kb"]) + (f" ({r['n_cz']})" if r["n_cz"] is not None else "")),
+        ("", "CZ-maps planned, not built", lambda r: "–" if not r.get("cz_planned") else
+         f"{r['cz_planned']['kb']:,.0f} ({r['cz_planned']['domains']:,})"),
+        ("CZ / base memory (planned)", "", lambda r: "–" if not r.get("cz_planned") else
+         _fmt(1 + r["cz_planned"]["kb"] / r["zmap_kb"], 1)),
         ("E-map ratio (%)", "", lambda r: _fmt(r["emap_ratio_pct"], 2)),
         ("EZ / base memory", "", lambda r: _fmt(r["ez_over_base"], 2)),
         ("Plain z-map at tol (KB)", "", lambda r: kb(r["plain_fine_kb"])),
@@ -246,7 +268,8 @@ def main() -> None:
     ap.add_argument("--json-out", type=Path, default=None, help="also write (and update per part) the JSON here")
     ap.add_argument("--jobs", type=int, default=1, help="parts run at once (child processes)")
     ap.add_argument("--one", type=Path, default=None, help=argparse.SUPPRESS)
-    ap.add_argument("--grid", type=float, default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--grid", type=float, default=None,
+                    help="base grid (mm) for every part instead of the plan's (e.g. 1 or 2 for the large sheets)")
     ap.add_argument("--axis", default="+z", help=argparse.SUPPRESS)
     ap.add_argument("--methods", default="ez,cz", help=argparse.SUPPRESS)
     ap.add_argument("--deflection", type=float, default=None, help=argparse.SUPPRESS)
@@ -263,14 +286,16 @@ def main() -> None:
                    "seconds": round(time.perf_counter() - t0, 1)}
         print(json.dumps(res))
         return
-    res = {"tol": a.tol, "points": a.points, "timeout_s": a.timeout, "parts_dir": str(a.parts),
+    res = {"tol": a.tol, "points": a.points, "grid": a.grid, "timeout_s": a.timeout, "parts_dir": str(a.parts),
            "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"), "parts": {}}
     paths = _parts(a.parts, a.only)
     for path in paths:  # table order, filled in as the parts finish
         res["parts"][path.name] = {"error": "not run (interrupted)"}
 
     def one(path: Path) -> None:
-        plan = PLAN.get(path.name) or _default_plan(path)
+        plan = dict(PLAN.get(path.name) or _default_plan(path))
+        if a.grid is not None and "skip" not in plan:
+            plan["grid"] = a.grid
         print(f"[{time.strftime('%H:%M:%S')}] {path.name}: {plan}", file=sys.stderr, flush=True)
         if "skip" in plan:
             row = {"skipped": plan["skip"]}
