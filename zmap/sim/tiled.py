@@ -310,5 +310,6 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
     report = {"tiles": ntx * nty, "tile": tile, "tiles_with_positions": int(sum(len(v) > 0 for v in lists)),
               "workers": n_workers, "seconds": round(seconds, 3),
               "positions_cut": int(sum(r["positions"] for r in results.values())),
+              "rays_cut": int(sum(r["rays_cut"] for r in results.values())),
               "peak_rss_mb_per_worker": round(max(per_worker.values()), 1) if per_worker else 0.0}
     return final, structure, report

@@ -17,7 +17,19 @@ CONNECT_TIMEOUT = 6.0
 
 
 def peak_rss_mb() -> float:
-    """Peak resident memory of this process so far, MB (Linux ``ru_maxrss``)."""
+    """Peak resident memory of this process so far, MB.
+
+    Linux's ``VmHWM`` (the high-water mark of this process's own memory): ``ru_maxrss``
+    would carry the parent's peak across fork and exec, so a worker started by a big
+    client would report the client's memory.
+    """
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
     import resource
 
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

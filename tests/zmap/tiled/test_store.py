@@ -68,7 +68,7 @@ def test_bilinear_equals_in_memory_and_in_a_rotated_frame(tmp_path):
                           equal_nan=True)
 
 
-@settings(max_examples=15, deadline=None)
+@settings(max_examples=10, deadline=None)
 @given(nx=st.integers(2, 19), ny=st.integers(2, 19), tile=st.integers(HALO, 9), seed=st.integers(0, 2**16))
 def test_property_any_tile_size_matches_in_memory(tmp_path_factory, nx, ny, tile, seed):
     zm = _rough_map(nx, ny, seed)
