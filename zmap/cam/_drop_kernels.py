@@ -41,7 +41,7 @@ def envelope_many(code, radius, corner, r, out):
 
 
 @njit(cache=True)
-def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, ub, bid, kv, kd, ki, kj):
+def _drop_one(z, zu, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, ub, bid, kv, kd, ki, kj):
     band = -np.inf
     nx, ny = z.shape
     nbx, nby = bmax.shape
@@ -114,9 +114,10 @@ def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, ub, 
         for i in range(max(bi * B, i_lo), min(bi * B + B - 1, i_hi) + 1):
             ex = x0 + i * dx - qx
             for j in range(max(bj * B, j_lo), min(bj * B + B - 1, j_hi) + 1):
-                v = z[i, j]
-                if not (v == v) or v < best:
+                vu = zu[i, j]
+                if not (vu == vu) or vu < best:
                     continue
+                v = z[i, j]
                 ey = y0 + j * dy - qy
                 d2 = ex * ex + ey * ey
                 if d2 > RR:
@@ -128,8 +129,10 @@ def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, ub, 
                     bd = d
                     bi_ = i
                     bj_ = j
-                # the most the surface around this sample (within ``cell``) could give
-                gu = v - _envelope(code, R, rc, min(max(d - cell, 0.0), R))
+                # the most the surface around this sample (within ``cell``) could give: its
+                # height raised by half its largest drop to a neighbour (the slope it sits
+                # on), at its distance less ``cell``
+                gu = vu - _envelope(code, R, rc, min(max(d - cell, 0.0), R))
                 if d > R - cell and gu > band:
                     band = gu
                 # keep the K best bounds (ties: the sample nearest the axis first)
@@ -150,7 +153,7 @@ def _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, ub, 
 
 
 @njit(cache=True, parallel=True)
-def drop_samples(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, out, oi, oj, uout, ui, uj, bout):
+def drop_samples(z, zu, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, out, oi, oj, uout, ui, uj, bout):
     """Highest ``z[i, j] - envelope(min(|sample - axis|, R))`` over the samples within
     ``R + slack`` of each axis ``(qx[k], qy[k])``: ``out[k]`` (-inf: no sample) and the sample
     ``(oi[k], oj[k])``. With ``slack`` > 0 a sample just outside the disk stands for the
@@ -170,7 +173,7 @@ def drop_samples(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, o
         bid = np.empty(cap, dtype=np.int64)
         kd = np.empty(uout.shape[1], dtype=np.float64)
         for k in range(c * chunk, min(n, c * chunk + chunk)):
-            v, a, b, bb = _drop_one(z, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx[k], qy[k],
+            v, a, b, bb = _drop_one(z, zu, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx[k], qy[k],
                                     ub, bid, uout[k], kd, ui[k], uj[k])
             bout[k] = bb
             out[k] = v

@@ -90,6 +90,23 @@ def _contact(hf, cut, qx, qy, ux, uy):
     return g.reshape(np.shape(ux))
 
 
+class _Serial:
+    """numba kernels on one thread inside (the setting is thread-local and restored): the
+    refinement calls the height kernels hundreds of times on small batches, where starting
+    the parallel workers costs more than the work, and much more on a busy machine."""
+
+    def __enter__(self):
+        import numba
+
+        self.n = numba.get_num_threads()
+        numba.set_num_threads(1)
+
+    def __exit__(self, *exc):
+        import numba
+
+        numba.set_num_threads(self.n)
+
+
 def _pattern_search(hf, cut, qx, qy, ux, uy, g, step, xtol, max_iter=400):
     """Maximise the contact height around (ux, uy): compass steps in x, y and in polar
     coordinates about the axis (radius and arc, alone and together: a contact sliding along
@@ -210,8 +227,21 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
         X, Y = np.meshgrid(x0 + dx * np.arange(nx), y0 + dy * np.arange(ny), indexing="ij")
         Z = np.ascontiguousarray(np.asarray(hf(X.ravel(), Y.ravel()), dtype=np.float64).reshape(nx, ny))
     nx, ny = Z.shape
+    # each sample's height raised by half its largest drop to a neighbour: a bound of the
+    # surface within half a pitch of it (a local maximum between samples, at an edge)
+    ZU = Z
+    if refine:
+        rise = np.zeros_like(Z)
+        P = np.pad(Z, 1, constant_values=np.nan)
+        with np.errstate(invalid="ignore"):
+            for a in (-1, 0, 1):
+                for b in (-1, 0, 1):
+                    if a or b:
+                        dz = Z - P[1 + a:1 + a + nx, 1 + b:1 + b + ny]
+                        np.fmax(rise, dz, out=rise)
+        ZU = np.ascontiguousarray(Z + 0.5 * rise)
     bm = np.empty(((nx + _B - 1) // _B, (ny + _B - 1) // _B))
-    K.block_max(Z, _B, bm)
+    K.block_max(ZU, _B, bm)
     val = np.empty(n)
     oi = np.empty(n, dtype=np.int64)
     oj = np.empty(n, dtype=np.int64)
@@ -221,7 +251,7 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
     ui = np.empty((n, _K), dtype=np.int64)
     uj = np.empty((n, _K), dtype=np.int64)
     band = np.empty(n)
-    K.drop_samples(Z, float(x0), float(y0), float(dx), float(dy), bm, _B, cut.code, R, cut.corner_radius,
+    K.drop_samples(Z, ZU, float(x0), float(y0), float(dx), float(dy), bm, _B, cut.code, R, cut.corner_radius,
                    slack, cell, qx, qy, val, oi, oj, uval, ui, uj, band)
     ok = oi >= 0
     ux = np.where(ok, x0 + oi * dx, np.nan)
@@ -296,7 +326,9 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
                 st_s.append(np.full(other.size, 0.5 * max(dx, dy)))
         # the rim: a feature may reach into the disk between samples there; sample a band of
         # three rings every pitch/4 of arc exactly, and search from the best ring point
-        ring = np.flatnonzero(ok & (band > val + 1e-9))
+        # (a flat end mill touches a slope with its rim, where maxima between samples hide:
+        # its rims are always sampled)
+        ring = np.flatnonzero(ok) if cut.code == 0 else np.flatnonzero(ok & (band > val + 1e-9))
         if ring.size:
             h = 0.25 * min(dx, dy)
             m = max(16, int(math.ceil(2 * math.pi * R / h)))
@@ -317,9 +349,10 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
                 st_s.append(np.full(part.size, h))
         sp = np.concatenate(st_p)
         if sp.size:
-            sx, sy, sg = _pattern_search(hf, cut, qx[sp], qy[sp], np.concatenate(st_x).astype(np.float64),
-                                         np.concatenate(st_y).astype(np.float64),
-                                         np.concatenate(st_g).astype(np.float64), np.concatenate(st_s), xtol)
+            with _Serial():
+                sx, sy, sg = _pattern_search(hf, cut, qx[sp], qy[sp], np.concatenate(st_x).astype(np.float64),
+                                             np.concatenate(st_y).astype(np.float64),
+                                             np.concatenate(st_g).astype(np.float64), np.concatenate(st_s), xtol)
             order = np.lexsort((-sg, sp))  # per point, its best search first
             first = np.r_[True, sp[order][1:] != sp[order][:-1]]
             w = order[first]

@@ -133,8 +133,13 @@ def _bounds_of(model: Any) -> tuple:
 
 
 def _f(v: float) -> str:
-    s = f"{v:.4f}"
-    return "0.0000" if s == "-0.0000" else s
+    s = f"{v:.5f}"
+    return "0.00000" if s == "-0.00000" else s
+
+
+def _fz(v: float) -> str:
+    """A height rounded up to 1e-5 mm, so the tool never goes below the CL point it stands for."""
+    return _f(math.ceil(v * 1e5 - 1e-6) / 1e5)
 
 
 def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0.0, tol: float = 0.005,
@@ -206,7 +211,7 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
     Y = U * sa + V * ca
     inside = (X >= b[0] - 1e-9) & (X <= b[2] + 1e-9) & (Y >= b[1] - 1e-9) & (Y <= b[3] + 1e-9)
     Z = np.full(X.shape, np.nan)
-    cols = np.array_split(np.arange(nv), max(1, min(nv, 20)))
+    cols = np.array_split(np.arange(nv), max(1, min(nv, 10, int(np.ceil(X.size / 200_000)))))
     for q, cidx in enumerate(cols):
         sel = inside[:, cidx]
         Xs, Ys = X[:, cidx][sel], Y[:, cidx][sel]
@@ -244,7 +249,7 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
             + (f":{c.corner_radius:g}" if c.kind == "bull" else "") + ")",
             f"(stepover {stepover:g} mm, angle {math.degrees(angle):g} deg, chord tolerance {tol:g} mm, "
             f"CL step {step:g} mm)",
-            f"(bounds x {b[0]:g}..{b[2]:g} y {b[1]:g}..{b[3]:g} mm, clearance Z {safe:.4f})",
+            f"(bounds x {b[0]:g}..{b[2]:g} y {b[1]:g}..{b[3]:g} mm, clearance Z {safe:.5f})",
             f"(predicted scallop height {scallop:.6f} mm on a flat floor)",
             f"(feed {feed:g} mm/min, plunge {plunge_feed:g} mm/min, spindle {spindle:g} rpm)",
             "G21 G90 G17",
@@ -257,30 +262,42 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
 
     def feed_to(p, f):
         nonlocal cur_f
-        w = f"G1 X{_f(p[0])} Y{_f(p[1])} Z{_f(p[2])}"
+        w = f"G1 X{_f(p[0])} Y{_f(p[1])} Z{_fz(p[2])}"
         if f != cur_f:
             w += f" F{f:g}"
             cur_f = f
         lines.append(w)
 
-    for pts in passes:
+    # links between consecutive passes: a straight feed where it stays above the CL surface
+    # (all candidate links dropped in one call)
+    link_ok = np.zeros(len(passes), dtype=bool)
+    lx_all, ly_all, lz_all, owner = [], [], [], []
+    for q in range(1, len(passes)):
+        a, e = passes[q - 1][-1], passes[q][0]
+        d = float(np.hypot(e[0] - a[0], e[1] - a[1]))
+        if d <= 2.0 * stepover + 1e-9:
+            m = max(2, int(math.ceil(d / step)) + 1)
+            t = np.linspace(0.0, 1.0, m)
+            lx_all.append(a[0] + t * (e[0] - a[0]))
+            ly_all.append(a[1] + t * (e[1] - a[1]))
+            lz_all.append(a[2] + t * (e[2] - a[2]))
+            owner.append(np.full(m, q))
+    if owner:
+        own = np.concatenate(owner)
+        need = drop_cutter(model, cut, np.concatenate(lx_all), np.concatenate(ly_all), pitch=pitch)
+        good = np.isfinite(need) & (np.concatenate(lz_all) >= need - 1e-9)
+        bad = np.zeros(len(passes), dtype=bool)
+        np.logical_or.at(bad, own, ~good)
+        link_ok[np.unique(own)] = True
+        link_ok &= ~bad
+    for q, pts in enumerate(passes):
         start = pts[0]
         if cur is None:
             lines.append(f"G0 X{_f(start[0])} Y{_f(start[1])}")
             lines.append(f"G0 Z{_f(start[2] + min(clearance, 1.0))}")
             feed_to(start, plunge_feed)
         else:
-            d = float(np.hypot(start[0] - cur[0], start[1] - cur[1]))
-            direct = False
-            if d <= 2.0 * stepover + 1e-9:
-                m = max(2, int(math.ceil(d / step)) + 1)
-                t = np.linspace(0.0, 1.0, m)
-                lx = cur[0] + t * (start[0] - cur[0])
-                ly = cur[1] + t * (start[1] - cur[1])
-                lz = cur[2] + t * (start[2] - cur[2])
-                need = drop_cutter(model, cut, lx, ly, pitch=pitch)
-                direct = bool(np.all(np.isfinite(need)) and np.all(lz >= need - 1e-9))
-            if direct:
+            if link_ok[q]:
                 links += 1
                 feed_to(start, feed)
             else:

@@ -40,7 +40,7 @@ def test_simplify_chords_keeps_every_point_within_tol():
 
 def test_program_is_plain_gcode_our_reader_parses(tmp_path):
     m = _dome()
-    prog = raster_program(m, "ball:6", stepover=1.0, tol=0.005, bounds=(-6, -6, 6, 6), angle=math.radians(30))
+    prog = raster_program(m, "ball:6", stepover=1.0, tol=0.005, bounds=(-1, -5, 7, 5), angle=math.radians(30))
     text = prog.text
     assert "G21 G90 G17" in text and "M3" in text and text.rstrip().endswith("M2")
     assert "(predicted scallop height 0.041960 mm on a flat floor)" in text
@@ -59,21 +59,21 @@ def test_program_is_plain_gcode_our_reader_parses(tmp_path):
     # rapids only at the clearance height or above the next feed's start
     rap = pr.moves[pr.moves["kind"] == RAPID]
     assert np.all(rap["end"][:, 2] >= np.nanmin(cl))
-    assert prog.stats["passes"] >= 12 and prog.stats["kept_points"] < prog.stats["cl_points"]
+    assert prog.stats["passes"] >= 10 and prog.stats["kept_points"] < prog.stats["cl_points"]
 
 
 def test_chord_tolerance_bounds_the_linearised_cl():
     m = _dome()
     tol = 0.003
-    prog = raster_program(m, "ball:6", stepover=2.0, tol=tol, bounds=(-6, -6, 6, 6), step=0.05)
-    worst = 0.0
+    prog = raster_program(m, "ball:6", stepover=2.0, tol=tol, bounds=(0, -4, 8, 4), step=0.05)
+    t = np.linspace(0, 1, 9)[1:-1]
+    mids = []
     for pts in prog.passes:
-        t = np.linspace(0, 1, 9)[1:-1]
         a, b = pts[:-1], pts[1:]
-        mid = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]
-        mx, my, mz = mid[..., 0].ravel(), mid[..., 1].ravel(), mid[..., 2].ravel()
-        cl = drop_cutter(m, "ball:6", mx, my)
-        worst = max(worst, float(np.max(cl - mz)))
+        mids.append((a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]).reshape(-1, 3))
+    mid = np.vstack(mids)
+    cl = drop_cutter(m, "ball:6", mid[:, 0], mid[:, 1])
+    worst = float(np.max(cl - mid[:, 2]))
     # between CL samples 0.05 mm apart the curvature adds little beyond the chord tolerance
     assert worst <= tol + 2e-4
 
