@@ -60,7 +60,7 @@ def test_sphere_offset_surface():
     assert np.abs(cl - want).max() < 1e-5  # the Bezier z-map of the sphere is within ~1e-6
 
 
-@settings(max_examples=6, deadline=None)
+@settings(max_examples=6, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 1000), spec=st.sampled_from(["ball:4", "flat:4", "bull:5:1"]))
 def test_agrees_with_brute_force_reference(seed, spec):
     rng = np.random.default_rng(seed)
