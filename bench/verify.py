@@ -1,0 +1,185 @@
+"""Benchmark of zmap.verify and zmap.cam; prints one JSON object.
+
+* ``cl_pps``: drop-cutter CL points per second on a 1000 x 1000 axis grid, 6 mm ball, over the
+  EZ precision model (tol 0.01, base grid 0.5 mm) of a window of a real die (OCCT's
+  ``bug27693_cornetta-step.stp``, walls and edges inside), sample pitch 0.1 mm, JIT warm;
+  ``cl_max_err``: largest |ours - brute force| on random points of the grid and on points whose
+  contact is off-axis by more than 1 mm (walls and edges), the brute force being
+  ``zmap.cam._reference.drop_cutter_reference`` on the same model's heights.
+* OpenCAMLib (``pip install '.[bench]'``): ``BatchDropCutter`` with a 6 mm ``BallCutter`` on the
+  same part's triangles (BRepMesh at 0.01 mm deflection, the faces in the window), 1 and 2
+  threads, in the same run; ``cl_vs_ocl2``: ``cl_pps`` over OCL's 2-thread rate;
+  ``ocl_max_diff``: its largest difference from our CL heights on those points.
+* ``compare_s``: a full :func:`zmap.verify.compare` (deviation, classes, regions, first
+  offending stage and line of every gouge ray) of ``flower_mold.nc``'s stock at the end
+  (CAMotics stock and tool, 0.26 mm rays, treap history) against a design z-map at the same
+  0.26 mm rays: the stock as it stood half way (everything cut after it is a gouge);
+  ``first_gouge_ms``: the first offending stage of one ray from the history.
+
+Run: ``.venv/bin/python bench/verify.py [--n 1000]``. The figures depend on the machine and
+its load; the README quotes one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+DIE = ROOT / "data" / "step" / "bug27693_cornetta-step.stp"
+FLOWER = ROOT / "data" / "gcode" / "flower_mold.nc"
+FLOWER_PROJECT = ROOT / "data" / "gcode" / "flower_mold.camotics"
+WINDOW = (-45.0, -25.0, 5.0, 25.0)  # half the handset: relief, the pocket and its walls
+
+
+def log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def die_model():
+    import cad_io
+    from cad_io.commands import refine_models
+
+    part = cad_io.read_step(DIE)
+    w = WINDOW
+    base = cad_io.sample(part, 0.5, bounds=(w[0] - 5, w[1] - 5, w[2] + 5, w[3] + 5))
+    model = refine_models(part, base, 0.01, methods=("ez",))["ez"][0]
+    return part, model
+
+
+def ocl_rates(part, xs, ys, cl_ours):
+    try:
+        import opencamlib as ocl
+    except ImportError:
+        return {"ocl": "opencamlib not installed (pip install '.[bench]')"}
+    from cad_io.mesh import triangulate
+
+    triangulate(part, 0.01)
+    surf = ocl.STLSurf()
+    w = WINDOW
+    n_tri = 0
+    for f in part.faces:
+        m = f.mesh
+        if m is None:
+            continue
+        P = m.nodes[m.triangles]
+        keep = ((P[:, :, 0].max(axis=1) >= w[0] - 4) & (P[:, :, 0].min(axis=1) <= w[2] + 4)
+                & (P[:, :, 1].max(axis=1) >= w[1] - 4) & (P[:, :, 1].min(axis=1) <= w[3] + 4))
+        for t in P[keep]:
+            surf.addTriangle(ocl.Triangle(ocl.Point(*t[0]), ocl.Point(*t[1]), ocl.Point(*t[2])))
+            n_tri += 1
+    out = {"ocl_version": str(ocl.version()), "ocl_triangles": n_tri, "ocl_points": int(xs.size)}
+    for threads in (1, 2):
+        bdc = ocl.BatchDropCutter()
+        bdc.setSTL(surf)
+        bdc.setCutter(ocl.BallCutter(6.0, 50.0))
+        bdc.setThreads(threads)
+        for x, y in zip(xs, ys):
+            bdc.appendPoint(ocl.CLPoint(float(x), float(y), -100.0))
+        t = time.perf_counter()
+        bdc.run()
+        dt = time.perf_counter() - t
+        out[f"ocl_pps_{threads}thread"] = round(xs.size / dt, 1)
+        z = np.array([p.z for p in bdc.getCLPoints()])
+    out["ocl_max_diff"] = float(np.max(np.abs(z - cl_ours)))
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--n", type=int, default=1000, help="CL grid side (n x n)")
+    ap.add_argument("--ref-points", type=int, default=60)
+    ap.add_argument("--ocl-points", type=int, default=2000)
+    args = ap.parse_args()
+    from zmap.cam import drop_cutter
+    from zmap.cam._reference import drop_cutter_reference
+    from zmap.sim.tools import parse_tool_spec
+
+    res: dict = {"machine_cpus": os.cpu_count()}
+    log("building the die's precision model ...")
+    t = time.perf_counter()
+    part, model = die_model()
+    res["model_s"] = round(time.perf_counter() - t, 2)
+    res["model"] = repr(model)
+    ball = parse_tool_spec("ball:6")
+    w = WINDOW
+    xs = np.linspace(w[0], w[2], args.n)
+    ys = np.linspace(w[1], w[3], args.n)
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    drop_cutter(model, ball, X[:20, :20], Y[:20, :20], pitch=0.1)  # JIT warm-up
+    log(f"drop-cutter on {X.size} points ...")
+    t = time.perf_counter()
+    cl, cx, cy, _cz = drop_cutter(model, ball, X, Y, pitch=0.1, return_contact=True)
+    dt = time.perf_counter() - t
+    res["cl_points"] = int(X.size)
+    res["cl_s"] = round(dt, 3)
+    res["cl_pps"] = round(X.size / dt, 1)
+    # error against the brute force: random points and points with off-axis contacts
+    rng = np.random.default_rng(0)
+    flat = rng.choice(X.size, args.ref_points // 2, replace=False)
+    off = np.flatnonzero((np.hypot(cx - X, cy - Y) > 1.0).ravel())
+    walls = rng.choice(off, min(off.size, args.ref_points - flat.size), replace=False) if off.size else flat[:0]
+    pick = np.r_[flat, walls]
+    log(f"brute-force reference on {pick.size} points ...")
+    ref = drop_cutter_reference(model.height, ball, X.ravel()[pick], Y.ravel()[pick], h=0.02, levels=3)
+    err = cl.ravel()[pick] - ref
+    res["cl_max_err"] = float(np.max(np.abs(err)))
+    res["cl_max_err_random"] = float(np.max(np.abs(err[:flat.size])))
+    res["cl_max_err_offaxis"] = float(np.max(np.abs(err[flat.size:]))) if walls.size else None
+    res["cl_ref_points"] = int(pick.size)
+    res["cl_offaxis_share"] = round(off.size / X.size, 4)
+    # OpenCAMLib on the same part's triangles, same run
+    log("OpenCAMLib BatchDropCutter ...")
+    sel = rng.choice(X.size, args.ocl_points, replace=False)
+    res.update(ocl_rates(part, X.ravel()[sel], Y.ravel()[sel], cl.ravel()[sel]))
+    if "ocl_pps_2thread" in res:
+        res["cl_vs_ocl2"] = round(res["cl_pps"] / res["ocl_pps_2thread"], 1)
+    # compare on flower_mold.nc
+    log("flower_mold.nc: simulate and compare ...")
+    from zmap import ZMap
+    from zmap.sim import simulate
+    from zmap.sim.tools import load_camotics_project
+    from zmap.verify import compare, first_offending
+
+    tools, box, _u = load_camotics_project(FLOWER_PROJECT)
+    run = simulate(FLOWER, box, tools=tools, tool=tools[1], pitch=0.26)
+    s = run.stock
+    half = run.display(run.n_stages // 2)
+    design = ZMap(s.x0, s.y0, s.pitch, s.pitch, np.where(np.isnan(half), float(s.to_csr()[1].min()), half))
+    compare(run, design, tol=0.01)  # warm
+    times = []
+    for _ in range(3):
+        t = time.perf_counter()
+        c = compare(run, design, tol=0.01)
+        times.append(time.perf_counter() - t)
+    res["compare_s"] = round(float(np.median(times)), 4)
+    res["compare_rays"] = int(s.n_rays)
+    res["compare_gouge_rays"] = c.totals["gouge_rays"]
+    res["compare_regions"] = len(c.regions)
+    res["compare_first_gouge_line"] = c.totals.get("first_gouge_line")
+    g = c.gouges[0]
+    i = int(round((g.deepest[0] - s.x0) / s.pitch))
+    j = int(round((g.deepest[1] - s.y0) / s.pitch))
+    ray = np.array([i * s.ny + j])
+    lev = np.array([design.z[i, j] - 0.01])
+    first_offending(run, ray, lev)
+    ts = []
+    for _ in range(50):
+        t = time.perf_counter()
+        first_offending(run, ray, lev)
+        ts.append(time.perf_counter() - t)
+    res["first_gouge_ms"] = round(1000 * float(np.median(ts)), 4)
+    print(json.dumps(res, indent=1))
+
+
+if __name__ == "__main__":
+    main()
