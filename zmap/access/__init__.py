@@ -18,6 +18,7 @@ _WHERE = {
     "VoxelMap": "voxelmap", "Tool": "voxelmap", "parse_tool": "voxelmap", "paint": "voxelmap",
     "global_visibility": "voxelmap", "accessibility": "voxelmap", "three_axis": "voxelmap",
     "set_cover": "voxelmap", "node_directions": "voxelmap", "AccessResult": "voxelmap",
+    "AccessModelError": "voxelmap", "voxels_3d": "plot", "sphere_3d": "plot",
 }
 
 __all__ = list(_WHERE)
