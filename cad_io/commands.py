@@ -46,6 +46,7 @@ def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progr
 
         return convert_cmd_tiled(part_path, grid, bounds, method, axis, deflection, output, progress, tiles,
                                  scheduler, workers)
+    import sys
     import time
     import warnings
 
@@ -58,12 +59,21 @@ def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progr
         raise StepImportError(f"{part_path}: no such file")
     if grid <= 0:
         raise click.BadParameter(f"must be positive, got {grid!r}", param_hint="--grid")
-    part = read_step(part_path, strict=strict)
-    if not part.faces:
-        raise StepImportError(f"{part_path}: no faces in the file")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        zm = sample(part, grid, bounds=bounds, method=method, axis=axis, deflection=deflection, progress=progress)
+    from tqdm import tqdm
+
+    # one bar from the first second: reading, meshing, sampling, facets as its stages (on a
+    # terminal: a log or a pipe gets the summary and a one-line error only)
+    progress = progress and sys.stderr.isatty()
+    with tqdm(total=100, unit="%", desc="reading: ", leave=False, disable=not progress,
+              bar_format="{desc}{percentage:3.0f}%|{bar}| {elapsed}") as bar:
+        part = read_step(part_path, strict=strict)
+        if not part.faces:
+            raise StepImportError(f"{part_path}: no faces in the file")
+        bar.update(10)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            zm = sample(part, grid, bounds=bounds, method=method, axis=axis, deflection=deflection,
+                        progress=bar if progress else False)
     zm.meta["source"] = os.path.basename(part_path)
     zm.save(output)
     s = summary(zm)

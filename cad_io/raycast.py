@@ -110,7 +110,16 @@ class RayCaster:
             if self._inter is None:
                 break
             o = R.T @ np.array([xf[n], yf[n], self._top])
-            self._inter.Perform(gp_Lin(gp_Pnt(*o.tolist()), direction), 0.0, self._depth)
+            try:
+                self._inter.Perform(gp_Lin(gp_Pnt(*o.tolist()), direction), 0.0, self._depth)
+            except Exception:  # noqa: BLE001 (OCCT errors share no base class in OCP)
+                # Standard_NullObject on some of trj8's faces seen from the side: a ray
+                # 1e-9 mm beside it answers (far below any height we compare)
+                try:
+                    o = R.T @ np.array([xf[n] + 1e-9, yf[n] + 1e-9, self._top])
+                    self._inter.Perform(gp_Lin(gp_Pnt(*o.tolist()), direction), 0.0, self._depth)
+                except Exception:  # noqa: BLE001
+                    continue
             if not self._inter.IsDone():
                 continue
             best = np.inf
