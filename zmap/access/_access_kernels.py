@@ -200,9 +200,10 @@ def cast_directions(dirs, opp, bxyz, bhalf, skin, light, vl, d, cell, radius, lo
     (cubes) and the boundary voxels w with -n in L'(w) (their surface boxes). Per line the
     buffer keeps the largest exit parameter of a blocker box (and the second largest with the
     blocker's number, to skip v itself). Voxel v keeps n when no line through its box meets
-    a blocker box beyond v's entry. Every box is grown by half a cell diagonal first, so that
-    a true ray from v's box into a blocker's shows on the centre line of its cell: the test
-    is conservative. ``out[i, b]`` = 1 where direction i stays in V'_g(b); ``opp[i]`` is the
+    a blocker box beyond v's entry. The boundary blockers' boxes are grown by half a cell
+    diagonal, so that a true ray into a thin one still shows on the centre line of its cell;
+    a box of v thinner than a cell that no centre line crosses is tested on the cell under its
+    centre from its nearest depth. ``out[i, b]`` = 1 where direction i stays in V'_g(b); ``opp[i]`` is the
     index of -dirs[i].
 
     bxyz, bhalf : (mb, 3) centres and half extents of the boundary voxels' surface boxes;

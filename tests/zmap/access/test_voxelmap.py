@@ -231,3 +231,19 @@ def test_parse_holder():
         parse_holder("20")
     with pytest.raises(AccessModelError, match="holder diameter 4 mm is smaller"):
         Tool(6.0, holder_diameter=4.0, holder_length=10.0)
+
+
+def test_cylinder_casting_kernel_matches_the_plain_reference():
+    """The depth-buffer kernel gives the same V'_g bits as the pair-by-pair reference."""
+    from zmap.access._reference import global_visibility_reference
+
+    # an L-shaped part (a box with a step): concave edges make the casting delete directions
+    a = box_samples(np.zeros(3), np.array([4.0, 3.0, 2.0]), 0.25)
+    b = box_samples(np.array([0.0, 0.0, 2.0]), np.array([2.0, 3.0, 3.2]), 0.25, fid0=6)
+    keep = ~((a[3] == 5) & (a[0][:, 0] < 2.0))  # the lower top face under the upper box
+    vm = VoxelMap.from_samples(*[np.concatenate([x[keep], y]) for x, y in zip(a, b)], d=0.6, q=1,
+                               step=0.25, check=False)
+    fast = global_visibility(vm)
+    slow = global_visibility_reference(vm)
+    assert (fast == slow).all()
+    assert (count(fast) < count(vm.vl)).any()  # the step's concave edge hides directions
