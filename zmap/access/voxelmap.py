@@ -434,7 +434,9 @@ def _check_orientation(votes, fid, pts, nrm) -> list[int]:
                    f"({where[0]:.1f}, {where[1]:.1f}, {where[2]:.1f}) mm)")
     if bad:
         raise AccessModelError("no consistent outward side: " + "; ".join(bad[:4])
-                               + (f" and {len(bad) - 4} more faces" if len(bad) > 4 else ""))
+                               + (f" and {len(bad) - 4} more faces" if len(bad) > 4 else "")
+                               + " (a face with two outward sides, or a gap or wall narrower than the voxel:"
+                               " try a smaller --voxel)")
     return flipped
 
 
