@@ -311,7 +311,10 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
         # a sample whose cell could hold a higher contact than the one found (an edge between
         # samples near the rim, where the envelope is steep): search from it too
         for kk in range(_K):
-            other = np.flatnonzero(ok & (uval[:, kk] > val + 1e-9))
+            # only samples away from the best one (its neighbourhood is searched already):
+            # another local maximum that the samples may under-rate
+            away = (np.abs(ui[:, kk] - oi) > 1) | (np.abs(uj[:, kk] - oj) > 1)
+            other = np.flatnonzero(ok & away & (uval[:, kk] > val + 1e-9))
             if other.size:
                 sx0 = x0 + ui[other, kk] * dx
                 sy0 = y0 + uj[other, kk] * dy

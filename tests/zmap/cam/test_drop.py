@@ -57,7 +57,7 @@ def test_sphere_offset_surface():
     x, y = r * np.cos(t), r * np.sin(t)
     cl = drop_cutter(sph, c, x, y)
     want = np.sqrt((Rs + 3) ** 2 - r * r) - 3
-    assert np.abs(cl - want).max() < 1e-5  # the Bezier z-map of the sphere is within ~1e-6
+    assert np.abs(cl - want).max() < 5e-5  # smooth contacts: the sub-sample paraboloid, ~1e-5
 
 
 @settings(max_examples=6, deadline=None, derandomize=True)
