@@ -52,6 +52,7 @@ class TiledGrid:
     axis: str
     method: str
     window: tuple
+    fine: float | None = None
 
 
 def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, axis: str = "+z",
@@ -72,7 +73,8 @@ def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, a
     >>> (g.nx, g.ny) == cad_io.sample(part, 1.0).shape
     True
     """
-    from .sampler import _MODE, METHODS, _centred, _needs_mesh, _spacing, _view_bounds, grid_shape
+    from .sampler import (_MODE, FACET_SHARE, METHODS, START_SHARE, _centred, _needs_mesh, _spacing, _view_bounds,
+                          grid_shape)
     from .view import check_axis, transform_part
 
     if method not in _MODE:
@@ -88,7 +90,11 @@ def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, a
         raise ValueError(f"bounds must be (x0, y0, x1, y1), got {np.asarray(bounds).tolist()!r}")
     x0, y0 = float(bounds[0]), float(bounds[1])
     nx, ny = grid_shape(bounds, dx, dy)
-    deflection = min(dx, dy) / 20.0 if deflection is None else float(deflection)
+    fine = None
+    if deflection is None:  # as sample(): a coarse start mesh, facet answers solved again on a fine one
+        deflection = min(dx, dy) / START_SHARE
+        fine = min(dx, dy) / FACET_SHARE
+    deflection = float(deflection)
     if not (math.isfinite(deflection) and deflection > 0):
         raise ValueError(f"deflection must be positive, got {deflection!r}")
     if _needs_mesh(part, deflection):
@@ -107,7 +113,8 @@ def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, a
         x0 = _centred(bounds[0], bounds[2], dx, nx)
         y0 = _centred(bounds[1], bounds[3], dy, ny)
     window = (x0 - dx, y0 - dy, x0 + (nx - 1) * dx + dx, y0 + (ny - 1) * dy + dy)
-    return TiledGrid(x0, y0, dx, dy, nx, ny, deflection, axis, method, window)
+    return TiledGrid(x0, y0, dx, dy, nx, ny, deflection, axis, method, window,
+                     fine if fine is not None and fine < deflection else None)
 
 
 def _face_set(part: Part, g: TiledGrid):
@@ -117,11 +124,13 @@ def _face_set(part: Part, g: TiledGrid):
     return face_set(transform_part(part, g.axis), g.deflection, g.window)
 
 
-def sample_tile(fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1: int) -> tuple[np.ndarray, ...]:
+def sample_tile(part: Part, fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1: int) -> tuple[np.ndarray, ...]:
     """Heights, face and method layers of nodes ``[i0:i1, j0:j1]`` of the grid ``g``.
 
-    Equal to the same block of ``cad_io.sample(part, ...)`` to the last bit: the same
-    pairs in the same order, solved at the same coordinates.
+    ``fs`` is the part's face set at ``g.deflection`` (:func:`_face_set`). Equal to the same
+    block of ``cad_io.sample(part, ...)`` to the last bit: the same pairs in the same order,
+    solved at the same coordinates, and the same second pass of facet answers on a fine
+    mesh (``g.fine``) through :func:`cad_io.sampler.sample_points`.
     """
     from . import _sample_kernels as K
     from . import _tiled_kernels as TK
@@ -149,24 +158,67 @@ def sample_tile(fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1: int) -> tu
             K.solve_pairs_xy(gidx, tri_p, w, *fs.solve_args(), px, py, mode, NEWTON_TOL, NEWTON_MAX_ITER, zc, st)
 
         _run_pairs(fs, counts, fill, solve, zflat, fflat, mflat)
+        if g.fine is not None:
+            from .sampler import FACET, sample_points
+
+            again = np.flatnonzero((mflat == FACET) & (fs.face_mode[np.maximum(fflat, 0)] == 1))
+            if again.size:
+                gx = g.x0 + (i0 + again // tny) * g.dx  # as sample(): x0 + (global index // ny) * dx
+                gy = g.y0 + (j0 + again % tny) * g.dy
+                z2, f2, m2 = sample_points(part, gx, gy, deflection=g.fine, method=g.method, axis=g.axis)
+                zflat[again], fflat[again], mflat[again] = z2, f2, m2
     return zflat.reshape(tnx, tny), fflat.reshape(tnx, tny), mflat.reshape(tnx, tny)
 
 
-def _tile_task(fs: Any, g: TiledGrid, store: Any, ti: int, tj: int, threads: int) -> dict:
+#: per worker process: the part read from its file and meshed as the client meshed it
+_WORKER_PART: dict = {}
+
+
+def _worker_part(part_path: str, g: TiledGrid) -> tuple[Part, Any]:
+    """The part and its face set in this worker: read once per process from the file.
+
+    Each worker reads the STEP file itself and meshes it in the order ``sample`` does
+    (start mesh at ``g.deflection``, then the fine mesh on first use), so its meshes are the
+    ones of an in-memory conversion of the same file.
+    """
+    st = os.stat(part_path)
+    key = (os.path.abspath(part_path), st.st_mtime_ns, st.st_size, g)
+    hit = _WORKER_PART.get(key)
+    if hit is None:
+        from .sampler import _needs_mesh
+        from .step import read_step
+
+        part = read_step(part_path)
+        if _needs_mesh(part, g.deflection):
+            from .mesh import triangulate
+
+            triangulate(part, g.deflection)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the client reports the face set's messages
+            fs = _face_set(part, g)
+        _WORKER_PART.clear()
+        hit = _WORKER_PART[key] = (part, fs)
+    return hit
+
+
+def _tile_task(part_path: str, g: TiledGrid, store: Any, ti: int, tj: int, threads: int) -> dict:
     """One Dask task: sample tile (ti, tj), write it and its marker; returns its figures."""
     import numba
 
     numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
     t0 = time.perf_counter()
+    c0 = time.process_time()
     si, sj = store.tile_slices(ti, tj)
-    z, face, how = sample_tile(fs, g, si.start, si.stop, sj.start, sj.stop)
+    part, fs = _worker_part(part_path, g)
+    z, face, how = sample_tile(part, fs, g, si.start, si.stop, sj.start, sj.stop)
     store.write_tile(ti, tj, z, {"face": face, "method": how})
     return {"tile": (ti, tj), "nodes": int(z.size), "seconds": time.perf_counter() - t0,
+            "cpu_seconds": time.process_time() - c0,
             "filled": int(np.isfinite(z).sum()), "jacobian": int((how == 1).sum()), "facet": int((how == 2).sum()),
             "pid": os.getpid(), "peak_rss_mb": peak_rss_mb()}
 
 
-def convert_tiled(part: Part | str | os.PathLike, grid: Any, output: str | os.PathLike, *, tile: int = DEFAULT_TILE,
+def convert_tiled(part: str | os.PathLike, grid: Any, output: str | os.PathLike, *, tile: int = DEFAULT_TILE,
                   bounds: Sequence[float] | None = None, method: str = "auto", axis: str = "+z",
                   deflection: float | None = None, scheduler: str | None = None, workers: int = 2,
                   client: Any = None, progress: bool = False, echo: Any = None, _stop_after: int | None = None):
@@ -174,7 +226,9 @@ def convert_tiled(part: Part | str | os.PathLike, grid: Any, output: str | os.Pa
 
     Parameters
     ----------
-    part : cad_io.Part, or path of a STEP file
+    part : str or PathLike
+        The STEP file. The client reads it to fix the grid; every worker reads it once
+        itself (the file must be readable where the workers run).
     grid : float or (float, float)
         Grid interval in mm, as for :func:`cad_io.sample`.
     output : str or PathLike
@@ -222,18 +276,20 @@ def convert_tiled(part: Part | str | os.PathLike, grid: Any, output: str | os.Pa
     from zmap.tiled.store import _check_tile
 
     tile = _check_tile(tile)
-    if isinstance(part, (str, os.PathLike)):
-        from .step import read_step
+    from .step import read_step
 
-        source = os.path.basename(str(part))
-        part = read_step(part)
-    else:
-        source = os.path.basename(str(part.source))
+    part_path = os.path.abspath(str(part))
+    source = os.path.basename(part_path)
+    part = read_step(part_path)
+    if not part.faces:
+        from zmap.errors import StepImportError
+
+        raise StepImportError(f"{part_path}: no faces in the file")
     g = plan_grid(part, grid, bounds=bounds, axis=axis, method=method, deflection=deflection)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         fs = _face_set(part, g)
-    msgs = list(fs.msgs)
+    msgs = list(part.warnings) + list(fs.msgs)
     meta = {"source": source, "axis": axis, "method": method, "deflection": g.deflection, "faces": len(part.faces),
             "tile": tile, "warnings": msgs}
     store = TiledZMap.create(output, x0=g.x0, y0=g.y0, dx=g.dx, dy=g.dy, nx=g.nx, ny=g.ny, tile=tile, meta=meta,
@@ -256,9 +312,8 @@ def convert_tiled(part: Part | str | os.PathLike, grid: Any, output: str | os.Pa
                 f"{tile} x {tile} nodes each")
             from dask.distributed import as_completed
 
-            fs_future = cl.scatter(fs, broadcast=True)
             t_tasks = time.perf_counter()
-            futures = [cl.submit(_tile_task, fs_future, g, store, ti, tj, threads, pure=False) for ti, tj in todo]
+            futures = [cl.submit(_tile_task, part_path, g, store, ti, tj, threads, pure=False) for ti, tj in todo]
             try:
                 with tqdm(total=len(todo), unit="tile", desc="tiles", disable=not progress, leave=False) as bar:
                     for fut in as_completed(futures):
@@ -280,7 +335,24 @@ def convert_tiled(part: Part | str | os.PathLike, grid: Any, output: str | os.Pa
               "workers": n_workers, "seconds": round(seconds, 3), "prepare_seconds": round(prepare, 3),
               "nodes_per_s": round(nodes_now / seconds, 1) if seconds > 0 else 0.0,
               "peak_rss_mb_per_worker": round(max(per_worker.values()), 1) if per_worker else 0.0}
+    report.update(_cpu_figures(results))
     return store, report
+
+
+def _cpu_figures(results: list[dict]) -> dict:
+    """CPU seconds of the tasks, in all and on the busiest worker process.
+
+    ``cpu_seconds / cpu_seconds_busiest_worker`` is the speed-up the run would show were
+    every worker alone on its core (what the tiles' split allows), whatever else the
+    machine was running.
+    """
+    per: dict[int, float] = {}
+    for r in results:
+        per[r["pid"]] = per.get(r["pid"], 0.0) + r.get("cpu_seconds", 0.0)
+    total = sum(per.values())
+    busiest = max(per.values()) if per else 0.0
+    return {"cpu_seconds": round(total, 3), "cpu_seconds_busiest_worker": round(busiest, 3),
+            "cpu_split_speedup": round(total / busiest, 3) if busiest > 0 else 0.0}
 
 
 def convert_cmd_tiled(part_path: str, grid: float, bounds, method: str, axis: str, deflection, output: str,
@@ -290,7 +362,6 @@ def convert_cmd_tiled(part_path: str, grid: float, bounds, method: str, axis: st
 
     from zmap.errors import StepImportError
 
-    from .step import read_step
 
     t0 = time.perf_counter()
     if tiles is None:
@@ -310,19 +381,15 @@ def convert_cmd_tiled(part_path: str, grid: float, bounds, method: str, axis: st
         with dask_client(scheduler):
             pass
     click.echo(f"reading  {part_path}", err=True)
-    part = read_step(part_path)
-    if not part.faces:
-        raise StepImportError(f"{part_path}: no faces in the file")
-    part.source = os.path.basename(part_path)
-    store, rep = convert_tiled(part, grid, output, tile=tiles, bounds=bounds, method=method, axis=axis,
+    store, rep = convert_tiled(part_path, grid, output, tile=tiles, bounds=bounds, method=method, axis=axis,
                                deflection=deflection, scheduler=scheduler, workers=workers, progress=progress,
                                echo=lambda line: click.echo(line, err=True))
-    for w in list(part.warnings) + list(store.meta.get("warnings", [])):
+    for w in store.meta.get("warnings", []):
         click.echo(f"warning: {' '.join(str(w).split())}", err=True)
     st = store.tile_stats()
     n = store.nx * store.ny
     click.echo(f"wrote    {output} (tiled zarr store, complete)")
-    click.echo(f"part     {os.path.basename(part_path)}: {len(part.faces)} faces, axis {axis}")
+    click.echo(f"part     {os.path.basename(part_path)}: {store.meta.get('faces')} faces, axis {axis}")
     click.echo(f"grid     {store.nx} x {store.ny} = {n:,} points, dx={store.dx:g} dy={store.dy:g} mm, "
                f"x {store.x0:g} .. {store.x1:g}, y {store.y0:g} .. {store.y1:g}")
     click.echo(f"tiles    {store.n_tiles} of {store.tile} x {store.tile} nodes: {rep['tiles_done_now']} sampled now, "

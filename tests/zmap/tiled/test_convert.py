@@ -31,15 +31,19 @@ def _same(a, b):
 def test_grid_plan_and_every_tile_equal_the_in_memory_map(part_and_map):
     from cad_io.tiled import _face_set, plan_grid, sample_tile
 
-    part, zm = part_and_map
+    import cad_io
+
+    _, zm = part_and_map
+    part = cad_io.read_step(PART)  # meshed afresh, in sample()'s order: start mesh, then the fine one
     g = plan_grid(part, GRID)
     assert (g.x0, g.y0, g.nx, g.ny, g.deflection) == (zm.x0, zm.y0, zm.nx, zm.ny, zm.meta["deflection"])
     fs = _face_set(part, g)
+    assert g.fine is not None and g.fine < g.deflection  # the default: facet answers solved again on a fine mesh
     t = 100
     for i0 in range(0, zm.nx, t):
         for j0 in range(0, zm.ny, t):
             i1, j1 = min(i0 + t, zm.nx), min(j0 + t, zm.ny)
-            z, face, how = sample_tile(fs, g, i0, i1, j0, j1)
+            z, face, how = sample_tile(part, fs, g, i0, i1, j0, j1)
             assert _same(z, zm.z[i0:i1, j0:j1]), (i0, j0)
             assert np.array_equal(face, zm.layers["face"][i0:i1, j0:j1])
             assert np.array_equal(how, zm.layers["method"][i0:i1, j0:j1])
@@ -53,13 +57,13 @@ def test_tiled_conversion_on_a_local_cluster_equals_in_memory_and_resumes(part_a
     out = tmp_path / "featuretype.zarr"
     # interrupted after 5 of the 15 tiles, as by Ctrl-C: the store is refused as unfinished
     with pytest.raises(KeyboardInterrupt):
-        convert_tiled(part, GRID, out, tile=100, client=dask_client, _stop_after=5)
+        convert_tiled(PART, GRID, out, tile=100, client=dask_client, _stop_after=5)
     with pytest.raises(ZMapFileError, match="unfinished tiled store"):
         TiledZMap.open(out)
     done = len(TiledZMap.open(out, incomplete=True).done_tiles())
     assert 5 <= done < 15
     # run again: only the missing tiles are sampled
-    store, rep = convert_tiled(part, GRID, out, tile=100, client=dask_client)
+    store, rep = convert_tiled(PART, GRID, out, tile=100, client=dask_client)
     # (a task already running when the run stopped may still finish its tile: skipped >= done)
     assert rep["tiles"] == 15 and rep["tiles_skipped"] >= done and rep["tiles_skipped"] + rep["tiles_done_now"] == 15
     assert rep["tiles_done_now"] > 0
@@ -78,7 +82,7 @@ def test_tiled_conversion_on_a_local_cluster_equals_in_memory_and_resumes(part_a
 
     assert _same(back.bezier(x, y), bezier(zm, x, y))
     # a finished store converts to nothing more
-    _, rep2 = convert_tiled(part, GRID, out, tile=100, client=dask_client)
+    _, rep2 = convert_tiled(PART, GRID, out, tile=100, client=dask_client)
     assert rep2["tiles_done_now"] == 0 and rep2["tiles_skipped"] == 15
 
 
