@@ -178,7 +178,7 @@ def test_command_end_to_end(slot, tmp_path):
                         .cut(cq.Workplane("XY").box(W, LY + 10, D).translate((0, 0, -D / 2))), str(src))
     out = tmp_path / "slot.access.npz"
     rc = main([ "access", str(src), "--voxel", "1", "--q", "2", "--tool", "ball:4", "--holder", "12x20",
-               "-o", str(out)])
+               "--grid", "2", "-o", str(out)])
     assert rc == 0 and out.exists()
     for suffix in ("count", "setups", "sphere"):
         assert (tmp_path / f"slot_{suffix}.png").stat().st_size > 10_000
@@ -186,4 +186,8 @@ def test_command_end_to_end(slot, tmp_path):
         head = json.loads(bytes(z["header"]).decode())
         assert head["format"] == "zmap.access" and head["q"] == 2 and z["amap"].shape[1] == 2
         assert 0 < head["verdict"]["share"] < 1
+        assert z["node_count"].shape == (16, 11) and head["node_grid"] == 2.0
+        has = z["node_voxel"] >= 0
+        assert has.mean() > 0.95  # nodes on the box's far edges may fall just outside the voxels
+        assert (z["node_count"][has] == z["n_access"][z["node_voxel"][has]]).all()
     assert not list(tmp_path.glob(".tmp-*"))

@@ -29,7 +29,10 @@ __all__ = ["access_cmd"]
 @click.option("--png", "png", default=None, metavar="PREFIX",
               help="Write PREFIX_count.png, PREFIX_setups.png and PREFIX_sphere.png (default: beside -o).")
 @click.option("--no-png", is_flag=True, default=False, help="Write no pictures.")
-def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output, png, no_png) -> None:
+@click.option("--grid", default=None, type=float, metavar="MM",
+              help="Also store per z-map node (this grid over the part's xy box) its top-most voxel and "
+                   "number of accessible directions.")
+def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output, png, no_png, grid=None) -> None:
     """Tool access directions from a visibility voxel map (paper 002): 3-axis verdict and set-ups."""
     import math
     import time
@@ -63,6 +66,20 @@ def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output,
     part = read_step(part_path)
     result = analyse(part, d=d, q=q, tool=tool, step=step, cone=None if cone is None else math.radians(cone),
                      progress=say)
+    if grid is not None:
+        if not (grid > 0 and math.isfinite(grid)):
+            raise AccessModelError(f"--grid must be a positive number of mm, got {grid!r}")
+        import numpy as np
+
+        from .voxelmap import node_directions
+
+        b = part.bbox
+        xs = np.arange(b[0], b[3] + grid / 2, grid)
+        ys = np.arange(b[1], b[4] + grid / 2, grid)
+        X, Y = np.meshgrid(xs, ys, indexing="ij")
+        vox, cnt = node_directions(result.vm, result.amap, X, Y)
+        result.nodes = {"node_x0": float(xs[0]), "node_y0": float(ys[0]), "node_grid": float(grid),
+                        "node_voxel": vox, "node_count": cnt}
     result.save(output)
     click.echo(result.summary())
     if not no_png:

@@ -672,6 +672,8 @@ class AccessResult:
     setups: list
     seconds: dict
     source: str = ""
+    #: optional per z-map node arrays (``node_voxel``, ``node_count``) and their grid
+    nodes: dict = field(default_factory=dict)
 
     def summary(self) -> str:
         """A markdown table of the verdict and the set-ups."""
@@ -724,6 +726,12 @@ class AccessResult:
                       n_access=count(self.amap).astype(np.int32),
                       directions=vm.directions.normals,
                       header=np.frombuffer(json.dumps(header).encode(), dtype=np.uint8))
+        for key, val in self.nodes.items():
+            if isinstance(val, np.ndarray):
+                arrays[key] = val
+            else:
+                header[key] = val
+        arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
         folder = os.path.dirname(os.path.abspath(path))
         fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=".npz")
         os.close(fd)
