@@ -25,8 +25,8 @@ its core. Prints one JSON object.
 
 Usage: ``python bench/scale.py [--part STEP] [--grid MM] [--deflection MM] [--tile N] [--pitch MM]
 [--sim-tiles N] [--no-sim] [--no-convert] [--check/--no-check]``. The issue's full figure (>= 2e9 nodes):
-``python bench/scale.py --grid 0.03 --tile 4096 --no-check --no-sim`` (about 2e9 nodes, 16 GB
-of float64 heights on disk before compression; hours on 2 workers, see docs/scaling.md).
+``python bench/scale.py --grid 0.03 --tile 4096 --no-check --no-sim`` (1.9e9 nodes, 25 GB of
+heights and layers before compression; hours on 2 workers, see docs/scaling.md).
 """
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ def bench_convert(part_path: Path, grid: float, tile: int, check: bool | None, d
     import cad_io
     from cad_io.sampler import _available_bytes, estimate_bytes
 
-    part = cad_io.read_step(part_path)
+    part = str(part_path)  # each run reads the file (the client, and every worker once)
     folder = Path(tempfile.mkdtemp(prefix="zmap-scale-"))
     try:
         s1, r1 = _convert(part, grid, tile, 1, folder, "one.zarr", deflection)
