@@ -13,7 +13,7 @@ __all__ = ["CONNECT_TIMEOUT", "dask_client", "peak_rss_mb"]
 
 #: seconds to wait for a scheduler given by address before giving up (with the command's own
 #: start, within the issue's bound of 10 s)
-CONNECT_TIMEOUT = 6.0
+CONNECT_TIMEOUT = 4.0
 
 
 def peak_rss_mb() -> float:
@@ -35,6 +35,28 @@ def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def _probe(address: str, timeout: float) -> None:
+    """A TCP connection to a ``tcp://host:port`` (or ``host:port``) scheduler, or ZMapError naming it.
+
+    Other schemes (``tls://``, ``ucx://``, ...) are left to Dask's own connect.
+    """
+    import socket
+
+    rest = address[len("tcp://"):] if address.startswith("tcp://") else address
+    if "://" in rest:
+        return
+    host, sep, port = rest.rpartition(":")
+    if not sep or not port.isdigit():
+        raise ZMapError(f"scheduler address {address!r} is not tcp://host:port")
+    host = host.strip("[]") or "127.0.0.1"
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise ZMapError(f"no Dask scheduler answers at {address} within {timeout:g} s "
+                        f"({type(exc).__name__}: {' '.join(str(exc).split())[:120]})") from None
+
+
 @contextlib.contextmanager
 def dask_client(scheduler: str | None = None, *, workers: int = 2, threads_per_worker: int = 1) -> Iterator[Any]:
     """A ``dask.distributed.Client``: on ``scheduler`` (address), else on a new LocalCluster.
@@ -43,14 +65,16 @@ def dask_client(scheduler: str | None = None, *, workers: int = 2, threads_per_w
     is shut down on exit. A scheduler that does not answer within :data:`CONNECT_TIMEOUT`
     seconds raises :class:`zmap.errors.ZMapError` naming its address.
     """
-    from dask.distributed import Client, LocalCluster
-
     from . import cluster as _self  # CONNECT_TIMEOUT read at call time (tests shorten it)
+
+    if scheduler:
+        _probe(scheduler, _self.CONNECT_TIMEOUT)  # before importing distributed: seconds on a busy machine
+    from dask.distributed import Client, LocalCluster
 
     if scheduler:
         try:
             client = Client(scheduler, timeout=f"{_self.CONNECT_TIMEOUT}s")
-        except (OSError, TimeoutError, ValueError) as exc:
+        except Exception as exc:  # refused, timed out, or something that is not a Dask scheduler answering
             raise ZMapError(f"no Dask scheduler answers at {scheduler} within {_self.CONNECT_TIMEOUT:g} s "
                             f"({type(exc).__name__}: {' '.join(str(exc).split())[:160]})") from None
         try:

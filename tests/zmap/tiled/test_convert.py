@@ -89,7 +89,7 @@ def test_tiled_conversion_on_a_local_cluster_equals_in_memory_and_resumes(part_a
 def test_scheduler_that_does_not_answer_fails_fast_naming_it(tmp_path, capsys, monkeypatch):
     import zmap.tiled.cluster as ct
 
-    assert ct.CONNECT_TIMEOUT <= 8.0  # with the start of the command, within the 10 s
+    assert ct.CONNECT_TIMEOUT <= 4.0  # with the start of the command (seconds on a loaded machine), within 10 s
     monkeypatch.setattr(ct, "CONNECT_TIMEOUT", 1.0)
     t = time.perf_counter()
     with pytest.raises(ZMapError, match=r"no Dask scheduler answers at tcp://127.0.0.1:9 within 1 s"):
