@@ -20,6 +20,8 @@ SLOW = ["trj8_b1-ec-214.stp", "bug27453_165-174_piattello.stp", "Ventilator.stp"
 #: grid nodes per longer side of the view, and nodes checked per part and view
 DIVISIONS = 50
 CHECKED = 250
+#: trj8 is a thin, sparse sheet: at side/50 only 13 checked nodes in +z saw it away from walls
+FINER = {"trj8_b1-ec-214.stp": 150}
 
 
 @cache
@@ -69,7 +71,7 @@ def _compare(name: str, axis: str, seed: int = 0) -> dict:
     part = _part(name)
     R = view_matrix(axis)
     ext = np.abs(R @ (np.array(part.bbox[3:]) - np.array(part.bbox[:3])))
-    grid = float(max(ext[0], ext[1]) / DIVISIONS)
+    grid = float(max(ext[0], ext[1]) / FINER.get(name, DIVISIONS))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # AP242 tessellated faces: 'sampled from facets'
         zm = sample(part, grid, axis=axis)
@@ -111,8 +113,13 @@ def test_real_part_side_view_heights_agree_with_occ(name):
     _check(_compare(name, "-y", seed=1), name, "-y")
 
 
+#: side view of each large part: one it shows depth in (trj8, a sheet, is edge-on from +x)
+SIDE = {"trj8_b1-ec-214.stp": "-y"}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", SLOW)
 def test_large_real_part_heights_agree_with_occ(name):
     _check(_compare(name, "+z"), name, "+z")
-    _check(_compare(name, "+x", seed=2), name, "+x")
+    axis = SIDE.get(name, "+x")
+    _check(_compare(name, axis, seed=2), name, axis)
