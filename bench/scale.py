@@ -24,7 +24,9 @@ seconds over those of the busiest of the 2 workers, the speed-up were each worke
 its core. Prints one JSON object.
 
 Usage: ``python bench/scale.py [--part STEP] [--grid MM] [--deflection MM] [--tile N] [--pitch MM]
-[--sim-tiles N] [--no-sim] [--no-convert] [--check/--no-check]``. The issue's full figure (>= 2e9 nodes):
+[--sim-tiles N] [--no-sim] [--no-convert] [--check/--no-check] [--one-tile X0 Y0]``.
+``--one-tile 100 100 --grid 0.25 --tile 4096`` converts one full-size tile on one worker for
+its peak RSS (keys ``one_tile_*``). The issue's full figure (>= 2e9 nodes):
 ``python bench/scale.py --grid 0.03 --tile 4096 --no-check --no-sim`` (1.9e9 nodes, 25 GB of
 heights and layers before compression; hours on 2 workers, see docs/scaling.md).
 """
@@ -114,6 +116,25 @@ def bench_convert(part_path: Path, grid: float, tile: int, check: bool | None, d
         shutil.rmtree(folder, ignore_errors=True)
 
 
+def bench_one_tile(part_path: Path, grid: float, tile: int, origin: tuple) -> dict:
+    """One full tile (``tile`` x ``tile`` nodes from ``origin``) on a 1-worker LocalCluster: its memory."""
+    from cad_io.tiled import convert_tiled
+    from zmap.tiled.cluster import dask_client
+
+    folder = Path(tempfile.mkdtemp(prefix="zmap-scale-tile-"))
+    try:
+        x0, y0 = origin
+        b = (x0, y0, x0 + (tile - 1) * grid, y0 + (tile - 1) * grid)
+        with dask_client(workers=1) as client:
+            store, rep = convert_tiled(str(part_path), grid, folder / "tile.zarr", tile=tile, bounds=b,
+                                       client=client)
+        return {"one_tile_nodes": rep["nodes"], "one_tile_shape": [store.nx, store.ny],
+                "one_tile_filled": store.tile_stats()["filled"], "one_tile_seconds": rep["seconds"],
+                "one_tile_cpu_seconds": rep["cpu_seconds"], "one_tile_peak_rss_mb": rep["peak_rss_mb_per_worker"]}
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def _sim_inputs(pitch: float):
     from zmap.sim.gcode import parse
     from zmap.sim.tools import load_camotics_project
@@ -199,12 +220,18 @@ def main() -> None:
     ap.add_argument("--tile", type=int, default=1024, help="conversion tile side, nodes")
     ap.add_argument("--pitch", type=float, default=0.05, help="simulation ray pitch, mm")
     ap.add_argument("--sim-tiles", type=int, default=256, help="simulation tile side, rays")
+    ap.add_argument("--one-tile", nargs=2, type=float, default=None, metavar=("X0", "Y0"),
+                    help="instead: one --tile x --tile tile from (X0, Y0) on 1 worker, for its memory")
     ap.add_argument("--no-sim", action="store_true")
     ap.add_argument("--no-convert", action="store_true")
     ap.add_argument("--check", dest="check", action="store_true", default=None)
     ap.add_argument("--no-check", dest="check", action="store_false")
     a = ap.parse_args()
     out: dict = {"cpu_count": os.cpu_count(), "load_avg_1min_at_start": round(os.getloadavg()[0], 2)}
+    if a.one_tile is not None:
+        out.update(bench_one_tile(a.part, a.grid, a.tile, tuple(a.one_tile)))
+        print(json.dumps(out))
+        return
     if not a.no_convert:
         out.update(bench_convert(a.part, a.grid, a.tile, a.check, a.deflection))
     if not a.no_sim:
