@@ -112,6 +112,7 @@ def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, xyz: np.ndarra
     from .dexel import _empty_history_args
 
     t0 = time.perf_counter()
+    c0 = time.process_time()
     wp = DexelWorkpiece(x0 + gi0 * pitch, y0 + gj0 * pitch, pitch, tnx, tny, near, far, cnt)
     n_dexels0 = wp.n_dexels
     rec = None
@@ -144,7 +145,8 @@ def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, xyz: np.ndarra
     off, fnear, ffar = wp.to_csr()
     return {"off": off, "near": fnear, "far": ffar, "created": int(stats[_k.ST_CREATED]),
             "deleted": int(stats[_k.ST_DELETED]), "structure": structure, "positions": int(len(xyz)),
-            "rays_cut": int(stats[_k.ST_RAYS_CUT]), "seconds": time.perf_counter() - t0, "pid": os.getpid(),
+            "rays_cut": int(stats[_k.ST_RAYS_CUT]), "seconds": time.perf_counter() - t0,
+            "cpu_seconds": time.process_time() - c0, "pid": os.getpid(),
             "peak_rss_mb": peak_rss_mb()}
 
 
@@ -312,4 +314,10 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
               "positions_cut": int(sum(r["positions"] for r in results.values())),
               "rays_cut": int(sum(r["rays_cut"] for r in results.values())),
               "peak_rss_mb_per_worker": round(max(per_worker.values()), 1) if per_worker else 0.0}
+    cpu: dict[int, float] = {}
+    for r in results.values():
+        cpu[r["pid"]] = cpu.get(r["pid"], 0.0) + r["cpu_seconds"]
+    busiest = max(cpu.values()) if cpu else 0.0
+    report.update({"cpu_seconds": round(sum(cpu.values()), 3), "cpu_seconds_busiest_worker": round(busiest, 3),
+                   "cpu_split_speedup": round(sum(cpu.values()) / busiest, 3) if busiest > 0 else 0.0})
     return final, structure, report
