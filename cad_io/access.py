@@ -360,7 +360,7 @@ def reference_tool(shape: Any, points, normals, directions, tool: Tool, *, tol: 
 
 
 def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int = 0,
-              tool: bool = False, samples: Samples | None = None) -> dict:
+              tool: bool = False, samples: Samples | None = None, explain: bool = False) -> dict:
     """Compare the voxel map with the OCC reference on random surface points x all k directions.
 
     ``tool=False`` compares ``V'_g`` with thin rays (:func:`reference_visibility`); ``tool=True``
@@ -372,7 +372,9 @@ def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int
         ``pairs``, ``agree_share``; ``voxel_only`` (the map says free, the reference blocked:
         a non-conservative answer), split into ``voxel_only_near`` (the blocking hit within one
         voxel diagonal of the point) and ``voxel_only_far``; ``reference_only`` (the map is
-        conservative there).
+        conservative there); ``disagree`` and, with ``explain=True`` (thin rays only),
+        ``disagree_near_silhouette``: disagreements where OCC answers otherwise for the same
+        direction from a point one voxel diagonal away (along the tangent plane or the normal).
     """
     from zmap.access.directions import to_bool
 
@@ -392,7 +394,21 @@ def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int
         mine = to_bool(result.vg[vb], ds.k)
     diag = np.sqrt(3.0) * vm.d
     vo = mine & ~ref
+    near_sil = 0
+    if not tool and explain:
+        # a disagreement lies within one voxel of a silhouette (a shadow boundary) when the same
+        # direction from a point one voxel diagonal away on the tangent plane gets the other answer
+        for a, b in zip(*np.nonzero(mine != ref)):
+            n = nrm[a]
+            t1 = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
+            t1 /= np.linalg.norm(t1)
+            t2 = np.cross(n, t1)
+            offs = pts[a] + diag * np.array([t1, -t1, t2, -t2, n * 0.5, -n * 0.5])
+            free, _ = reference_visibility(part.shape, offs, ds.normals[b][None])
+            if (free[:, 0] != ref[a, b]).any():
+                near_sil += 1
     return {"pairs": int(ref.size), "agree_share": float((mine == ref).mean()),
+            "disagree": int((mine != ref).sum()), "disagree_near_silhouette": near_sil,
             "voxel_only": int(vo.sum()), "voxel_only_near": int((vo & (hit <= diag)).sum()),
             "voxel_only_far": int((vo & (hit > diag)).sum()), "reference_only": int((ref & ~mine).sum()),
             "points": pts, "voxels": vb}
