@@ -412,11 +412,7 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
         check_l.append(check)
         # a mesh's boundary polygon may cut up to its deflection inside a curved trim
         # boundary: boundary triangles of an exact face pair with points that far outside
-        # (and as far as the face's edge tolerance, within which its trim curves may lie)
-        margin = 0.0
-        if fs.face_mode[k] == 1:
-            margin = max(BOUNDARY_MARGIN * max(m.deflection, deflection),
-                         min(float(getattr(f, "tolerance", 0.0)), TRIM_SLACK_MAX_MM))
+        margin = BOUNDARY_MARGIN * max(m.deflection, deflection) if fs.face_mode[k] == 1 else 0.0
         margin_l.append(np.where(check, margin, 0.0))
         n_nodes += len(m.nodes)
     if tris_l:
