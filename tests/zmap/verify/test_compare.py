@@ -160,3 +160,13 @@ def test_deviation_png(tmp_path):
     p = deviation_png(c, tmp_path / "dev.png")
     assert p.exists() and p.stat().st_size > 10_000
     assert not list(tmp_path.glob("*.tmp*"))
+
+
+def test_deviation_3d_picture(tmp_path):
+    from zmap.verify.report import deviation_3d
+
+    xyz = np.array([[5.0, 5.0, -0.5], [5.0, 5.0, -1.0]])
+    run = simulate(xyz, (0, 0, -3, 10, 10, 0), tool="ball:2", pitch=0.25)
+    c = compare(run, _flat(-0.9), tol=0.05, offset=0.85)
+    p = deviation_3d(c, tmp_path / "dev3d.png", window_size=(640, 480))
+    assert p.exists() and p.stat().st_size > 10_000
