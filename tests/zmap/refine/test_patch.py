@@ -224,7 +224,8 @@ def test_real_part_ez_holds_tol_in_3d(sample_data):
         assert left == 0
         return d
 
-    assert dist(plain.height(base, x, y)).max() > 0.1
+    # the premise: without the cell check the EZ misses by several tolerances (0.070 mm measured)
+    assert dist(plain.height(base, x, y)).max() > 5 * TOL
     assert dist(model.height(x, y)).max() <= TOL
 
 
