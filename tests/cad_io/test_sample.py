@@ -242,10 +242,17 @@ def test_grid_on_walls_agrees_with_raycast(parts, name):
 REAL_AXES = {"nist_ctc_02_asme1_ap242-1.stp": "+y"}
 
 
+#: the four large real parts are held to OCC node by node in test_exact_heights (+z and +x);
+#: converting them again here cost two minutes of the suite
+LARGE = {"trj8_b1-ec-214.stp", "bug27453_165-174_piattello.stp", "Ventilator.stp",
+         "nist_ctc_02_asme1_ap242-1.stp"}
+
+
 @pytest.mark.slow
 def test_real_parts_convert_and_agree(sample_data):
     files = sorted((sample_data / "step").glob("*.st*p")) + sorted((sample_data / "step").glob("*.STEP"))
-    assert files
+    files = [f for f in files if f.name not in LARGE]
+    assert len(files) >= 5
     for path in files:
         part = read_step(path)
         axis = REAL_AXES.get(path.name, "+z")
