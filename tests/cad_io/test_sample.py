@@ -403,7 +403,9 @@ def test_ctrl_c_is_answered_within_a_second(tmp_path):
 
     out = tmp_path / "d.zmap.npz"
     p = subprocess.Popen([sys.executable, "-m", "zmap.cli", "convert", str(DATA / "freeform_die.step"), "--grid",
-                          "0.02", "-o", str(out), "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                          "0.02", "-o", str(out), "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         # a runner started in the background ignores SIGINT, and the child would inherit that
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     time.sleep(6.0)
     t = time.perf_counter()
     p.send_signal(signal.SIGINT)
