@@ -928,37 +928,33 @@ def _sides(z, r, tol, dense, todo, mode, keep_i, keep_j):
     for k in range(todo.shape[0]):
         bi = todo[k, 0]
         bj = todo[k, 1]
-        i0, j0, i1, j1 = _region_box(bi, bj, r, nx, ny)
-        for li in (bi, bi + 1):  # the rows i0 and i1, between regions (li-1, bj) and (li, bj)
-            if done_i[li, bj]:
-                continue
-            done_i[li, bj] = True
-            i = min(li * r, nx - 1)
-            any_dense = False
-            all_fresh = True
-            for a in (li - 1, li):
-                if a >= 0 and a < nrx:
-                    any_dense |= dense[a, bj]
-                    all_fresh &= mode[a, bj] == 1
-            n = j1 - j0 + 1
-            for m in range(n):
-                h[m] = z[i, j0 + m]
-            _line_side(h[:n], tol, keep_i[li, j0:j1 + 1], tmp, any_dense, all_fresh)
-        for lj in (bj, bj + 1):  # the columns j0 and j1
-            if done_j[lj, bi]:
-                continue
-            done_j[lj, bi] = True
-            j = min(lj * r, ny - 1)
-            any_dense = False
-            all_fresh = True
-            for b in (lj - 1, lj):
-                if b >= 0 and b < nry:
-                    any_dense |= dense[bi, b]
-                    all_fresh &= mode[bi, b] == 1
-            n = i1 - i0 + 1
-            for m in range(n):
-                h[m] = z[i0 + m, j]
-            _line_side(h[:n], tol, keep_j[lj, i0:i1 + 1], tmp, any_dense, all_fresh)
+        _row_sides(z, r, tol, dense, mode, keep_i, done_i, bi, bj, h, tmp)
+        # the columns are the rows of the transposed map
+        _row_sides(z.T, r, tol, dense.T, mode.T, keep_j, done_j, bj, bi, h, tmp)
+
+
+@njit(cache=True)
+def _row_sides(z, r, tol, dense, mode, keep, done, bi, bj, h, tmp):
+    """The two grid rows i0 and i1 of region (bi, bj), each between regions (li-1, bj) and
+    (li, bj), unless ``done``; :func:`_sides` calls it on the transposed map for the columns."""
+    nx, ny = z.shape
+    nrx = dense.shape[0]
+    i0, j0, i1, j1 = _region_box(bi, bj, r, nx, ny)
+    for li in (bi, bi + 1):
+        if done[li, bj]:
+            continue
+        done[li, bj] = True
+        i = min(li * r, nx - 1)
+        any_dense = False
+        all_fresh = True
+        for a in (li - 1, li):
+            if a >= 0 and a < nrx:
+                any_dense |= dense[a, bj]
+                all_fresh &= mode[a, bj] == 1
+        n = j1 - j0 + 1
+        for m in range(n):
+            h[m] = z[i, j0 + m]
+        _line_side(h[:n], tol, keep[li, j0:j1 + 1], tmp, any_dense, all_fresh)
 
 
 @njit(cache=True)
