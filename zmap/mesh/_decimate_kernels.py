@@ -679,6 +679,27 @@ def _box_has_nan(z, i0, j0, i1, j1):
 
 
 @njit(cache=True)
+def _tile_row_sides(z, i0, j0, W, H, tol, tile, nan, keep, h):
+    """Border vertices on the tile rows i = a*tile of the region z[i0:i0+W, j0:j0+H]: every
+    node on the region's own sides and next to a NaN tile, a refined polyline between two
+    tiles without NaN. :func:`dense_kernel` calls it on the transposed map for the columns."""
+    ntx, nty = nan.shape
+    for la in range(ntx + 1):
+        i = min(la * tile, W - 1)
+        for b in range(nty):
+            jb0 = b * tile
+            jb1 = min(jb0 + tile, H - 1)
+            n = jb1 - jb0 + 1
+            if la == 0 or la == ntx or nan[la - 1, b] or nan[la, b]:
+                for m in range(n):
+                    keep[la, jb0 + m] = True
+            else:
+                for m in range(n):
+                    h[m] = z[i0 + i, j0 + jb0 + m]
+                refine_line(h[:n], tol, keep[la, jb0:jb1 + 1])
+
+
+@njit(cache=True)
 def dense_kernel(z, i0, j0, W, H, tol, tile, vout, tout):
     """A region that holds NaN nodes: split into tiles of ``tile`` cells; tiles with a NaN node
     are meshed in full (two triangles per valid cell), the others refined to ``tol`` like a
@@ -697,32 +718,9 @@ def dense_kernel(z, i0, j0, W, H, tol, tile, vout, tout):
     keep_i = np.zeros((ntx + 1, H), dtype=np.bool_)
     keep_j = np.zeros((nty + 1, W), dtype=np.bool_)
     h = np.empty(tile + 1, dtype=np.float64)
-    for la in range(ntx + 1):
-        i = min(la * tile, W - 1)
-        for b in range(nty):
-            jb0 = b * tile
-            jb1 = min(jb0 + tile, H - 1)
-            n = jb1 - jb0 + 1
-            if la == 0 or la == ntx or nan[la - 1, b] or nan[la, b]:
-                for m in range(n):
-                    keep_i[la, jb0 + m] = True
-            else:
-                for m in range(n):
-                    h[m] = z[i0 + i, j0 + jb0 + m]
-                refine_line(h[:n], tol, keep_i[la, jb0:jb1 + 1])
-    for lb in range(nty + 1):
-        j = min(lb * tile, H - 1)
-        for a in range(ntx):
-            ia0 = a * tile
-            ia1 = min(ia0 + tile, W - 1)
-            n = ia1 - ia0 + 1
-            if lb == 0 or lb == nty or nan[a, lb - 1] or nan[a, lb]:
-                for m in range(n):
-                    keep_j[lb, ia0 + m] = True
-            else:
-                for m in range(n):
-                    h[m] = z[i0 + ia0 + m, j0 + j]
-                refine_line(h[:n], tol, keep_j[lb, ia0:ia1 + 1])
+    _tile_row_sides(z, i0, j0, W, H, tol, tile, nan, keep_i, h)
+    # the columns are the rows of the transposed map
+    _tile_row_sides(z.T, j0, i0, H, W, tol, tile, nan.T, keep_j, h)
     ids = np.full(W * H, -1, dtype=np.int64)
     tv = np.empty((tile + 1) * (tile + 1), dtype=np.int64)
     tt = np.empty((2 * tile * tile, 3), dtype=np.int32)
