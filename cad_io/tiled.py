@@ -165,7 +165,8 @@ def sample_tile(part: Part, fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1
             if again.size:
                 gx = g.x0 + (i0 + again // tny) * g.dx  # as sample(): x0 + (global index // ny) * dx
                 gy = g.y0 + (j0 + again % tny) * g.dy
-                z2, f2, m2 = sample_points(part, gx, gy, deflection=g.fine, method=g.method, axis=g.axis)
+                whole = part.get() if isinstance(part, _LazyPart) else part
+                z2, f2, m2 = sample_points(whole, gx, gy, deflection=g.fine, method=g.method, axis=g.axis)
                 zflat[again], fflat[again], mflat[again] = z2, f2, m2
     return zflat.reshape(tnx, tny), fflat.reshape(tnx, tny), mflat.reshape(tnx, tny)
 
@@ -174,12 +175,11 @@ def sample_tile(part: Part, fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1
 _WORKER_PART: dict = {}
 
 
-def _worker_part(part_path: str, g: TiledGrid) -> tuple[Part, Any]:
-    """The part and its face set in this worker: read once per process from the file.
+def _worker_part(part_path: str, g: TiledGrid) -> Part:
+    """The part in this worker, read once per process from the file and meshed as the client did.
 
-    Each worker reads the STEP file itself and meshes it in the order ``sample`` does
-    (start mesh at ``g.deflection``, then the fine mesh on first use), so its meshes are the
-    ones of an in-memory conversion of the same file.
+    Only a tile that keeps facet answers on exact faces needs it (the second pass on the
+    fine mesh calls the CAD kernel); the pair scan works on the face set the client ships.
     """
     st = os.stat(part_path)
     key = (os.path.abspath(part_path), st.st_mtime_ns, st.st_size, g)
@@ -188,29 +188,50 @@ def _worker_part(part_path: str, g: TiledGrid) -> tuple[Part, Any]:
         from .sampler import _needs_mesh
         from .step import read_step
 
-        part = read_step(part_path)
-        if _needs_mesh(part, g.deflection):
+        hit = read_step(part_path)
+        if _needs_mesh(hit, g.deflection):
             from .mesh import triangulate
 
-            triangulate(part, g.deflection)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the client reports the face set's messages
-            fs = _face_set(part, g)
+            triangulate(hit, g.deflection)
         _WORKER_PART.clear()
-        hit = _WORKER_PART[key] = (part, fs)
+        _WORKER_PART[key] = hit
     return hit
 
 
-def _tile_task(part_path: str, g: TiledGrid, store: Any, ti: int, tj: int, threads: int) -> dict:
-    """One Dask task: sample tile (ti, tj), write it and its marker; returns its figures."""
+class _LazyPart:
+    """Stands for the part in :func:`sample_tile` and reads it only when the fine pass asks."""
+
+    def __init__(self, part_path: str, g: TiledGrid):
+        self._path, self._g = part_path, g
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(_worker_part(self._path, self._g), name)
+
+    def get(self) -> Part:
+        return _worker_part(self._path, self._g)
+
+
+def _largest_first(todo: list, store: Any) -> list:
+    """Tiles in order of decreasing node count, so the short edge tiles fill the end of the run."""
+    def nodes(t):
+        si, sj = store.tile_slices(*t)
+        return (si.stop - si.start) * (sj.stop - sj.start)
+
+    return sorted(todo, key=nodes, reverse=True)
+
+
+def _tile_task(part_path: str, g: TiledGrid, store: Any, ti: int, tj: int, threads: int, fs: Any) -> dict:
+    """One Dask task: sample tile (ti, tj), write it and its marker; returns its figures.
+
+    ``fs`` is the client's face set, sent to each worker once (``Client.scatter``).
+    """
     import numba
 
     numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
     t0 = time.perf_counter()
     c0 = time.process_time()
     si, sj = store.tile_slices(ti, tj)
-    part, fs = _worker_part(part_path, g)
-    z, face, how = sample_tile(part, fs, g, si.start, si.stop, sj.start, sj.stop)
+    z, face, how = sample_tile(_LazyPart(part_path, g), fs, g, si.start, si.stop, sj.start, sj.stop)
     store.write_tile(ti, tj, z, {"face": face, "method": how})
     return {"tile": (ti, tj), "nodes": int(z.size), "seconds": time.perf_counter() - t0,
             "cpu_seconds": time.process_time() - c0,
@@ -313,7 +334,11 @@ def convert_tiled(part: str | os.PathLike, grid: Any, output: str | os.PathLike,
             from dask.distributed import as_completed
 
             t_tasks = time.perf_counter()
-            futures = [cl.submit(_tile_task, part_path, g, store, ti, tj, threads, pure=False) for ti, tj in todo]
+            # the packed faces go to every worker once; a worker reads the file itself only
+            # for a fine facet pass
+            fs_remote = cl.scatter(fs, broadcast=True, hash=False)
+            futures = [cl.submit(_tile_task, part_path, g, store, ti, tj, threads, fs_remote, pure=False)
+                       for ti, tj in _largest_first(todo, store)]
             try:
                 with tqdm(total=len(todo), unit="tile", desc="tiles", disable=not progress, leave=False) as bar:
                     for fut in as_completed(futures):

@@ -50,6 +50,31 @@ def test_grid_plan_and_every_tile_equal_the_in_memory_map(part_and_map):
     assert np.isfinite(zm.z).mean() > 0.5
 
 
+def test_worker_reads_the_file_only_for_a_fine_pass(part_and_map):
+    """Workers get the client's face set; the file is read in a worker only when a tile
+    keeps facet answers on exact faces, and then it is meshed as the client meshed it."""
+    import cad_io
+    import cad_io.tiled as T
+
+    _, zm = part_and_map
+    part = cad_io.read_step(PART)
+    g = T.plan_grid(part, GRID)
+    fs = T._face_set(part, g)
+    T._WORKER_PART.clear()
+    lazy = T._LazyPart(str(PART), g)
+    z, face, how = T.sample_tile(lazy, fs, g, 0, 60, 0, 60)  # no facet answer here: no read
+    assert _same(z, zm.z[:60, :60]) and np.array_equal(face, zm.layers["face"][:60, :60])
+    assert not T._WORKER_PART
+    again = lazy.get()  # what the fine pass would use
+    assert len(T._WORKER_PART) == 1 and lazy.get() is again
+    assert len(again.faces) == len(part.faces)
+    for a, b in zip(again.faces, part.faces):
+        assert (a.mesh is None) == (b.mesh is None)
+        if a.mesh is not None:
+            assert np.array_equal(a.mesh.nodes, b.mesh.nodes) and np.array_equal(a.mesh.triangles, b.mesh.triangles)
+    T._WORKER_PART.clear()
+
+
 def test_tiled_conversion_on_a_local_cluster_equals_in_memory_and_resumes(part_and_map, dask_client, tmp_path):
     from cad_io.tiled import convert_tiled
 
