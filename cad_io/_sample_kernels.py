@@ -15,11 +15,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import carray, njit, prange
 
-from ._nurbs_kernels import _gauss_newton, eval_point
+from ._nurbs_kernels import _M, _gauss_newton, _stack_f64, find_span
 
-__all__ = ["count_pairs", "count_pairs_xy", "fill_pairs", "fill_pairs_xy", "mesh_distance", "point_in_bands",
+__all__ = ["count_pairs", "count_pairs_xy", "eval_d1", "fill_pairs", "fill_pairs_xy", "mesh_distance", "point_in_bands",
            "point_in_loops", "project_candidates",
            "reduce_pairs", "solve_pairs", "solve_pairs_xy"]
 
@@ -218,6 +218,136 @@ def _edge_test(u, v, ua, va, ub, vb, eps2):
     return 0
 
 
+@njit(cache=True, inline="always")
+def _basis_d1(knots, off, span, u, p, N, D, left, right):
+    """Non-zero basis functions ``N[j]`` = N_{span-p+j, p}(u) and their first derivatives
+    ``D[j]`` (The NURBS Book A2.2, with the derivative taken from the degree p-1 values
+    in its last round: N'_{i,p} = p (N_{i,p-1} / (u_{i+p} - u_i) - N_{i+1,p-1} /
+    (u_{i+p+1} - u_{i+1}))). The same numbers as ``_nurbs_kernels.basis_ders`` with
+    ``nd = 1``, without its general table of derivatives."""
+    N[0] = 1.0
+    D[0] = 0.0
+    for j in range(1, p + 1):
+        left[j] = u - knots[off + span + 1 - j]
+        right[j] = knots[off + span + j] - u
+        saved = 0.0
+        if j == p:
+            dsaved = 0.0
+            for r in range(j):
+                temp = N[r] / (right[r + 1] + left[j - r])
+                D[r] = dsaved - p * temp
+                dsaved = p * temp
+                N[r] = saved + right[r + 1] * temp
+                saved = left[j - r] * temp
+            D[j] = dsaved
+        else:
+            for r in range(j):
+                temp = N[r] / (right[r + 1] + left[j - r])
+                N[r] = saved + right[r + 1] * temp
+                saved = left[j - r] * temp
+        N[j] = saved
+
+
+@njit(cache=True, inline="always")
+def eval_d1(deg, ncp, koff, poff, knots, cpw, k, u, v, out):
+    """Point and first derivatives of face ``k`` at (``u``, ``v``): ``out[0]`` = S,
+    ``out[1]`` = S_u, ``out[2]`` = S_v (u, v clamped to the domain).
+
+    ``_nurbs_kernels.eval_point(..., nderiv=1, out)`` specialised for the Newton loop of
+    the sampler, where it is nearly all the time: the basis functions and their first
+    derivatives in one pass (:func:`_basis_d1`) and the tensor product in scalars, about
+    2x faster. ``tests/cad_io/test_sample.py`` holds it to ``eval_point`` on real faces.
+    """
+    p = deg[k, 0]
+    q = deg[k, 1]
+    nu = ncp[k, 0]
+    nv = ncp[k, 1]
+    ku = koff[k, 0]
+    kv = koff[k, 1]
+    po = poff[k]
+    u0 = knots[ku + p]
+    u1 = knots[ku + nu]
+    v0 = knots[kv + q]
+    v1 = knots[kv + nv]
+    u = min(max(u, u0), u1)
+    v = min(max(v, v0), v1)
+    Nu = carray(_stack_f64(16), (_M,))
+    Du = carray(_stack_f64(16), (_M,))
+    Nv = carray(_stack_f64(16), (_M,))
+    Dv = carray(_stack_f64(16), (_M,))
+    left = carray(_stack_f64(16), (_M,))
+    right = carray(_stack_f64(16), (_M,))
+    su = find_span(knots, ku, nu - 1, p, u)
+    sv = find_span(knots, kv, nv - 1, q, v)
+    _basis_d1(knots, ku, su, u, p, Nu, Du, left, right)
+    _basis_d1(knots, kv, sv, v, q, Nv, Dv, left, right)
+    sx = 0.0
+    sy = 0.0
+    sz = 0.0
+    sw = 0.0
+    ux = 0.0
+    uy = 0.0
+    uz = 0.0
+    uw = 0.0
+    vx = 0.0
+    vy = 0.0
+    vz = 0.0
+    vw = 0.0
+    for i in range(p + 1):
+        row = po + (su - p + i) * nv + (sv - q)
+        tx = 0.0
+        ty = 0.0
+        tz = 0.0
+        tw = 0.0
+        dx = 0.0
+        dy = 0.0
+        dz = 0.0
+        dw = 0.0
+        for j in range(q + 1):
+            r = row + j
+            n = Nv[j]
+            d = Dv[j]
+            x = cpw[r, 0]
+            y = cpw[r, 1]
+            z = cpw[r, 2]
+            w = cpw[r, 3]
+            tx += n * x
+            ty += n * y
+            tz += n * z
+            tw += n * w
+            dx += d * x
+            dy += d * y
+            dz += d * z
+            dw += d * w
+        a = Nu[i]
+        b = Du[i]
+        sx += a * tx
+        sy += a * ty
+        sz += a * tz
+        sw += a * tw
+        ux += b * tx
+        uy += b * ty
+        uz += b * tz
+        uw += b * tw
+        vx += a * dx
+        vy += a * dy
+        vz += a * dz
+        vw += a * dw
+    iw = 1.0 / sw
+    X = sx * iw
+    Y = sy * iw
+    Z = sz * iw
+    out[0, 0] = X
+    out[0, 1] = Y
+    out[0, 2] = Z
+    out[1, 0] = (ux - uw * X) * iw
+    out[1, 1] = (uy - uw * Y) * iw
+    out[1, 2] = (uz - uw * Z) * iw
+    out[2, 0] = (vx - vw * X) * iw
+    out[2, 1] = (vy - vw * Y) * iw
+    out[2, 2] = (vz - vw * Z) * iw
+
+
 #: Newton stops once converged in xy and its next step moves the point less than this (mm)
 _STEP_TOL2 = 1e-9 ** 2
 
@@ -232,7 +362,7 @@ def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, t
     """
     u = min(max(u, u0), u1)
     v = min(max(v, v0), v1)
-    eval_point(deg, ncp, koff, poff, knots, cpw, k, u, v, 1, out)
+    eval_d1(deg, ncp, koff, poff, knots, cpw, k, u, v, out)
     fx = out[0, 0] - xg
     fy = out[0, 1] - yg
     r = math.sqrt(fx * fx + fy * fy)
@@ -267,7 +397,7 @@ def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, t
         for h in range(12):
             un = min(max(u + lam * du, u0), u1)
             vn = min(max(v + lam * dv, v0), v1)
-            eval_point(deg, ncp, koff, poff, knots, cpw, k, un, vn, 1, out)
+            eval_d1(deg, ncp, koff, poff, knots, cpw, k, un, vn, out)
             fx = out[0, 0] - xg
             fy = out[0, 1] - yg
             rn = math.sqrt(fx * fx + fy * fy)
@@ -277,7 +407,7 @@ def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, t
             lam *= 0.5
         if not improved and r <= tol:
             # rounding stops the fold's refinement: keep the converged point
-            eval_point(deg, ncp, koff, poff, knots, cpw, k, u, v, 1, out)
+            eval_d1(deg, ncp, koff, poff, knots, cpw, k, u, v, out)
             return True, u, v, False, False
         u = un
         v = vn

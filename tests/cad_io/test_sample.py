@@ -414,3 +414,31 @@ def test_ctrl_c_is_answered_within_a_second(tmp_path):
     assert p.returncode == 130, err
     assert answered < 2.0, answered  # 1 s on a quiet machine; the CI's is shared
     assert not out.exists()
+
+
+@pytest.mark.parametrize("name", ["torus.step", "step/bug27693_cornetta-step.stp", "step/featuretype.STEP"])
+def test_newton_evaluator_agrees_with_the_general_one(name):
+    """``eval_d1`` (the Newton loop's point and first derivatives) against
+    ``_nurbs_kernels.eval_point`` on every face of real parts: rational and polynomial,
+    degrees 1 to 3 in u and v, points inside, on and outside the domain (clamped)."""
+    from cad_io import _sample_kernels as K
+    from cad_io._nurbs_kernels import eval_point
+    from cad_io.nurbs import pack
+
+    part = read_step(DATA / name)
+    faces = [k for k, f in enumerate(part.faces) if f.surface is not None]
+    pk = pack([part.faces[k].surface for k in faces])
+    rng = np.random.default_rng(11)
+    a, b = np.empty((3, 3)), np.empty((3, 3))
+    degrees = set()
+    for k in range(len(faces)):
+        u0, u1, v0, v1 = np.nan_to_num(pk.domain[k])
+        degrees.update(int(d) for d in pk.deg[k])
+        u = np.r_[rng.uniform(u0, u1, 20), u0, u1, u0 - 0.1 * (u1 - u0), u1 + 1.0]
+        v = np.r_[rng.uniform(v0, v1, 20), v1, v0, v1 + 0.1 * (v1 - v0), v0 - 1.0]
+        for uu, vv in zip(u, v):
+            eval_point(pk.deg, pk.ncp, pk.koff, pk.poff, pk.knots, pk.cpw, k, uu, vv, 1, a)
+            K.eval_d1(pk.deg, pk.ncp, pk.koff, pk.poff, pk.knots, pk.cpw, k, uu, vv, b)
+            scale = np.abs(a).max(axis=1, keepdims=True) + 1.0
+            assert np.all(np.abs(a - b) <= 1e-12 * scale), (k, uu, vv, a, b)
+    assert len(degrees) >= 2, degrees
