@@ -272,7 +272,10 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
     with ctx as cl:
         n_workers = len(cl.scheduler_info().get("workers", {}))
         futures = {}
-        for k in range(ntx * nty):
+        # the busiest tiles first (positions x rays, about the work), so the short ones fill the end
+        weight = [len(lists[k]) * np.prod(_tile_rays(stock.nx, stock.ny, tile, *divmod(k, nty))[2:4])
+                  for k in range(ntx * nty)]
+        for k in sorted(range(ntx * nty), key=lambda k: -weight[k]):
             ti, tj = divmod(k, nty)
             gi0, gj0, tnx, tny, idx = _tile_rays(stock.nx, stock.ny, tile, ti, tj)
             pos = lists[k]
