@@ -49,7 +49,7 @@ def _machine_memory_gb() -> float:
 def convert(part: Path, grid: float, tile: int, out: Path, workers: int) -> dict:
     from cad_io.tiled import convert_tiled
 
-    say = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
+    say = lambda line: print(line, file=sys.stderr, flush=True)
     load0 = os.getloadavg()[0]
     store, rep = convert_tiled(str(part), grid, out, tile=tile, workers=workers, progress=True, echo=say)
     rep["load_avg_1min_at_start"] = round(load0, 2)

@@ -204,10 +204,38 @@ def cut_positions(xyz, tslot, tcode, trad, tcr, tlen, start, stop, stage0,
     Returns the index of the first position not (fully) cut: ``stop`` when done, else the
     position to resume from after growing what ``stats[ST_STATUS]`` names.
     """
+    return cut_positions_window(xyz, tslot, tcode, trad, tcr, tlen, _NO_GPOS, start, stop, stage0,
+                                x0, y0, pitch, 0, 0, nx, ny, near, far, cnt,
+                                rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+                                rec_t, tt_z, tt_s, tt_ray,
+                                rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats)
+
+
+#: ``gpos`` of a run over the whole program: position p is stage ``stage0 + p + 1``
+_NO_GPOS = np.zeros(0, dtype=np.int64)
+
+
+@njit(cache=True)
+def cut_positions_window(xyz, tslot, tcode, trad, tcr, tlen, gpos, start, stop, stage0,
+                         x0, y0, pitch, gi0, gj0, tnx, tny, near, far, cnt,
+                         rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+                         rec_t, tt_z, tt_s, tt_ray,
+                         rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats):
+    """Cut positions ``start..stop-1`` into the rays ``gi0 <= i < gi0 + tnx``, ``gj0 <= j < gj0 + tny``.
+
+    Ray (i, j) sits at ``(x0 + i*pitch, y0 + j*pitch)`` with the whole stock's global index
+    and is stored at ``(i - gi0) * tny + (j - gj0)`` of ``near``/``far``/``cnt``: the whole
+    stock is the window ``(0, 0, nx, ny)``, a tile of it (:mod:`zmap.sim.tiled`) any other.
+    Position p makes stage ``stage0 + gpos[p] + 1`` (``stage0 + p + 1`` when ``gpos`` is
+    empty), so a tile's positions keep their stages in the whole program. Returns the index
+    of the first position not (fully) cut: ``stop`` when done, else the position to resume
+    from after growing what ``stats[ST_STATUS]`` names.
+    """
     K = near.shape[1]
     zt_cap = zt_z.shape[0]
     tt_cap = tt_z.shape[0]
     tr_cap = tr_z.shape[0]
+    has_gpos = gpos.shape[0] > 0
     stats[ST_STATUS] = OK
     for p in range(start, stop):
         s = tslot[p]
@@ -218,19 +246,19 @@ def cut_positions(xyz, tslot, tcode, trad, tcr, tlen, start, stop, stage0,
         tx = xyz[p, 0]
         ty = xyz[p, 1]
         tz = xyz[p, 2]
-        stage = np.int32(stage0 + p + 1)
+        stage = np.int32(stage0 + (gpos[p] if has_gpos else p) + 1)
         i0 = int(math.ceil((tx - R - x0) / pitch)) - 1
         i1 = int(math.floor((tx + R - x0) / pitch)) + 1
         j0 = int(math.ceil((ty - R - y0) / pitch)) - 1
         j1 = int(math.floor((ty + R - y0) / pitch)) + 1
-        if i0 < 0:
-            i0 = 0
-        if j0 < 0:
-            j0 = 0
-        if i1 > nx - 1:
-            i1 = nx - 1
-        if j1 > ny - 1:
-            j1 = ny - 1
+        if i0 < gi0:
+            i0 = gi0
+        if j0 < gj0:
+            j0 = gj0
+        if i1 > gi0 + tnx - 1:
+            i1 = gi0 + tnx - 1
+        if j1 > gj0 + tny - 1:
+            j1 = gj0 + tny - 1
         b = np.float32(tz + L)
         R2 = R * R
         for i in range(i0, i1 + 1):
@@ -240,7 +268,7 @@ def cut_positions(xyz, tslot, tcode, trad, tcr, tlen, start, stop, stage0,
                 d2 = dxr * dxr + dyr * dyr
                 if d2 > R2:
                     continue
-                r = i * ny + j
+                r = (i - gi0) * tny + (j - gj0)
                 c = cnt[r]
                 if c == 0:
                     continue
