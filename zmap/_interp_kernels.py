@@ -157,33 +157,46 @@ def _locate(x, y, x0, y0, dx, dy, c, s, ox, oy, nx, ny):
     return i, j, u, v
 
 
+@njit(cache=True)
+def _bezier_cell(z, i, j, u, v, dx, dy, nx, ny, tangent, boundary):
+    """Paper 004 Eq. 4-7 in cell (i, j) of ``z`` at cell coordinates (u, v); NaN at a missing corner.
+
+    ``z`` may be a window of a larger map (:mod:`zmap.tiled`): ``nx``, ``ny`` are then the
+    window's, and the slopes' edge rules act only at its edges.
+    """
+    z2 = z[i, j]
+    z3 = z[i + 1, j]
+    z6 = z[i, j + 1]
+    z7 = z[i + 1, j + 1]
+    if math.isnan(z2) or math.isnan(z3) or math.isnan(z6) or math.isnan(z7):
+        return np.nan
+    # x-direction curves V1 (row j) and V2 (row j+1), evaluated at u.
+    w1 = _bezier1d(z2, z3, _slope(z, i, j, 1, 0, dx, nx, ny, tangent, boundary),
+                   _slope(z, i + 1, j, 1, 0, dx, nx, ny, tangent, boundary), dx, u)
+    w2 = _bezier1d(z6, z7, _slope(z, i, j + 1, 1, 0, dx, nx, ny, tangent, boundary),
+                   _slope(z, i + 1, j + 1, 1, 0, dx, nx, ny, tangent, boundary), dx, u)
+    # y-direction curves V3 (column i) and V4 (column i+1) between w1 and w2, at v.
+    w3 = _bezier1d(w1, w2, _slope(z, i, j, 0, 1, dy, nx, ny, tangent, boundary),
+                   _slope(z, i, j + 1, 0, 1, dy, nx, ny, tangent, boundary), dy, v)
+    w4 = _bezier1d(w1, w2, _slope(z, i + 1, j, 0, 1, dy, nx, ny, tangent, boundary),
+                   _slope(z, i + 1, j + 1, 0, 1, dy, nx, ny, tangent, boundary), dy, v)
+    return (1.0 - u) * w3 + u * w4
+
+
+@njit(cache=True)
+def _bilinear_cell(z, i, j, u, v):
+    """Bilinear interpolation in cell (i, j) of ``z`` at cell coordinates (u, v)."""
+    return ((1.0 - u) * ((1.0 - v) * z[i, j] + v * z[i, j + 1])
+            + u * ((1.0 - v) * z[i + 1, j] + v * z[i + 1, j + 1]))
+
+
 @njit(cache=True, parallel=True)
 def bezier_kernel(z, x0, y0, dx, dy, c, s, ox, oy, xs, ys, tangent, boundary, out):
     """Paper 004 Eq. 4-7 at every query point."""
     nx, ny = z.shape
     for k in prange(xs.shape[0]):
         i, j, u, v = _locate(xs[k], ys[k], x0, y0, dx, dy, c, s, ox, oy, nx, ny)
-        if i < 0:
-            out[k] = np.nan
-            continue
-        z2 = z[i, j]
-        z3 = z[i + 1, j]
-        z6 = z[i, j + 1]
-        z7 = z[i + 1, j + 1]
-        if math.isnan(z2) or math.isnan(z3) or math.isnan(z6) or math.isnan(z7):
-            out[k] = np.nan
-            continue
-        # x-direction curves V1 (row j) and V2 (row j+1), evaluated at u.
-        w1 = _bezier1d(z2, z3, _slope(z, i, j, 1, 0, dx, nx, ny, tangent, boundary),
-                       _slope(z, i + 1, j, 1, 0, dx, nx, ny, tangent, boundary), dx, u)
-        w2 = _bezier1d(z6, z7, _slope(z, i, j + 1, 1, 0, dx, nx, ny, tangent, boundary),
-                       _slope(z, i + 1, j + 1, 1, 0, dx, nx, ny, tangent, boundary), dx, u)
-        # y-direction curves V3 (column i) and V4 (column i+1) between w1 and w2, at v.
-        w3 = _bezier1d(w1, w2, _slope(z, i, j, 0, 1, dy, nx, ny, tangent, boundary),
-                       _slope(z, i, j + 1, 0, 1, dy, nx, ny, tangent, boundary), dy, v)
-        w4 = _bezier1d(w1, w2, _slope(z, i + 1, j, 0, 1, dy, nx, ny, tangent, boundary),
-                       _slope(z, i + 1, j + 1, 0, 1, dy, nx, ny, tangent, boundary), dy, v)
-        out[k] = (1.0 - u) * w3 + u * w4
+        out[k] = np.nan if i < 0 else _bezier_cell(z, i, j, u, v, dx, dy, nx, ny, tangent, boundary)
 
 
 @njit(cache=True, parallel=True)
@@ -192,8 +205,4 @@ def bilinear_kernel(z, x0, y0, dx, dy, c, s, ox, oy, xs, ys, out):
     nx, ny = z.shape
     for k in prange(xs.shape[0]):
         i, j, u, v = _locate(xs[k], ys[k], x0, y0, dx, dy, c, s, ox, oy, nx, ny)
-        if i < 0:
-            out[k] = np.nan
-            continue
-        out[k] = ((1.0 - u) * ((1.0 - v) * z[i, j] + v * z[i, j + 1])
-                  + u * ((1.0 - v) * z[i + 1, j] + v * z[i + 1, j + 1]))
+        out[k] = np.nan if i < 0 else _bilinear_cell(z, i, j, u, v)

@@ -12,12 +12,10 @@ edge, they are the map's own. No validation here: :mod:`zmap.tiled.store` owns t
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit, prange
 
-from .._interp_kernels import _bezier1d, _locate, _slope
+from .._interp_kernels import _bezier_cell, _bilinear_cell, _locate
 
 __all__ = ["locate_cells", "bezier_window", "bilinear_window"]
 
@@ -42,27 +40,7 @@ def bezier_window(w, a, b, x0, y0, dx, dy, c, s, ox, oy, nx, ny, xs, ys, idx, ta
     for m in prange(idx.shape[0]):
         k = idx[m]
         i, j, u, v = _locate(xs[k], ys[k], x0, y0, dx, dy, c, s, ox, oy, nx, ny)
-        if i < 0:
-            out[k] = np.nan
-            continue
-        i -= a
-        j -= b
-        z2 = w[i, j]
-        z3 = w[i + 1, j]
-        z6 = w[i, j + 1]
-        z7 = w[i + 1, j + 1]
-        if math.isnan(z2) or math.isnan(z3) or math.isnan(z6) or math.isnan(z7):
-            out[k] = np.nan
-            continue
-        w1 = _bezier1d(z2, z3, _slope(w, i, j, 1, 0, dx, wx, wy, tangent, boundary),
-                       _slope(w, i + 1, j, 1, 0, dx, wx, wy, tangent, boundary), dx, u)
-        w2 = _bezier1d(z6, z7, _slope(w, i, j + 1, 1, 0, dx, wx, wy, tangent, boundary),
-                       _slope(w, i + 1, j + 1, 1, 0, dx, wx, wy, tangent, boundary), dx, u)
-        w3 = _bezier1d(w1, w2, _slope(w, i, j, 0, 1, dy, wx, wy, tangent, boundary),
-                       _slope(w, i, j + 1, 0, 1, dy, wx, wy, tangent, boundary), dy, v)
-        w4 = _bezier1d(w1, w2, _slope(w, i + 1, j, 0, 1, dy, wx, wy, tangent, boundary),
-                       _slope(w, i + 1, j + 1, 0, 1, dy, wx, wy, tangent, boundary), dy, v)
-        out[k] = (1.0 - u) * w3 + u * w4
+        out[k] = np.nan if i < 0 else _bezier_cell(w, i - a, j - b, u, v, dx, dy, wx, wy, tangent, boundary)
 
 
 @njit(cache=True, parallel=True)
@@ -71,10 +49,4 @@ def bilinear_window(w, a, b, x0, y0, dx, dy, c, s, ox, oy, nx, ny, xs, ys, idx, 
     for m in prange(idx.shape[0]):
         k = idx[m]
         i, j, u, v = _locate(xs[k], ys[k], x0, y0, dx, dy, c, s, ox, oy, nx, ny)
-        if i < 0:
-            out[k] = np.nan
-            continue
-        i -= a
-        j -= b
-        out[k] = ((1.0 - u) * ((1.0 - v) * w[i, j] + v * w[i, j + 1])
-                  + u * ((1.0 - v) * w[i + 1, j] + v * w[i + 1, j + 1]))
+        out[k] = np.nan if i < 0 else _bilinear_cell(w, i - a, j - b, u, v)
