@@ -115,14 +115,28 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split())
 
 
+def _by_interrupt(exc: BaseException) -> bool:
+    """True if ``exc`` is, or was raised while handling or from, a KeyboardInterrupt: a
+    Ctrl-C during the import of a C extension comes out as ``ImportError: initialization
+    failed`` (pybind11 raises it from the interrupt: OCP, in the first seconds of
+    ``zmap convert``)."""
+    seen = 0
+    while exc is not None and seen < 32:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        exc = exc.__cause__ or exc.__context__
+        seen += 1
+    return False
+
+
 def _report(exc: BaseException, command: str) -> int:
     """Print ``exc`` in one line on stderr; returns the exit status.
 
     1: bad input (a missing or unreadable file, a bad option value, a G-code or STEP error)
     and every other failure; 2: the command line itself (unknown option, missing
-    argument: click's usage errors); 130: interrupted.
+    argument: click's usage errors); 130: interrupted (an error raised from a Ctrl-C too).
     """
-    if isinstance(exc, KeyboardInterrupt):
+    if isinstance(exc, KeyboardInterrupt) or _by_interrupt(exc):
         click.echo("zmap: interrupted", err=True)
         return 130
     if isinstance(exc, click.BadParameter) and not isinstance(exc, click.MissingParameter):
@@ -169,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     except (ZMapError, ValueError, OSError, click.ClickException) as exc:
         return _report(exc, command)
     except Exception as exc:  # MemoryError included; never BaseException (KeyboardInterrupt, SystemExit)
-        if os.environ.get("ZMAP_TRACEBACK"):
+        if os.environ.get("ZMAP_TRACEBACK") and not _by_interrupt(exc):
             raise
         return _report(exc, command)
     return 0
