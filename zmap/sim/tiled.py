@@ -150,6 +150,21 @@ def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, xyz: np.ndarra
             "peak_rss_mb": peak_rss_mb()}
 
 
+def _sim_tile_of(shared: tuple, pos: np.ndarray, table: tuple, history: str, x0: float, y0: float, pitch: float,
+                 gi0: int, gj0: int, tnx: int, tny: int, ny: int) -> dict:
+    """One Dask task: tile (gi0, gj0, tnx, tny) of the whole stock and program sent once per worker.
+
+    ``shared`` is ``(xyz, slot, near, far, cnt)`` of the whole run (``Client.scatter`` with
+    ``broadcast``); the task takes its rays and its positions ``pos`` from it.
+    """
+    xyz, slot, near, far, cnt = shared
+    idx = (np.arange(gi0, gi0 + tnx, dtype=np.int64)[:, None] * ny
+           + np.arange(gj0, gj0 + tny, dtype=np.int64)[None, :]).ravel()
+    return _sim_tile(np.ascontiguousarray(near[idx]), np.ascontiguousarray(far[idx]), np.ascontiguousarray(cnt[idx]),
+                     np.ascontiguousarray(xyz[pos]), np.ascontiguousarray(slot[pos]), pos, table, history,
+                     x0, y0, pitch, gi0, gj0, tnx, tny)
+
+
 class TiledHistory:
     """One history per tile, read as one: ``display(k)`` and ``reconstruct(k)`` over the whole stock.
 
@@ -273,16 +288,17 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
         n_workers = len(cl.scheduler_info().get("workers", {}))
         futures = {}
         # the busiest tiles first (positions x rays, about the work), so the short ones fill the end
-        weight = [len(lists[k]) * np.prod(_tile_rays(stock.nx, stock.ny, tile, *divmod(k, nty))[2:4])
+        weight = [len(lists[k]) * min(tile, stock.nx - k // nty * tile) * min(tile, stock.ny - k % nty * tile)
                   for k in range(ntx * nty)]
+        # the program and the stock go to every worker once, straight from here (not through
+        # the scheduler with each task); a task gets only its positions' indices
+        shared = cl.scatter([(xyz, slot, stock.near, stock.far, stock.cnt)], broadcast=True, hash=False)[0]
         for k in sorted(range(ntx * nty), key=lambda k: -weight[k]):
             ti, tj = divmod(k, nty)
-            gi0, gj0, tnx, tny, idx = _tile_rays(stock.nx, stock.ny, tile, ti, tj)
-            pos = lists[k]
-            fut = cl.submit(_sim_tile, np.ascontiguousarray(stock.near[idx]), np.ascontiguousarray(stock.far[idx]),
-                            np.ascontiguousarray(stock.cnt[idx]), np.ascontiguousarray(xyz[pos]),
-                            np.ascontiguousarray(slot[pos]), pos, table, history, stock.x0, stock.y0, stock.pitch,
-                            gi0, gj0, tnx, tny, pure=False)
+            gi0, gj0 = ti * tile, tj * tile
+            tnx, tny = min(tile, stock.nx - gi0), min(tile, stock.ny - gj0)
+            fut = cl.submit(_sim_tile_of, shared, lists[k], table, history, stock.x0, stock.y0, stock.pitch,
+                            gi0, gj0, tnx, tny, stock.ny, pure=False)
             futures[fut] = k
         from dask.distributed import as_completed
 
