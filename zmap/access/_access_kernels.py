@@ -11,8 +11,8 @@ from numba import njit, prange
 
 from ._direction_kernels import lookup_one
 
-__all__ = ["accumulate", "paint_exterior", "cast_directions", "ball_neighbours", "local_conditions",
-           "tool_kernel", "greedy_cover", "orientation_votes"]
+__all__ = ["accumulate", "paint_exterior", "skin_masks", "cast_directions", "ball_neighbours", "local_conditions",
+           "stair_max", "tool_kernel", "greedy_cover", "orientation_votes"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
 
@@ -191,8 +191,63 @@ def _basis(nx, ny, nz):
     return ex, ey, ez, fx, fy, fz
 
 
+@njit(cache=True)
+def skin_masks(state, ijk, out):
+    """Per skin voxel, a 27-bit mask of its interior neighbours: bit ``(dx+1)*9 + (dy+1)*3 + (dz+1)``
+    is set where voxel (i+dx, j+dy, l+dz) is interior."""
+    nx, ny, nz = state.shape
+    for s in range(ijk.shape[0]):
+        i, j, l = ijk[s, 0], ijk[s, 1], ijk[s, 2]
+        m = np.int64(0)
+        for dx in range(-1, 2):
+            for dy in range(-1, 2):
+                for dz in range(-1, 2):
+                    a, b, c = i + dx, j + dy, l + dz
+                    if 0 <= a < nx and 0 <= b < ny and 0 <= c < nz and state[a, b, c] == INTERIOR:
+                        m |= np.int64(1) << np.int64((dx + 1) * 9 + (dy + 1) * 3 + (dz + 1))
+        out[s] = m
+
+
+@njit(cache=True, inline="always")
+def _line_setup(n, e, f):
+    """Per axis c of direction n: (zero, 1/n_c, e_c/n_c, f_c/n_c, sign n_c)."""
+    z = abs(n) < 1e-12
+    if z:
+        return True, 0.0, 0.0, 0.0, 1.0
+    inv = 1.0 / n
+    return False, inv, e * inv, f * inv, 1.0 if n > 0 else -1.0
+
+
+@njit(cache=True, inline="always")
+def _zin(uc, vc, e, f, r, h):
+    # the slab test of an axis the line runs parallel to (as in _slab)
+    return not (abs(uc * e + vc * f - r) > h)
+
+
+@njit(cache=True, inline="always")
+def _zcols(uc, e, f, r, h, u0, cell, jlo, jhi):
+    """Columns b in [jlo, jhi] whose line (uc, vc_b) passes the slab test of an axis it runs
+    parallel to: a range found in closed form, its ends fixed with the exact test."""
+    if abs(f) < 1e-300:
+        if _zin(uc, 0.0, e, 0.0, r, h):
+            return jlo, jhi
+        return 1, 0
+    w = uc * e - r
+    va = (-h - w) / f
+    vb = (h - w) / f
+    if va > vb:
+        va, vb = vb, va
+    lo = max(jlo, int(np.ceil((va - u0) / cell - 0.5)) - 1)
+    hi = min(jhi, int(np.floor((vb - u0) / cell - 0.5)) + 1)
+    while lo <= hi and not _zin(uc, u0 + (lo + 0.5) * cell, e, f, r, h):
+        lo += 1
+    while hi >= lo and not _zin(uc, u0 + (hi + 0.5) * cell, e, f, r, h):
+        hi -= 1
+    return lo, hi
+
+
 @njit(cache=True, parallel=True)
-def cast_directions(dirs, opp, bxyz, bhalf, skin, light, vl, d, cell, radius, lo, out):
+def cast_directions(dirs, opp, bxyz, bhalf, skin, hide, skin_mask, light, vl, d, cell, radius, lo, out):
     """Cylinder casting of paper 002 §4.5 for every direction at once, one depth buffer each.
 
     For direction n, the lines parallel to n through the cell centres of a plane grid of
@@ -206,6 +261,12 @@ def cast_directions(dirs, opp, bxyz, bhalf, skin, light, vl, d, cell, radius, lo
     centre from its nearest depth. ``out[i, b]`` = 1 where direction i stays in V'_g(b); ``opp[i]`` is the
     index of -dirs[i].
 
+    A skin cube whose neighbours on n's side (``hide[i]``, a mask over ``skin_mask``) are all
+    interior is left out of direction i: every line leaving it goes on into the interior and
+    leaves it through a later skin cube that is kept, whose exit is larger, so no buffer
+    value changes. Per cell the exit and entry parameters are linear in the cell's centre
+    along a row (one add per axis), and the buffer covers only the part's footprint.
+
     bxyz, bhalf : (mb, 3) centres and half extents of the boundary voxels' surface boxes;
     skin : (ms, 3) interior skin voxel centres (cubes of edge d);
     radius : half the diagonal of the part's box; lo : (3,) centre of the part's box.
@@ -217,16 +278,44 @@ def cast_directions(dirs, opp, bxyz, bhalf, skin, light, vl, d, cell, radius, lo
     h = 0.5 * d
     u0 = -(radius + 2 * d)
     nc = int(np.ceil(2.0 * (radius + 2 * d) / cell)) + 1
+    # the box holding every blocker and every voxel box (grown), relative to lo
+    gmin = np.full(3, 1.0e300)
+    gmax = np.full(3, -1.0e300)
+    for m in range(mb + ms):
+        for c in range(3):
+            if m < mb:
+                x0 = bxyz[m, c] - bhalf[m, c] - g
+                x1 = bxyz[m, c] + bhalf[m, c] + g
+            else:
+                x0 = skin[m - mb, c] - h
+                x1 = skin[m - mb, c] + h
+            gmin[c] = min(gmin[c], x0 - lo[c])
+            gmax[c] = max(gmax[c], x1 - lo[c])
     for i in prange(k):
         nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
         ex, ey, ez, fx, fy, fz = _basis(nx, ny, nz)
-        b1 = np.full((nc, nc), -1.0e300)
-        b2 = np.full((nc, nc), -1.0e300)
-        id1 = np.full((nc, nc), -1, dtype=np.int64)
+        zx, ix_, pex, pfx, sx = _line_setup(nx, ex, fx)
+        zy, iy_, pey, pfy, sy = _line_setup(ny, ey, fy)
+        zz, iz_, pez, pfz, sz = _line_setup(nz, ez, fz)
+        # the window of the plane grid that the part covers
+        gcx, gcy, gcz = 0.5 * (gmin[0] + gmax[0]), 0.5 * (gmin[1] + gmax[1]), 0.5 * (gmin[2] + gmax[2])
+        ghx, ghy, ghz = 0.5 * (gmax[0] - gmin[0]), 0.5 * (gmax[1] - gmin[1]), 0.5 * (gmax[2] - gmin[2])
+        cu = gcx * ex + gcy * ey + gcz * ez
+        cv = gcx * fx + gcy * fy + gcz * fz
+        au = ghx * abs(ex) + ghy * abs(ey) + ghz * abs(ez)
+        av = ghx * abs(fx) + ghy * abs(fy) + ghz * abs(fz)
+        A0 = max(0, int(np.floor((cu - au - u0) / cell)) - 1)
+        A1 = min(nc - 1, int(np.floor((cu + au - u0) / cell)) + 1)
+        B0 = max(0, int(np.floor((cv - av - u0) / cell)) - 1)
+        B1 = min(nc - 1, int(np.floor((cv + av - u0) / cell)) + 1)
+        b1 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
+        b2 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
+        id1 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1, dtype=np.int64)
         wi = i >> 6
         o = opp[i]
         ow = o >> 6
         ob = np.uint64(o & 63)
+        req = hide[i]
         for m in range(mb + ms):
             if m < mb:
                 if (light[m, ow] >> ob) & np.uint64(1) == 0:
@@ -234,32 +323,53 @@ def cast_directions(dirs, opp, bxyz, bhalf, skin, light, vl, d, cell, radius, lo
                 cx, cy, cz = bxyz[m, 0], bxyz[m, 1], bxyz[m, 2]
                 hx, hy, hz = bhalf[m, 0] + g, bhalf[m, 1] + g, bhalf[m, 2] + g
             else:
+                if (skin_mask[m - mb] & req) == req:
+                    continue
                 cx, cy, cz = skin[m - mb, 0], skin[m - mb, 1], skin[m - mb, 2]
                 hx, hy, hz = h, h, h
+            rx, ry, rz = cx - lo[0], cy - lo[1], cz - lo[2]
             ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
             af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
-            rx, ry, rz = cx - lo[0], cy - lo[1], cz - lo[2]
             pu = rx * ex + ry * ey + rz * ez
             pv = rx * fx + ry * fy + rz * fz
-            ia = max(0, int(np.floor((pu - ae - u0) / cell)))
-            ib = min(nc - 1, int(np.floor((pu + ae - u0) / cell)))
-            ja = max(0, int(np.floor((pv - af - u0) / cell)))
-            jb = min(nc - 1, int(np.floor((pv + af - u0) / cell)))
+            ia = max(A0, int(np.floor((pu - ae - u0) / cell)))
+            ib = min(A1, int(np.floor((pu + ae - u0) / cell)))
+            ja = max(B0, int(np.floor((pv - af - u0) / cell)))
+            jb = min(B1, int(np.floor((pv + af - u0) / cell)))
+            # entry / exit parameter per axis: (r -/+ sign h) / n - uc e/n - vc f/n
+            lxa = -1.0e300 if zx else (rx - sx * hx) * ix_
+            lxb = 1.0e300 if zx else (rx + sx * hx) * ix_
+            lya = -1.0e300 if zy else (ry - sy * hy) * iy_
+            lyb = 1.0e300 if zy else (ry + sy * hy) * iy_
+            lza = -1.0e300 if zz else (rz - sz * hz) * iz_
+            lzb = 1.0e300 if zz else (rz + sz * hz) * iz_
             for a in range(ia, ib + 1):
                 uc = u0 + (a + 0.5) * cell
-                for b in range(ja, jb + 1):
+                jl, jh = ja, jb
+                if zx:
+                    jl, jh = _zcols(uc, ex, fx, rx, hx, u0, cell, jl, jh)
+                if zy:
+                    jl, jh = _zcols(uc, ey, fy, ry, hy, u0, cell, jl, jh)
+                if zz:
+                    jl, jh = _zcols(uc, ez, fz, rz, hz, u0, cell, jl, jh)
+                xa, xb = lxa - uc * pex, lxb - uc * pex
+                ya, yb = lya - uc * pey, lyb - uc * pey
+                za, zb = lza - uc * pez, lzb - uc * pez
+                ra = a - A0
+                for b in range(jl, jh + 1):
                     vc = u0 + (b + 0.5) * cell
-                    s0, s1 = _slab(uc * ex + vc * fx, uc * ey + vc * fy, uc * ez + vc * fz, nx, ny, nz,
-                                   rx, ry, rz, hx, hy, hz)
+                    s0 = max(xa - vc * pfx, max(ya - vc * pfy, za - vc * pfz))
+                    s1 = min(xb - vc * pfx, min(yb - vc * pfy, zb - vc * pfz))
                     if s0 >= s1:
                         continue
-                    if s1 > b1[a, b]:
-                        if id1[a, b] != m:
-                            b2[a, b] = b1[a, b]
-                        b1[a, b] = s1
-                        id1[a, b] = m
-                    elif s1 > b2[a, b] and id1[a, b] != m:
-                        b2[a, b] = s1
+                    rb = b - B0
+                    if s1 > b1[ra, rb]:
+                        if id1[ra, rb] != m:
+                            b2[ra, rb] = b1[ra, rb]
+                        b1[ra, rb] = s1
+                        id1[ra, rb] = m
+                    elif s1 > b2[ra, rb] and id1[ra, rb] != m:
+                        b2[ra, rb] = s1
         eps = 1e-9 * d
         for m in range(mb):
             if (vl[m, wi] >> np.uint64(i & 63)) & np.uint64(1) == 0:
@@ -271,34 +381,52 @@ def cast_directions(dirs, opp, bxyz, bhalf, skin, light, vl, d, cell, radius, lo
             af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
             pu = rx * ex + ry * ey + rz * ez
             pv = rx * fx + ry * fy + rz * fz
-            ia = max(0, int(np.floor((pu - ae - u0) / cell)))
-            ib = min(nc - 1, int(np.floor((pu + ae - u0) / cell)))
-            ja = max(0, int(np.floor((pv - af - u0) / cell)))
-            jb = min(nc - 1, int(np.floor((pv + af - u0) / cell)))
+            ia = max(A0, int(np.floor((pu - ae - u0) / cell)))
+            ib = min(A1, int(np.floor((pu + ae - u0) / cell)))
+            ja = max(B0, int(np.floor((pv - af - u0) / cell)))
+            jb = min(B1, int(np.floor((pv + af - u0) / cell)))
+            lxa = -1.0e300 if zx else (rx - sx * hx) * ix_
+            lxb = 1.0e300 if zx else (rx + sx * hx) * ix_
+            lya = -1.0e300 if zy else (ry - sy * hy) * iy_
+            lyb = 1.0e300 if zy else (ry + sy * hy) * iy_
+            lza = -1.0e300 if zz else (rz - sz * hz) * iz_
+            lzb = 1.0e300 if zz else (rz + sz * hz) * iz_
             ok = 1
             hits = 0
             for a in range(ia, ib + 1):
                 if ok == 0:
                     break
                 uc = u0 + (a + 0.5) * cell
-                for b in range(ja, jb + 1):
+                jl, jh = ja, jb
+                if zx:
+                    jl, jh = _zcols(uc, ex, fx, rx, hx, u0, cell, jl, jh)
+                if zy:
+                    jl, jh = _zcols(uc, ey, fy, ry, hy, u0, cell, jl, jh)
+                if zz:
+                    jl, jh = _zcols(uc, ez, fz, rz, hz, u0, cell, jl, jh)
+                xa, xb = lxa - uc * pex, lxb - uc * pex
+                ya, yb = lya - uc * pey, lyb - uc * pey
+                za, zb = lza - uc * pez, lzb - uc * pez
+                ra = a - A0
+                for b in range(jl, jh + 1):
                     vc = u0 + (b + 0.5) * cell
-                    s0, s1 = _slab(uc * ex + vc * fx, uc * ey + vc * fy, uc * ez + vc * fz, nx, ny, nz,
-                                   rx, ry, rz, hx, hy, hz)
+                    s0 = max(xa - vc * pfx, max(ya - vc * pfy, za - vc * pfz))
+                    s1 = min(xb - vc * pfx, min(yb - vc * pfy, zb - vc * pfz))
                     if s0 >= s1:
                         continue
                     hits += 1
-                    top = b2[a, b] if id1[a, b] == m else b1[a, b]
+                    rb = b - B0
+                    top = b2[ra, rb] if id1[ra, rb] == m else b1[ra, rb]
                     if top > s0 + eps:
                         ok = 0
                         break
             if hits == 0:
                 # a box thinner than the cell: no centre line crosses it; test the cell under
                 # its centre from its nearest depth
-                a = min(nc - 1, max(0, int(np.floor((pu - u0) / cell))))
-                b = min(nc - 1, max(0, int(np.floor((pv - u0) / cell))))
+                a = min(A1, max(A0, int(np.floor((pu - u0) / cell))))
+                b = min(B1, max(B0, int(np.floor((pv - u0) / cell))))
                 s0 = rx * nx + ry * ny + rz * nz - (hx * abs(nx) + hy * abs(ny) + hz * abs(nz))
-                top = b2[a, b] if id1[a, b] == m else b1[a, b]
+                top = b2[a - A0, b - B0] if id1[a - A0, b - B0] == m else b1[a - A0, b - B0]
                 if top > s0 + eps:
                     ok = 0
             out[i, m] = ok
@@ -371,60 +499,178 @@ def local_conditions(vg, bxyz, centre, ptr, nb, inside, bad, cap, centres, frame
 
 
 @njit(cache=True, inline="always")
-def _rasterise_max(buf, u0, cell, pu, pv, ae, af, top):
-    nc = buf.shape[0]
-    ia = max(0, int(np.floor((pu - ae - u0) / cell)))
-    ib = min(nc - 1, int(np.floor((pu + ae - u0) / cell)))
-    ja = max(0, int(np.floor((pv - af - u0) / cell)))
-    jb = min(nc - 1, int(np.floor((pv + af - u0) / cell)))
+def _rasterise_max(buf, A0, B0, u0, cell, pu, pv, ae, af, top):
+    """Raise the window ``buf`` (grid cells A0.., B0..) to ``top`` over the footprint box."""
+    na, nb = buf.shape
+    ia = max(A0, int(np.floor((pu - ae - u0) / cell)))
+    ib = min(A0 + na - 1, int(np.floor((pu + ae - u0) / cell)))
+    ja = max(B0, int(np.floor((pv - af - u0) / cell)))
+    jb = min(B0 + nb - 1, int(np.floor((pv + af - u0) / cell)))
     for p in range(ia, ib + 1):
         for r in range(ja, jb + 1):
-            if top > buf[p, r]:
-                buf[p, r] = top
+            if top > buf[p - A0, r - B0]:
+                buf[p - A0, r - B0] = top
 
 
 @njit(cache=True, inline="always")
-def _disc_clear(buf, u0, cell, pu, pv, rr, h0):
-    """True when no buffer cell meeting the disc (centre pu, pv, radius rr) is above h0."""
-    nc = buf.shape[0]
-    ia = max(0, int(np.floor((pu - rr - u0) / cell)))
-    ib = min(nc - 1, int(np.floor((pu + rr - u0) / cell)))
-    ja = max(0, int(np.floor((pv - rr - u0) / cell)))
-    jb = min(nc - 1, int(np.floor((pv + rr - u0) / cell)))
+def _disc_clear(buf, A0, B0, u0, cell, pu, pv, rr, h0, skip):
+    """True when no buffer cell meeting the disc (centre pu, pv, radius rr) is above h0 (cells
+    outside the window hold nothing). ``skip[|dp|]``: half-width of the columns around the
+    centre's cell, in row dp from it, known to be at or below h0 (-1: none)."""
+    na, nb = buf.shape
+    ia = max(A0, int(np.floor((pu - rr - u0) / cell)))
+    ib = min(A0 + na - 1, int(np.floor((pu + rr - u0) / cell)))
+    ja = max(B0, int(np.floor((pv - rr - u0) / cell)))
+    jb = min(B0 + nb - 1, int(np.floor((pv + rr - u0) / cell)))
+    pc = int(np.floor((pu - u0) / cell))
+    rc = int(np.floor((pv - u0) / cell))
     r2 = rr * rr
     for p in range(ia, ib + 1):
         ua = u0 + p * cell
         du = 0.0 if ua <= pu <= ua + cell else min(abs(ua - pu), abs(ua + cell - pu))
+        dp = abs(p - pc)
+        w = skip[dp] if dp < skip.shape[0] else -1
         for r in range(ja, jb + 1):
+            if w >= 0 and rc - w <= r <= rc + w:
+                continue
             va = u0 + r * cell
             dv = 0.0 if va <= pv <= va + cell else min(abs(va - pv), abs(va + cell - pv))
             if du * du + dv * dv >= r2:
                 continue
-            if buf[p, r] > h0:
+            if buf[p - A0, r - B0] > h0:
                 return False
     return True
 
 
+@njit(cache=True)
+def _runmax(x, r, y, g, hh):
+    """y[i] = max(x[i - r .. i + r]) (clipped to x), van Herk / Gil-Werman: three compares
+    per element whatever r. g, hh: scratch of length len(x) + 2 r + 2 r + 1."""
+    n = x.shape[0]
+    w = 2 * r + 1
+    m = n + 2 * r
+    mp = ((m + w - 1) // w) * w
+    for j in range(mp):
+        v = x[j - r] if r <= j < n + r else -1.0e300
+        if j % w == 0 or v > g[j - 1]:
+            g[j] = v
+        else:
+            g[j] = g[j - 1]
+    for j in range(mp - 1, -1, -1):
+        v = x[j - r] if r <= j < n + r else -1.0e300
+        if j % w == w - 1 or v > hh[j + 1]:
+            hh[j] = v
+        else:
+            hh[j] = hh[j + 1]
+    for i in range(n):
+        a = hh[i]
+        b = g[i + 2 * r]
+        y[i] = a if a > b else b
+
+
+@njit(cache=True)
+def stair_max(buf, rects, out):
+    """out[p, q] = max of buf over the union of the rectangles ``|dp| <= rects[s, 0]``,
+    ``|dq| <= rects[s, 1]`` around (p, q), clipped to the array: separable running maxima, O(1)
+    per cell and rectangle (a disc's cells, as a staircase of rectangles)."""
+    na, nb = buf.shape
+    tmp = np.empty((na, nb))
+    L = max(na, nb) + 4 * (max(rects[:, 0].max(), rects[:, 1].max())) + 2
+    g = np.empty(L)
+    hh = np.empty(L)
+    col = np.empty(na)
+    res = np.empty(na)
+    out[:, :] = -1.0e300
+    for s in range(rects.shape[0]):
+        for p in range(na):
+            _runmax(buf[p], rects[s, 1], tmp[p], g, hh)
+        for q in range(nb):
+            for p in range(na):
+                col[p] = tmp[p, q]
+            _runmax(col, rects[s, 0], res, g, hh)
+            for p in range(na):
+                if res[p] > out[p, q]:
+                    out[p, q] = res[p]
+
+
+@njit(cache=True, inline="always")
+def _disc_test(buf, up, lo_, A0, B0, u0, cell, pu, pv, rr, h0, skip, stats):
+    """_disc_clear with two O(1) pre-tests: ``up`` (the max filter of buf over every cell a
+    disc centred in the cell can meet) at or below h0: clear; ``lo_`` (the max filter over the
+    cells every such disc meets) above h0: blocked. Otherwise the scan."""
+    na, nb = buf.shape
+    p = int(np.floor((pu - u0) / cell)) - A0
+    r = int(np.floor((pv - u0) / cell)) - B0
+    if 0 <= p < na and 0 <= r < nb:
+        if up[p, r] <= h0:
+            stats[0] += 1
+            return True
+        if lo_[p, r] > h0:
+            stats[1] += 1
+            return False
+        stats[2] += 1
+        return _disc_clear(buf, A0, B0, u0, cell, pu, pv, rr, h0, skip)
+    stats[2] += 1
+    return _disc_clear(buf, A0, B0, u0, cell, pu, pv, rr, h0, skip[:0])
+
+
+@njit(cache=True, inline="always")
+def _window(cmin, cmax, ex, ey, ez, fx, fy, fz, grow, u0, cell, nc):
+    cx, cy, cz = 0.5 * (cmin[0] + cmax[0]), 0.5 * (cmin[1] + cmax[1]), 0.5 * (cmin[2] + cmax[2])
+    hx, hy, hz = 0.5 * (cmax[0] - cmin[0]), 0.5 * (cmax[1] - cmin[1]), 0.5 * (cmax[2] - cmin[2])
+    cu = cx * ex + cy * ey + cz * ez
+    cv = cx * fx + cy * fy + cz * fz
+    au = hx * abs(ex) + hy * abs(ey) + hz * abs(ez) + grow
+    av = hx * abs(fx) + hy * abs(fy) + hz * abs(fz) + grow
+    A0 = max(0, int(np.floor((cu - au - u0) / cell)) - 1)
+    A1 = min(nc - 1, int(np.floor((cu + au - u0) / cell)) + 1)
+    B0 = max(0, int(np.floor((cv - av - u0) / cell)) - 1)
+    B1 = min(nc - 1, int(np.floor((cv + av - u0) / cell)) + 1)
+    return A0, A1, B0, B1
+
+
 @njit(cache=True, parallel=True)
-def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, holder_r, lo, radius, out):
+def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, holder_r, lo, radius,
+                up_r, low_r, up_h, low_h, skip_r, skip_h, out, stats):
     """Shank and holder cylinders: per direction, max-depth buffers of the occupied voxels
     (boundary sample boxes and interior skin cubes: footprint box and far end along n), at pitch
     ``cell`` for the shank (radius a, from the ball's centre up) and ``cell_h`` for the holder
     (radius holder_r, from ``stick`` above the ball's centre up; holder_r = 0: none).
-    ``out[i, b]`` = 1 where direction i of ``local[b]`` survives."""
+    ``out[i, b]`` = 1 where direction i of ``local[b]`` survives.
+
+    Each buffer is dilated once per direction by two max filters (:func:`stair_max` over the
+    rectangles ``up_r`` / ``low_r`` for the shank, ``up_h`` / ``low_h`` for the holder): over
+    every cell a disc centred in a cell can meet (at or below the cylinder's start: clear),
+    and over the cells every such disc meets (above it: blocked). Only the pairs in between
+    scan the disc's cells (less those the second filter vouched for: ``skip_r`` / ``skip_h``, the
+    half-widths per row of ``low_r`` / ``low_h``), so the bits are those of the plain disc scan. ``stats`` (k, 3): pairs decided
+    clear, blocked and scanned, per direction (shank and holder tests together).
+    """
     k = dirs.shape[0]
     mb = centre.shape[0]
-    h = 0.5 * d
     u0 = -(radius + 2 * d + holder_r + cell_h)
     nc = int(np.ceil(-2.0 * u0 / cell)) + 1
     nch = int(np.ceil(-2.0 * u0 / cell_h)) + 1
+    # the box of the occupied voxels and of the ball centres, relative to lo
+    cmin = np.full(3, 1.0e300)
+    cmax = np.full(3, -1.0e300)
+    for m in range(occ.shape[0]):
+        for c in range(3):
+            cmin[c] = min(cmin[c], occ[m, c] - ohalf[m, c] - lo[c])
+            cmax[c] = max(cmax[c], occ[m, c] + ohalf[m, c] - lo[c])
+    for m in range(mb):
+        for c in range(3):
+            cmin[c] = min(cmin[c], centre[m, c] - lo[c])
+            cmax[c] = max(cmax[c], centre[m, c] - lo[c])
     for i in prange(k):
         nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
         wi = i >> 6
         bit = np.uint64(i & 63)
         ex, ey, ez, fx, fy, fz = _basis(nx, ny, nz)
-        buf = np.full((nc, nc), -1.0e300)
-        bufh = np.full((nch, nch), -1.0e300)
+        A0, A1, B0, B1 = _window(cmin, cmax, ex, ey, ez, fx, fy, fz, d, u0, cell, nc)
+        H0, H1, G0, G1 = _window(cmin, cmax, ex, ey, ez, fx, fy, fz, d, u0, cell_h, nch)
+        buf = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
+        bufh = np.full((H1 - H0 + 1, G1 - G0 + 1) if holder_r > 0 else (1, 1), -1.0e300)
         for m in range(occ.shape[0]):
             hx, hy, hz = ohalf[m, 0], ohalf[m, 1], ohalf[m, 2]
             ext = hx * abs(nx) + hy * abs(ny) + hz * abs(nz)
@@ -434,9 +680,19 @@ def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, hold
             pu = rx * ex + ry * ey + rz * ez
             pv = rx * fx + ry * fy + rz * fz
             top = rx * nx + ry * ny + rz * nz + ext
-            _rasterise_max(buf, u0, cell, pu, pv, ae, af, top)
+            _rasterise_max(buf, A0, B0, u0, cell, pu, pv, ae, af, top)
             if holder_r > 0:
-                _rasterise_max(bufh, u0, cell_h, pu, pv, ae, af, top)
+                _rasterise_max(bufh, H0, G0, u0, cell_h, pu, pv, ae, af, top)
+        up = np.empty_like(buf)
+        low = np.empty_like(buf)
+        stair_max(buf, up_r, up)
+        stair_max(buf, low_r, low)
+        uph = np.empty_like(bufh)
+        lowh = np.empty_like(bufh)
+        if holder_r > 0:
+            stair_max(bufh, up_h, uph)
+            stair_max(bufh, low_h, lowh)
+        st = np.zeros(3, dtype=np.int64)
         for b in range(mb):
             out[i, b] = 0
             if (local[b, wi] >> bit) & np.uint64(1) == 0:
@@ -445,11 +701,14 @@ def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, hold
             pu = rx * ex + ry * ey + rz * ez
             pv = rx * fx + ry * fy + rz * fz
             hc = rx * nx + ry * ny + rz * nz
-            if not _disc_clear(buf, u0, cell, pu, pv, a, hc):
+            if not _disc_test(buf, up, low, A0, B0, u0, cell, pu, pv, a, hc, skip_r, st):
                 continue
-            if holder_r > 0 and not _disc_clear(bufh, u0, cell_h, pu, pv, holder_r, hc + stick):
+            if holder_r > 0 and not _disc_test(bufh, uph, lowh, H0, G0, u0, cell_h, pu, pv, holder_r,
+                                               hc + stick, skip_h, st):
                 continue
             out[i, b] = 1
+        for c in range(3):
+            stats[i, c] = st[c]
 
 
 @njit(cache=True)

@@ -350,12 +350,15 @@ class VoxelMap:
     def skin(self) -> np.ndarray:
         """Centres (ms, 3) of the interior voxels 26-adjacent to a non-interior voxel: every
         line from outside that enters the interior meets one of them first."""
+        return self.origin + self.d * (self.skin_ijk() + 0.5)
+
+    def skin_ijk(self) -> np.ndarray:
+        """Grid indices (ms, 3) of the skin voxels of :meth:`skin`, in the same order."""
         from scipy import ndimage
 
         inner = self.state == INTERIOR
         core = ndimage.binary_erosion(inner, structure=np.ones((3, 3, 3), bool), border_value=0)
-        ijk = np.argwhere(inner & ~core)
-        return self.origin + self.d * (ijk + 0.5)
+        return np.argwhere(inner & ~core)
 
     def voxel_of(self, points) -> np.ndarray:
         """Boundary voxel number of each point (-1 outside the boundary voxels)."""
@@ -478,6 +481,24 @@ def _opposite(ds: DirectionSet) -> np.ndarray:
     return ds.lookup(-ds.normals).astype(np.int64)
 
 
+def _hide_masks(normals: np.ndarray, tiny: float = 1e-9) -> np.ndarray:
+    """Per direction n, the 27-bit mask (as in ``skin_masks``) of the neighbours a line along n
+    can enter when it leaves a voxel: offsets in {0, sign n_c} per axis ({-1, 0, 1} where
+    |n_c| < tiny), the voxel itself excluded. A skin cube whose neighbours there are all
+    interior hides nothing along n."""
+    out = np.zeros(len(normals), dtype=np.int64)
+    for i, n in enumerate(np.asarray(normals, dtype=np.float64)):
+        sets = [(-1, 0, 1) if abs(c) < tiny else (0, 1 if c > 0 else -1) for c in n]
+        m = 0
+        for dx in sets[0]:
+            for dy in sets[1]:
+                for dz in sets[2]:
+                    if dx or dy or dz:
+                        m |= 1 << ((dx + 1) * 9 + (dy + 1) * 3 + (dz + 1))
+        out[i] = m
+    return out
+
+
 def global_visibility(vm: VoxelMap, *, rays: int = 2) -> np.ndarray:
     """``V'_g`` of every boundary voxel by cylinder casting (paper 002 §4.5).
 
@@ -489,21 +510,58 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2) -> np.ndarray:
     -------
     ndarray of shape (mb, words), uint64
     """
-    from ._access_kernels import cast_directions
+    from ._access_kernels import cast_directions, skin_masks
 
     from .directions import from_bool
 
     ds = vm.directions
     bx, bh = (np.ascontiguousarray(a) for a in vm.boxes())
-    skin = np.ascontiguousarray(vm.skin())
+    sijk = vm.skin_ijk()
+    skin = np.ascontiguousarray(vm.origin + vm.d * (sijk + 0.5))
+    smask = np.zeros(len(sijk), dtype=np.int64)
+    skin_masks(vm.state, np.ascontiguousarray(sijk, dtype=np.int64), smask)
     allc = np.concatenate([bx, skin]) if len(skin) else bx
     lo_, hi_ = allc.min(axis=0), allc.max(axis=0)
     centre = 0.5 * (lo_ + hi_)
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d
     out = np.zeros((ds.k, vm.n_boundary), dtype=np.uint8)
-    cast_directions(ds.normals, _opposite(ds), bx, bh, skin, vm.light, vm.vl, vm.d, vm.d / rays,
-                    radius, centre, out)
+    cast_directions(ds.normals, _opposite(ds), bx, bh, skin, _hide_masks(ds.normals), smask, vm.light, vm.vl,
+                    vm.d, vm.d / rays, radius, centre, out)
     return from_bool(out.T.astype(bool))
+
+
+def _disc_stairs(rad: float, *, outer: bool) -> np.ndarray:
+    """Rectangles (half-widths in cells, (s, 2)) whose union is the set of cell offsets that a
+    disc of radius ``rad`` cells, centred anywhere in cell (0, 0), can meet (``outer``: the
+    squares' nearest points closer than rad) or always meets (not ``outer``: their farthest
+    points closer than rad). The margins keep the first a superset and the second a subset
+    under rounding."""
+    rad = float(rad)
+    if rad <= 0:
+        return np.zeros((1, 2), dtype=np.int64)
+    n = int(np.ceil(rad)) + 2
+    o = np.arange(n + 1)
+    if outer:
+        g = np.maximum(o - 1, 0).astype(float)
+        inside = g[:, None] ** 2 + g[None, :] ** 2 < rad * rad * (1 + 1e-6)
+    else:
+        inside = o[:, None] ** 2 + o[None, :] ** 2 < rad * rad * (1 - 1e-6)
+    inside[0, 0] = True
+    w = np.array([np.flatnonzero(inside[:, j]).max() if inside[:, j].any() else -1 for j in range(n + 1)])
+    rects = [(int(w[j]), j) for j in range(n + 1) if w[j] >= 0 and (j == n or w[j + 1] < w[j])]
+    return np.array(rects, dtype=np.int64)
+
+
+def _row_widths(rects: np.ndarray) -> np.ndarray:
+    """Per row offset |dp| = 0, 1, ...: the half-width of the union of ``rects`` (|dp| <= r[0],
+    |dq| <= r[1]) in that row."""
+    n = int(rects[:, 0].max()) + 1
+    return np.array([max([int(r[1]) for r in rects if r[0] >= dp] or [-1]) for dp in range(n)], dtype=np.int64)
+
+
+#: pairs the last :func:`accessibility` call decided by the dilated buffers as clear, as
+#: blocked, and by scanning the disc (shank and holder tests together); for benches.
+_LAST_TOOL_STATS = [0, 0, 0]
 
 
 def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | None = None,
@@ -572,8 +630,15 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d + a
     out = np.zeros((ds.k, mb), dtype=np.uint8)
     holder_r = tool.holder_diameter / 2.0
-    tool_kernel(ds.normals, local, centre, occ, ohalf, vm.d, a, float(cell or vm.d),
-                float(cell_holder or max(vm.d, holder_r / 5)), tool.stickout - a, holder_r, mid, radius, out)
+    stats = np.zeros((ds.k, 3), dtype=np.int64)
+    cell = float(cell or vm.d)
+    cell_holder = float(cell_holder or max(vm.d, holder_r / 5))
+    tool_kernel(ds.normals, local, centre, occ, ohalf, vm.d, a, cell, cell_holder, tool.stickout - a, holder_r,
+                mid, radius, _disc_stairs(a / cell, outer=True), _disc_stairs(a / cell, outer=False),
+                _disc_stairs(holder_r / cell_holder, outer=True), _disc_stairs(holder_r / cell_holder, outer=False),
+                _row_widths(_disc_stairs(a / cell, outer=False)),
+                _row_widths(_disc_stairs(holder_r / cell_holder, outer=False)), out, stats)
+    _LAST_TOOL_STATS[:] = [int(x) for x in stats.sum(axis=0)]
     return from_bool(out.T.astype(bool))
 
 
