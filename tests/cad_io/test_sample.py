@@ -485,3 +485,33 @@ def test_silhouette_margin_only_near_folds(sample_data):
         steep += int(_steep_triangles(nodes, tris).sum())
         sil_n += int(_silhouette_triangles(nodes, tris).sum())
     assert steep > 1000 and sil_n < 0.75 * steep, (steep, sil_n)
+
+
+def test_fine_facet_pass_meshes_only_the_faces_that_cover_its_points(sample_data):
+    """The fine pass of ``sample`` (points answered by facets on exact faces, solved again at
+    grid / 20) meshes only the faces whose box holds such a point, on a part of its own:
+    the same heights and faces as the whole part meshed fine, the part's meshes untouched.
+    (On Ventilator at grid 0.53 mm: 3 points, 36 of 305 faces, 7.4 s instead of 12.0 s.)"""
+    from cad_io.sampler import _fine_facets, sample_points
+    from cad_io.view import transform_part
+
+    part = read_step(sample_data / "step" / "bug27693_cornetta-step.stp", mesh_deflection=2.0)
+    before = [f.mesh for f in part.faces]
+    rng = np.random.default_rng(5)
+    x0, y0, _, x1, y1, _ = part.bbox
+    cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+    gx, gy = cx + rng.uniform(-8, 8, 300), cy + rng.uniform(-8, 8, 300)
+    whole = read_step(sample_data / "step" / "bug27693_cornetta-step.stp")
+    for axis in ("+z", "-y"):
+        vpart = transform_part(part, axis)
+        if axis != "+z":  # a row of the side view through the middle of the part
+            b = np.array([f.bbox for f in vpart.faces])
+            gy = np.full(300, 0.5 * (np.nanmin(b[:, 1]) + np.nanmax(b[:, 4])))
+        z, f, m, n = _fine_facets(part, vpart, gx, gy, 0.2, 2.0, "auto", axis)
+        assert 0 < n < len(part.faces)
+        assert all(g.mesh is b for g, b in zip(part.faces, before))
+        zw, fw, mw = sample_points(whole, gx, gy, deflection=0.2, axis=axis)
+        assert np.isfinite(z).sum() > 100
+        np.testing.assert_array_equal(np.isnan(z), np.isnan(zw))
+        np.testing.assert_allclose(z, zw, atol=1e-9, rtol=0)
+        assert np.array_equal(f, fw) and np.array_equal(m, mw)
