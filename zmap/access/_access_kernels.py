@@ -12,7 +12,7 @@ from numba import njit, prange
 from ._direction_kernels import lookup_one
 
 __all__ = ["accumulate", "paint_exterior", "skin_masks", "cast_directions", "ball_neighbours", "local_conditions",
-           "stair_max", "tool_kernel", "greedy_cover", "orientation_votes"]
+           "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
 
@@ -543,54 +543,45 @@ def _disc_clear(buf, A0, B0, u0, cell, pu, pv, rr, h0, skip):
 
 
 @njit(cache=True)
-def _runmax(x, r, y, g, hh):
-    """y[i] = max(x[i - r .. i + r]) (clipped to x), van Herk / Gil-Werman: three compares
-    per element whatever r. g, hh: scratch of length len(x) + 2 r + 2 r + 1."""
-    n = x.shape[0]
-    w = 2 * r + 1
-    m = n + 2 * r
-    mp = ((m + w - 1) // w) * w
-    for j in range(mp):
-        v = x[j - r] if r <= j < n + r else -1.0e300
-        if j % w == 0 or v > g[j - 1]:
-            g[j] = v
-        else:
-            g[j] = g[j - 1]
-    for j in range(mp - 1, -1, -1):
-        v = x[j - r] if r <= j < n + r else -1.0e300
-        if j % w == w - 1 or v > hh[j + 1]:
-            hh[j] = v
-        else:
-            hh[j] = hh[j + 1]
-    for i in range(n):
-        a = hh[i]
-        b = g[i + 2 * r]
-        y[i] = a if a > b else b
+def _rows_max(H, widths, out):
+    na, nb = out.shape
+    R = widths.shape[0] - 1
+    for p in range(na):
+        o = out[p]
+        o[:] = -1.0e300
+        for dp in range(-R, R + 1):
+            w = widths[abs(dp)]
+            if w < 0 or p + dp < 0 or p + dp >= na:
+                continue
+            src_ = H[w, p + dp]
+            for q in range(nb):
+                if src_[q] > o[q]:
+                    o[q] = src_[q]
 
 
 @njit(cache=True)
-def stair_max(buf, rects, out):
-    """out[p, q] = max of buf over the union of the rectangles ``|dp| <= rects[s, 0]``,
-    ``|dq| <= rects[s, 1]`` around (p, q), clipped to the array: separable running maxima, O(1)
-    per cell and rectangle (a disc's cells, as a staircase of rectangles)."""
+def disc_max(buf, wa, wb, outa, outb):
+    """outa[p, q] = max of buf over the cells (p + dp, q + dq) with |dq| <= wa[|dp|] (rows
+    with width -1 or beyond the array hold none), clipped to the array; outb the same with wb.
+    Row maxima of growing half-width, each from the last by one three-way max, then one max
+    per row offset, all along contiguous rows: O(widths) per cell, shared by both filters."""
     na, nb = buf.shape
-    tmp = np.empty((na, nb))
-    L = max(na, nb) + 4 * (max(rects[:, 0].max(), rects[:, 1].max())) + 2
-    g = np.empty(L)
-    hh = np.empty(L)
-    col = np.empty(na)
-    res = np.empty(na)
-    out[:, :] = -1.0e300
-    for s in range(rects.shape[0]):
+    W = max(0, max(wa.max(), wb.max()))
+    H = np.empty((W + 1, na, nb))
+    H[0] = buf
+    for w in range(1, W + 1):
         for p in range(na):
-            _runmax(buf[p], rects[s, 1], tmp[p], g, hh)
-        for q in range(nb):
-            for p in range(na):
-                col[p] = tmp[p, q]
-            _runmax(col, rects[s, 0], res, g, hh)
-            for p in range(na):
-                if res[p] > out[p, q]:
-                    out[p, q] = res[p]
+            prev = H[w - 1, p]
+            cur = H[w, p]
+            if nb == 1:
+                cur[0] = prev[0]
+                continue
+            cur[0] = max(prev[0], prev[1])
+            for q in range(1, nb - 1):
+                cur[q] = max(prev[q - 1], max(prev[q], prev[q + 1]))
+            cur[nb - 1] = max(prev[nb - 2], prev[nb - 1])
+    _rows_max(H, wa, outa)
+    _rows_max(H, wb, outb)
 
 
 @njit(cache=True, inline="always")
@@ -631,19 +622,19 @@ def _window(cmin, cmax, ex, ey, ez, fx, fy, fz, grow, u0, cell, nc):
 
 @njit(cache=True, parallel=True)
 def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, holder_r, lo, radius,
-                up_r, low_r, up_h, low_h, skip_r, skip_h, out, stats):
+                up_r, low_r, up_h, low_h, out, stats):
     """Shank and holder cylinders: per direction, max-depth buffers of the occupied voxels
     (boundary sample boxes and interior skin cubes: footprint box and far end along n), at pitch
     ``cell`` for the shank (radius a, from the ball's centre up) and ``cell_h`` for the holder
     (radius holder_r, from ``stick`` above the ball's centre up; holder_r = 0: none).
     ``out[i, b]`` = 1 where direction i of ``local[b]`` survives.
 
-    Each buffer is dilated once per direction by two max filters (:func:`stair_max` over the
-    rectangles ``up_r`` / ``low_r`` for the shank, ``up_h`` / ``low_h`` for the holder): over
-    every cell a disc centred in a cell can meet (at or below the cylinder's start: clear),
-    and over the cells every such disc meets (above it: blocked). Only the pairs in between
-    scan the disc's cells (less those the second filter vouched for: ``skip_r`` / ``skip_h``, the
-    half-widths per row of ``low_r`` / ``low_h``), so the bits are those of the plain disc scan. ``stats`` (k, 3): pairs decided
+    Each buffer is dilated once per direction by two max filters (:func:`disc_max`, with the
+    half-widths per row offset ``up_r`` / ``low_r`` for the shank, ``up_h`` / ``low_h`` for the
+    holder): over every cell a disc centred in a cell can meet (at or below the cylinder's
+    start: clear), and over the cells every such disc meets (above it: blocked). Only the pairs
+    in between scan the disc's cells (less those the second filter vouched for), so the bits
+    are those of the plain disc scan. ``stats`` (k, 3): pairs decided
     clear, blocked and scanned, per direction (shank and holder tests together).
     """
     k = dirs.shape[0]
@@ -685,13 +676,11 @@ def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, hold
                 _rasterise_max(bufh, H0, G0, u0, cell_h, pu, pv, ae, af, top)
         up = np.empty_like(buf)
         low = np.empty_like(buf)
-        stair_max(buf, up_r, up)
-        stair_max(buf, low_r, low)
+        disc_max(buf, up_r, low_r, up, low)
         uph = np.empty_like(bufh)
         lowh = np.empty_like(bufh)
         if holder_r > 0:
-            stair_max(bufh, up_h, uph)
-            stair_max(bufh, low_h, lowh)
+            disc_max(bufh, up_h, low_h, uph, lowh)
         st = np.zeros(3, dtype=np.int64)
         for b in range(mb):
             out[i, b] = 0
@@ -701,10 +690,10 @@ def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, hold
             pu = rx * ex + ry * ey + rz * ez
             pv = rx * fx + ry * fy + rz * fz
             hc = rx * nx + ry * ny + rz * nz
-            if not _disc_test(buf, up, low, A0, B0, u0, cell, pu, pv, a, hc, skip_r, st):
+            if not _disc_test(buf, up, low, A0, B0, u0, cell, pu, pv, a, hc, low_r, st):
                 continue
             if holder_r > 0 and not _disc_test(bufh, uph, lowh, H0, G0, u0, cell_h, pu, pv, holder_r,
-                                               hc + stick, skip_h, st):
+                                               hc + stick, low_h, st):
                 continue
             out[i, b] = 1
         for c in range(3):

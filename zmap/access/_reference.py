@@ -7,6 +7,11 @@ every blocker box (interior skin cube, or boundary box w != v with -n in L'(w), 
 half a cell diagonal) is clipped
 against the line in numpy; v loses n when one reaches beyond v's entry. No depth buffer,
 no top-two bookkeeping: the kernel must give the same bits.
+
+:func:`tool_clearance_reference` restates the shank and holder tests of
+:func:`zmap.access.voxelmap.tool_clearance` plainly: a max-depth buffer per direction filled box
+by box, then for each pair every buffer cell that meets the cylinder's disc, compared with its
+start. No dilated buffers, no pre-tests: the kernel must give the same bits.
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ import numpy as np
 
 from .directions import from_bool, to_bool
 
-__all__ = ["global_visibility_reference"]
+__all__ = ["global_visibility_reference", "tool_clearance_reference"]
 
 
 def _basis(n):
@@ -94,4 +99,63 @@ def global_visibility_reference(vm, *, rays: int = 2) -> np.ndarray:
                 if np.any((t0 < t1) & (t1 > s0 + 1e-9 * vm.d)):
                     free = False
             out[b, i] = free
+    return from_bool(out)
+
+
+def _disc_blocked(buf, u0, cell, pu, pv, rr, h0) -> bool:
+    nc = buf.shape[0]
+    ia, ib = max(0, int(np.floor((pu - rr - u0) / cell))), min(nc - 1, int(np.floor((pu + rr - u0) / cell)))
+    ja, jb = max(0, int(np.floor((pv - rr - u0) / cell))), min(nc - 1, int(np.floor((pv + rr - u0) / cell)))
+    ua = u0 + np.arange(ia, ib + 1) * cell
+    va = u0 + np.arange(ja, jb + 1) * cell
+    du = np.where((ua <= pu) & (pu <= ua + cell), 0.0, np.minimum(np.abs(ua - pu), np.abs(ua + cell - pu)))
+    dv = np.where((va <= pv) & (pv <= va + cell), 0.0, np.minimum(np.abs(va - pv), np.abs(va + cell - pv)))
+    meets = du[:, None] ** 2 + dv[None, :] ** 2 < rr * rr
+    return bool((buf[ia:ib + 1, ja:jb + 1][meets] > h0).any())
+
+
+def tool_clearance_reference(vm, local, tool, *, cell=None, cell_holder=None, skin=False) -> np.ndarray:
+    """The bits of :func:`zmap.access.voxelmap.tool_clearance`, computed plainly (small maps)."""
+    ds = vm.directions
+    a = tool.radius
+    centre = vm.point + a * vm.normal
+    bc, bh = vm.boxes()
+    sk = vm.skin()
+    lo_, hi_ = np.concatenate([bc, sk]).min(axis=0), np.concatenate([bc, sk]).max(axis=0)
+    sk = sk if skin else sk[:0]
+    occ = np.concatenate([bc, sk])
+    ohalf = np.concatenate([bh, np.full((len(sk), 3), 0.5 * vm.d)])
+    mid = 0.5 * (lo_ + hi_)
+    radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d + a
+    holder_r = tool.holder_diameter / 2.0
+    cell = float(cell or vm.d)
+    cell_h = float(cell_holder or max(vm.d, holder_r / 5))
+    u0 = -(radius + 2 * vm.d + holder_r + cell_h)
+    rel, crel = occ - mid, centre - mid
+    loc = to_bool(local, ds.k)
+    out = np.zeros((vm.n_boundary, ds.k), bool)
+    for i in range(ds.k):
+        n = ds.normals[i]
+        e, f = _basis(n)
+        bufs = []
+        for c in ([cell, cell_h] if holder_r > 0 else [cell]):
+            nc = int(np.ceil(-2.0 * u0 / c)) + 1
+            buf = np.full((nc, nc), -1.0e300)
+            pu, pv, top = rel @ e, rel @ f, rel @ n + ohalf @ np.abs(n)
+            ae, af = ohalf @ np.abs(e), ohalf @ np.abs(f)
+            ia = np.maximum(0, np.floor((pu - ae - u0) / c).astype(int))
+            ib = np.minimum(nc - 1, np.floor((pu + ae - u0) / c).astype(int))
+            ja = np.maximum(0, np.floor((pv - af - u0) / c).astype(int))
+            jb = np.minimum(nc - 1, np.floor((pv + af - u0) / c).astype(int))
+            for m in range(len(occ)):
+                sub = buf[ia[m]:ib[m] + 1, ja[m]:jb[m] + 1]
+                np.maximum(sub, top[m], out=sub)
+            bufs.append(buf)
+        for b in np.flatnonzero(loc[:, i]):
+            pu, pv, h0 = crel[b] @ e, crel[b] @ f, crel[b] @ n
+            if _disc_blocked(bufs[0], u0, cell, pu, pv, a, h0):
+                continue
+            if holder_r > 0 and _disc_blocked(bufs[1], u0, cell_h, pu, pv, holder_r, h0 + tool.stickout - a):
+                continue
+            out[b, i] = True
     return from_bool(out)

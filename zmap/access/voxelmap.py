@@ -41,7 +41,7 @@ from ..errors import ZMapError
 from .directions import DirectionSet, count, direction_set, from_bool, to_bool
 
 __all__ = ["AccessModelError", "VoxelMap", "Tool", "parse_tool", "parse_holder", "paint",
-           "global_visibility", "accessibility", "three_axis", "set_cover", "node_directions",
+           "global_visibility", "accessibility", "tool_clearance", "three_axis", "set_cover", "node_directions",
            "AccessResult"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
@@ -499,12 +499,14 @@ def _hide_masks(normals: np.ndarray, tiny: float = 1e-9) -> np.ndarray:
     return out
 
 
-def global_visibility(vm: VoxelMap, *, rays: int = 2) -> np.ndarray:
+def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True) -> np.ndarray:
     """``V'_g`` of every boundary voxel by cylinder casting (paper 002 §4.5).
 
     A direction n stays in ``V'_g(v)`` when no line parallel to n through v's cube meets,
     ahead of v, an interior voxel or a boundary voxel w with -n in ``L'(w)``. The lines are
-    those of a plane grid of pitch ``d / rays`` (one depth buffer per direction).
+    those of a plane grid of pitch ``d / rays`` (one depth buffer per direction). ``cull``
+    (default) leaves out, per direction, the skin cubes whose neighbours on its side are all
+    interior (the same bits, less work; ``False`` is for tests).
 
     Returns
     -------
@@ -525,20 +527,21 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2) -> np.ndarray:
     centre = 0.5 * (lo_ + hi_)
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d
     out = np.zeros((ds.k, vm.n_boundary), dtype=np.uint8)
-    cast_directions(ds.normals, _opposite(ds), bx, bh, skin, _hide_masks(ds.normals), smask, vm.light, vm.vl,
+    hide = _hide_masks(ds.normals) if cull else np.full(ds.k, 1 << 27, dtype=np.int64)  # bit 27: never set
+    cast_directions(ds.normals, _opposite(ds), bx, bh, skin, hide, smask, vm.light, vm.vl,
                     vm.d, vm.d / rays, radius, centre, out)
     return from_bool(out.T.astype(bool))
 
 
-def _disc_stairs(rad: float, *, outer: bool) -> np.ndarray:
-    """Rectangles (half-widths in cells, (s, 2)) whose union is the set of cell offsets that a
-    disc of radius ``rad`` cells, centred anywhere in cell (0, 0), can meet (``outer``: the
-    squares' nearest points closer than rad) or always meets (not ``outer``: their farthest
-    points closer than rad). The margins keep the first a superset and the second a subset
-    under rounding."""
+def _disc_rows(rad: float, *, outer: bool) -> np.ndarray:
+    """Half-widths per row offset |dp| = 0, 1, ... (-1: none) of the cell offsets that a disc
+    of radius ``rad`` cells, centred anywhere in cell (0, 0), can meet (``outer``: the cells'
+    nearest points closer than rad) or always meets (not ``outer``: their farthest points
+    closer than rad). The margins keep the first a superset and the second a subset under
+    rounding."""
     rad = float(rad)
     if rad <= 0:
-        return np.zeros((1, 2), dtype=np.int64)
+        return np.zeros(1, dtype=np.int64)
     n = int(np.ceil(rad)) + 2
     o = np.arange(n + 1)
     if outer:
@@ -547,16 +550,9 @@ def _disc_stairs(rad: float, *, outer: bool) -> np.ndarray:
     else:
         inside = o[:, None] ** 2 + o[None, :] ** 2 < rad * rad * (1 - 1e-6)
     inside[0, 0] = True
-    w = np.array([np.flatnonzero(inside[:, j]).max() if inside[:, j].any() else -1 for j in range(n + 1)])
-    rects = [(int(w[j]), j) for j in range(n + 1) if w[j] >= 0 and (j == n or w[j + 1] < w[j])]
-    return np.array(rects, dtype=np.int64)
-
-
-def _row_widths(rects: np.ndarray) -> np.ndarray:
-    """Per row offset |dp| = 0, 1, ...: the half-width of the union of ``rects`` (|dp| <= r[0],
-    |dq| <= r[1]) in that row."""
-    n = int(rects[:, 0].max()) + 1
-    return np.array([max([int(r[1]) for r in rects if r[0] >= dp] or [-1]) for dp in range(n)], dtype=np.int64)
+    w = np.array([np.flatnonzero(inside[p]).max() if inside[p].any() else -1 for p in range(n + 1)])
+    last = int(np.flatnonzero(w >= 0).max())
+    return w[:last + 1].astype(np.int64)
 
 
 #: pairs the last :func:`accessibility` call decided by the dilated buffers as clear, as
@@ -587,7 +583,7 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     -------
     ndarray of shape (mb, words), uint64
     """
-    from ._access_kernels import ball_neighbours, local_conditions, tool_kernel
+    from ._access_kernels import ball_neighbours, local_conditions
 
     from .directions import from_bool
 
@@ -621,11 +617,42 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     local = np.empty_like(vg)
     local_conditions(np.ascontiguousarray(vg), np.ascontiguousarray(vm.centres), centre, ptr, nb, inside,
                      bad, cap, ds._centres, ds._frames, ds.q, local)
-    skin = vm.skin()
+    return tool_clearance(vm, local, tool, cell=cell, cell_holder=cell_holder)
+
+
+def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float | None = None,
+                   cell_holder: float | None = None, skin: bool = False) -> np.ndarray:
+    """The directions of ``local`` (mb, words) along which the shank and the holder clear the
+    part: no boundary box (as its footprint box and its far end along n) above the ball's
+    centre within the shank's radius, nor above the stick-out within the holder's radius
+    (buffers of pitch ``cell`` and ``cell_holder``, as in :func:`accessibility`, which calls it
+    on the ball's local map).
+
+    The interior skin cubes need not be drawn (``skin=False``, the default): both cylinders
+    reach upward without end, so a point of material inside one has above it, on the same
+    line along n, the point where that line leaves the part, a surface point inside the
+    cylinder and higher, held by a boundary box whose footprint holds the same buffer cell.
+    A skin cube only adds the corners of its footprint box that it does not cover, so leaving
+    the cubes out keeps every true block, drops only those false ones, and halves the boxes
+    drawn. ``skin=True`` draws them too (the rule before; a subset of the bits).
+    """
+    from ._access_kernels import tool_kernel
+
+    from .directions import from_bool
+
+    ds = vm.directions
+    a = tool.radius
+    centre = np.ascontiguousarray(vm.point + a * vm.normal)
+    mb = vm.n_boundary
+    sk = vm.skin()
     bc, bh = vm.boxes()
-    occ = np.ascontiguousarray(np.concatenate([bc, skin]))
-    ohalf = np.ascontiguousarray(np.concatenate([bh, np.full((len(skin), 3), 0.5 * vm.d)]))
-    lo_, hi_ = occ.min(axis=0), occ.max(axis=0)
+    # the buffers' grid is laid on the boxes and skin centres either way
+    lo_ = np.minimum(bc.min(axis=0), sk.min(axis=0)) if len(sk) else bc.min(axis=0)
+    hi_ = np.maximum(bc.max(axis=0), sk.max(axis=0)) if len(sk) else bc.max(axis=0)
+    if not skin:
+        sk = sk[:0]
+    occ = np.ascontiguousarray(np.concatenate([bc, sk]))
+    ohalf = np.ascontiguousarray(np.concatenate([bh, np.full((len(sk), 3), 0.5 * vm.d)]))
     mid = 0.5 * (lo_ + hi_)
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d + a
     out = np.zeros((ds.k, mb), dtype=np.uint8)
@@ -634,10 +661,9 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     cell = float(cell or vm.d)
     cell_holder = float(cell_holder or max(vm.d, holder_r / 5))
     tool_kernel(ds.normals, local, centre, occ, ohalf, vm.d, a, cell, cell_holder, tool.stickout - a, holder_r,
-                mid, radius, _disc_stairs(a / cell, outer=True), _disc_stairs(a / cell, outer=False),
-                _disc_stairs(holder_r / cell_holder, outer=True), _disc_stairs(holder_r / cell_holder, outer=False),
-                _row_widths(_disc_stairs(a / cell, outer=False)),
-                _row_widths(_disc_stairs(holder_r / cell_holder, outer=False)), out, stats)
+                mid, radius, _disc_rows(a / cell, outer=True), _disc_rows(a / cell, outer=False),
+                _disc_rows(holder_r / cell_holder, outer=True), _disc_rows(holder_r / cell_holder, outer=False),
+                out, stats)
     _LAST_TOOL_STATS[:] = [int(x) for x in stats.sum(axis=0)]
     return from_bool(out.T.astype(bool))
 
