@@ -130,7 +130,7 @@ def sample_tile(part: Part, fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1
     ``fs`` is the part's face set at ``g.deflection`` (:func:`_face_set`). Equal to the same
     block of ``cad_io.sample(part, ...)`` to the last bit: the same pairs in the same order,
     solved at the same coordinates, and the same second pass of facet answers on a fine
-    mesh (``g.fine``) through :func:`cad_io.sampler.sample_points`.
+    mesh (``g.fine``) of the faces that may cover them, as ``sample`` makes it.
     """
     from . import _sample_kernels as K
     from . import _tiled_kernels as TK
@@ -159,14 +159,16 @@ def sample_tile(part: Part, fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1
 
         _run_pairs(fs, counts, fill, solve, zflat, fflat, mflat)
         if g.fine is not None:
-            from .sampler import FACET, sample_points
+            from .sampler import FACET, _fine_facets
+            from .view import transform_part
 
             again = np.flatnonzero((mflat == FACET) & (fs.face_mode[np.maximum(fflat, 0)] == 1))
             if again.size:
                 gx = g.x0 + (i0 + again // tny) * g.dx  # as sample(): x0 + (global index // ny) * dx
                 gy = g.y0 + (j0 + again % tny) * g.dy
                 whole = part.get() if isinstance(part, _LazyPart) else part
-                z2, f2, m2 = sample_points(whole, gx, gy, deflection=g.fine, method=g.method, axis=g.axis)
+                z2, f2, m2, _ = _fine_facets(whole, transform_part(whole, g.axis), gx, gy, g.fine, g.deflection,
+                                             g.method, g.axis)
                 zflat[again], fflat[again], mflat[again] = z2, f2, m2
     return zflat.reshape(tnx, tny), fflat.reshape(tnx, tny), mflat.reshape(tnx, tny)
 
