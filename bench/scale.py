@@ -217,7 +217,7 @@ def main() -> None:
     ap.add_argument("--grid", type=float, default=0.5, help="conversion grid, mm (default 0.5: 7 M nodes)")
     ap.add_argument("--part", type=Path, default=PART, help="STEP part (default data/step/bm2_ec_t4-A.stp)")
     ap.add_argument("--deflection", type=float, default=None, help="mesh deflection, mm (default grid/20)")
-    ap.add_argument("--tile", type=int, default=1024, help="conversion tile side, nodes")
+    ap.add_argument("--tile", type=int, default=512, help="conversion tile side, nodes (default 512: 30 tiles at 0.5 mm, so 2 workers share them evenly)")
     ap.add_argument("--pitch", type=float, default=0.05, help="simulation ray pitch, mm")
     ap.add_argument("--sim-tiles", type=int, default=256, help="simulation tile side, rays")
     ap.add_argument("--one-tile", nargs=2, type=float, default=None, metavar=("X0", "Y0"),
