@@ -20,11 +20,14 @@ import numpy as np
 
 from ..grid import ZMap
 
-__all__ = ["BREAK_RATIO", "FORMAT_VERSION", "NAN_CODE", "SERIAL_BELOW", "CellPatches", "EZMap", "all_edges",
+__all__ = ["BREAK_RATIO", "FORMAT_VERSION", "WINDOW_HALF", "NAN_CODE", "SERIAL_BELOW", "CellPatches", "EZMap", "all_edges",
            "SubLattices", "break_thresholds", "code_patch", "decimate", "full_counts",
            "cells_around", "edge_count", "encode_heights", "sub_grid"]
 
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
+#: A windowed wall edge keeps its full samples from this many before the jump's interval
+#: to this many after it (the jump and the slopes its two sides are extended by).
+WINDOW_HALF = 1
 #: Batches smaller than this are evaluated on one thread (no thread-pool wake-up).
 SERIAL_BELOW = 4096
 #: A jump or kink must stand out this many times from its neighbours to count as a break.
@@ -66,10 +69,16 @@ def encode_heights(offsets: np.ndarray, heights: np.ndarray) -> tuple[np.ndarray
     E = offsets.shape[0] - 1
     if E == 0:
         return np.zeros(0, np.uint16), np.zeros(0, np.float32), np.zeros(0, np.float32)
-    starts = offsets[:-1]
+    P = heights.shape[0]
+    empty = np.diff(offsets) == 0
+    starts = np.minimum(offsets[:-1], max(P - 1, 0))
     finite = ~np.isnan(heights)
-    lo = np.minimum.reduceat(np.where(finite, heights, np.inf), starts)
-    hi = np.maximum.reduceat(np.where(finite, heights, -np.inf), starts)
+    if P == 0:
+        lo, hi = np.full(E, np.inf), np.full(E, -np.inf)
+    else:
+        lo = np.minimum.reduceat(np.where(finite, heights, np.inf), starts)
+        hi = np.maximum.reduceat(np.where(finite, heights, -np.inf), starts)
+    lo[empty], hi[empty] = np.inf, -np.inf  # reduceat gives an empty segment its next value
     none = ~np.isfinite(lo)
     lo[none] = 0.0
     hi[none] = 0.0
@@ -118,9 +127,11 @@ def break_thresholds(dx: float, dy: float, interval: float, tol: float) -> tuple
 
 
 def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, edge_ids: np.ndarray,
-             offsets: np.ndarray, heights: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
+             offsets: np.ndarray, heights: np.ndarray, limit: float, *, window: bool = False,
+             bare: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Thin each smooth edge to the fewest evenly spaced e-points that interpolate all of its
-    points linearly within ``limit``.
+    points linearly within ``limit``; with ``window``, thin each wall edge outside a window
+    around its jump.
 
     The new points (``d - 1`` of them at ``t = k / d``, ``d`` from 2, 3, 4, 5, 6, 8, ...) are
     read off the edge's full sequence, linear between samples, as the cells evaluate it; so
@@ -130,6 +141,18 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
     (a wall or a sharp edge, :func:`zmap.refine._ez_kernels.detect_breaks`), where the
     thinned sequence would show one, or where a height is missing: its cells split the same
     way (no break either way).
+
+    ``window``: an edge whose break is a jump (a wall) keeps the full samples from
+    :data:`WINDOW_HALF` before the jump's interval to as many after it, and each side of
+    them is thinned the same way to its own fewest knots (spans of 1, 2, 3, 4, 5, 6, 8, ...
+    intervals). The kernels read it as its full sequence, a sample outside the window
+    linear between the knots of its side (:func:`zmap.refine._ez_kernels._sample`), so the
+    jump, the samples either side of it and the break found are those of the full sequence
+    (checked: an edge whose windowed sequence shows another break keeps all its points).
+
+    ``bare``: a smooth edge whose corners alone interpolate its points within ``limit``
+    keeps no e-point (a cell patch's sub-edges: linear between its sub-grid nodes);
+    otherwise every edge keeps at least one.
 
     Parameters
     ----------
@@ -147,42 +170,78 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
     Returns
     -------
     offsets, heights : ndarray
-        The thinned CSR offsets and heights (the same edges, each still with at least one point).
+        The thinned CSR offsets and heights as stored (the same edges, each still with at
+        least one point unless ``bare``).
+    win : ndarray of shape (E,), int64
+        Packed window of each windowed edge (:func:`zmap.refine._ez_kernels.pack_window`),
+        -1 for the others.
     """
     from . import _ez_kernels as _k
 
     E = edge_ids.shape[0]
+    nowin = np.full(E, -1, dtype=np.int64)
     if E == 0:
-        return offsets, heights
+        return offsets, heights, nowin
     heights = np.ascontiguousarray(heights, dtype=np.float64)
     n = np.diff(offsets)
     d = np.empty(E, dtype=np.int64)
-    _k.decimate_counts(z, edge_ids, offsets, heights, float(limit), d)
-    if not np.any(d < n + 1):
-        return offsets, heights
+    _k.decimate_counts(z, edge_ids, offsets, heights, float(limit), 1 if bare else 2, d)
     jump_min, kink_min = break_thresholds(dx, dy, interval, tol)
 
-    def has_break(off, h):
+    def breaks(off, h, win):
         kind = np.zeros(E, dtype=np.int8)
         t = np.zeros(E, dtype=np.float64)
-        _k.detect_breaks(z, edge_ids, off, encode_heights(off, h), jump_min, kink_min, BREAK_RATIO, kind, t)
-        return kind != 0
+        codes, lo, step = encode_heights(off, h)
+        vo = virtual_offsets(off, n, win)
+        _k.detect_breaks(z, edge_ids, vo, (codes, lo, step, np.ascontiguousarray(off[:-1]), win), jump_min,
+                         kink_min, BREAK_RATIO, kind, t)
+        return kind, t
 
-    def thinned(dd):
+    def thinned(dd, win):
         off = np.zeros(E + 1, dtype=np.int64)
-        np.cumsum(dd - 1, out=off[1:])
+        size = dd - 1
+        w = np.flatnonzero(win >= 0)
+        size[w] = [_k.window_size(int(win[k]), int(n[k])) for k in w]
+        np.cumsum(size, out=off[1:])
         out = np.empty(int(off[-1]))
-        _k.resample(z, edge_ids, offsets, heights, dd - 1, off, out)
+        _k.resample(z, edge_ids, offsets, heights, np.where(win >= 0, -1, dd - 1), off, out)
+        _k.window_resample(z, edge_ids, offsets, heights, win, off, out)
         return off, out
 
-    full = has_break(offsets, heights)
+    kind0, t0 = breaks(offsets, heights, nowin)
+    full = kind0 != 0
     d[full] = n[full] + 1
-    off, h = thinned(d)
-    again = has_break(off, h) & (d < n + 1)
+    win = nowin.copy()
+    if window:
+        sel = np.flatnonzero(kind0 == 1).astype(np.int64)
+        _k.window_counts(z, edge_ids, offsets, heights, t0, sel, WINDOW_HALF, float(limit), win)
+        # a window that stores no fewer codes than the full edge is not one
+        small = np.array([_k.window_size(int(win[k]), int(n[k])) < n[k] if win[k] >= 0 else False for k in sel],
+                         dtype=bool)
+        win[sel[~small]] = -1
+    if not np.any((d < n + 1) | (win >= 0)):
+        return offsets, heights, nowin
+    off, h = thinned(d, win)
+    kind1, t1 = breaks(off, h, win)
+    again = ((kind1 != 0) & (d < n + 1) & (win < 0)) | ((win >= 0) & ((kind1 != kind0) | (t1 != t0)))
     if again.any():
         d[again] = n[again] + 1
-        off, h = thinned(d)
-    return off, h
+        win[again] = -1
+        off, h = thinned(d, win)
+    return off, h, win
+
+
+def virtual_offsets(offsets: np.ndarray, full: np.ndarray | int, win: np.ndarray | None) -> np.ndarray:
+    """The offsets the kernels index by: a windowed edge (``win >= 0``) counts its ``full``
+    samples (an int or one per edge), the others what they store."""
+    if win is None or not np.any(win >= 0):
+        return offsets
+    cnt = np.diff(offsets)
+    w = win >= 0
+    cnt[w] = np.broadcast_to(full, cnt.shape)[w]
+    vo = np.zeros_like(offsets)
+    np.cumsum(cnt, out=vo[1:])
+    return vo
 
 
 @dataclass(eq=False)
@@ -225,6 +284,11 @@ class EZMap:
         Cells still off the exact surface at a test point after the finest patch level.
     pruned : int
         Candidate edges dropped because the base already held them (``build_ez(prune=True)``).
+    win : ndarray of shape (E,), int64, optional
+        Windowed wall edges (``build_ez(thin=True)``): ``win[k] >= 0`` packs the window of
+        edge k (:func:`zmap.refine._ez_kernels.pack_window`), whose ``offsets`` count the
+        codes it stores (knots either side of the full samples around its jump), not its
+        full samples; -1 (the default, all edges) for an edge that stores its samples.
 
     Examples
     --------
@@ -256,6 +320,7 @@ class EZMap:
     patches: Any = None
     unresolved: int = 0
     pruned: int = 0
+    win: Any = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -284,8 +349,53 @@ class EZMap:
         if self.offsets[0] != 0 or np.any(np.diff(self.offsets) < 0) or self.offsets[-1] != self.codes.shape[0]:
             raise ValueError(f"offsets must rise from 0 to len(codes)={self.codes.shape[0]}, "
                              f"got {self.offsets[0]}..{self.offsets[-1] if E + 1 else None}")
+        self.win = (np.full(E, -1, dtype=np.int64) if self.win is None
+                    else np.ascontiguousarray(self.win, dtype=np.int64))
+        if self.win.shape != (E,):
+            raise ValueError(f"win must have shape (E,) = ({E},), got {self.win.shape}")
+        w = np.flatnonzero(self.win >= 0)
+        if w.size:
+            from . import _ez_kernels as _k
+
+            full = self.full_counts()[w]
+            a, c = self.win[w] & 0xFFFF, (self.win[w] >> 16) & 0xFFFF
+            size = np.array([_k.window_size(int(v), int(f)) for v, f in zip(self.win[w], full)], dtype=np.int64)
+            bad = (a >= c) | (c > full + 1) | (size != np.diff(self.offsets)[w])
+            if bad.any():
+                k = int(w[np.flatnonzero(bad)[0]])
+                raise ValueError(f"e-edge {int(self.edge_ids[k])}: its window {self.window(k)} does not fit its "
+                                 f"{int(full[np.flatnonzero(bad)[0]])} samples and {int(np.diff(self.offsets)[k])} codes")
 
     # ---- figures --------------------------------------------------------------------------
+
+    def full_counts(self) -> np.ndarray:
+        """Full samples of each e-edge, (E,) int64: what a windowed edge is read as (the
+        e-map interval's count on an x- or y-edge), what the others store."""
+        cnt = np.diff(self.offsets)
+        if np.any(self.win >= 0):
+            is_x = self.edge_ids < (self.nx - 1) * self.ny
+            cnt = np.where(self.win >= 0, np.where(is_x, _n_points(self.dx, self.interval),
+                                                   _n_points(self.dy, self.interval)), cnt)
+        return cnt
+
+    def window(self, k: int) -> tuple[int, int, int, int] | None:
+        """``(a, c, dl, dr)`` of e-edge ``k``'s window (full samples ``a..c`` kept, ``dl``
+        intervals over ``[0, a]``, ``dr`` over ``[c, n + 1]``), None if it has none."""
+        w = int(self.win[k])
+        return None if w < 0 else (w & 0xFFFF, (w >> 16) & 0xFFFF, (w >> 32) & 0xFFFF, (w >> 48) & 0xFFFF)
+
+    @property
+    def n_windows(self) -> int:
+        """Number of windowed wall edges."""
+        return int(np.count_nonzero(self.win >= 0))
+
+    def _voff(self) -> np.ndarray:
+        """Offsets the kernels index by (:func:`virtual_offsets`), cached."""
+        of = self._cache.get("voff_of")
+        if of is None or of[0] is not self.offsets or of[1] is not self.win:
+            self._cache["voff"] = virtual_offsets(self.offsets, self.full_counts(), self.win)
+            self._cache["voff_of"] = (self.offsets, self.win)
+        return self._cache["voff"]
 
     @classmethod
     def from_heights(cls, x0: float, y0: float, dx: float, dy: float, nx: int, ny: int, interval: float, tol: float,
@@ -296,7 +406,8 @@ class EZMap:
 
     @property
     def heights(self) -> np.ndarray:
-        """Decoded e-point heights, ndarray of shape (P,), float64, mm (NaN = none)."""
+        """Decoded stored e-point heights, ndarray of shape (P,), float64, mm (NaN = none); a
+        windowed edge's are its knots and window samples (:meth:`window`)."""
         e = np.repeat(np.arange(self.n_edges), np.diff(self.offsets))
         h = self.lo[e].astype(np.float64) + self.step[e].astype(np.float64) * self.codes.astype(np.float64)
         h[self.codes == NAN_CODE] = np.nan
@@ -363,12 +474,29 @@ class EZMap:
     # ---- points ---------------------------------------------------------------------------
 
     def points(self) -> tuple[np.ndarray, np.ndarray]:
-        """Local xy of every e-point, each ndarray of shape (P,), float64, in heights order."""
+        """Local xy of every stored e-point, each ndarray of shape (P,), float64, in heights
+        order (a windowed edge's knots where its spans place them)."""
         from . import _ez_kernels as _k
 
         px = np.empty(self.n_points)
         py = np.empty(self.n_points)
         _k.edge_points(self.edge_ids, self.offsets, self.x0, self.y0, self.dx, self.dy, self.nx, self.ny, px, py)
+        full = self.full_counts()
+        nxe = (self.nx - 1) * self.ny
+        for k in np.flatnonzero(self.win >= 0):
+            a, c, dl, dr = self.window(int(k))
+            n = int(full[k])
+            m = n + 1
+            f = np.concatenate([np.arange(1, dl) * a / max(dl, 1), np.arange(max(a, 1), min(c, n) + 1),
+                                c + np.arange(1, dr) * (m - c) / max(dr, 1)])
+            eid = int(self.edge_ids[k])
+            o0, o1 = int(self.offsets[k]), int(self.offsets[k + 1])
+            if eid < nxe:
+                i, j = divmod(eid, self.ny)
+                px[o0:o1] = self.x0 + (i + f / m) * self.dx
+            else:
+                i, j = divmod(eid - nxe, self.ny - 1)
+                py[o0:o1] = self.y0 + (j + f / m) * self.dy
         return px, py
 
     # ---- evaluation -----------------------------------------------------------------------
@@ -382,8 +510,13 @@ class EZMap:
                              f"is not the e-map's {self.nx}x{self.ny} at ({self.x0}, {self.y0}) "
                              f"step ({self.dx}, {self.dy})")
 
-    def _hq(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return (self.codes, self.lo, self.step)
+    def _hq(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(codes, lo, step, cstart, win)`` as the kernels read samples
+        (:func:`zmap.refine._ez_kernels._sample`); pass :meth:`_voff` as their offsets."""
+        if self._cache.get("cstart_of") is not self.offsets:
+            self._cache["cstart"] = np.ascontiguousarray(self.offsets[:-1])
+            self._cache["cstart_of"] = self.offsets
+        return (self.codes, self.lo, self.step, self._cache["cstart"], self.win)
 
     def _tables(self, base: ZMap) -> dict:
         """Per-edge breaks and per-cell traces, cached per base object."""
@@ -398,7 +531,7 @@ class EZMap:
         brk_t = np.zeros(E, dtype=np.float64)
         jump_min, kink_min = break_thresholds(self.dx, self.dy, self.interval, self.tol)
         if E:
-            _k.detect_breaks(base.z, self.edge_ids, self.offsets, self._hq(), jump_min, kink_min, BREAK_RATIO,
+            _k.detect_breaks(base.z, self.edge_ids, self._voff(), self._hq(), jump_min, kink_min, BREAK_RATIO,
                              kind, brk_t)
         # cells touching an e-edge, and the slot of each of their four edges
         ecell = np.flatnonzero(self.cell_mask().ravel()).astype(np.int64)
@@ -421,7 +554,8 @@ class EZMap:
             _k.cell_geometry(ecell, slots, kind, brk_t, nx, ny, self.dx, self.dy, self.interval, nb, bk, bt, pts, arc)
         arrays = {"brk_kind": kind, "brk_t": brk_t, "ecell_ids": ecell, "slots": slots, "nb": nb, "bk": bk,
                   "bt": bt, "pts": pts, "arc": arc}
-        self._cache = {"key": key, "arrays": arrays}
+        self._cache["key"] = key
+        self._cache["arrays"] = arrays
         return arrays
 
     def cell_mask(self) -> np.ndarray:
@@ -491,7 +625,7 @@ class EZMap:
             a = self._tables(base)
             kernel = _k.ez_kernel if xs.size >= SERIAL_BELOW else _k.ez_kernel_serial
             kernel(base.z, base.x0, base.y0, base.dx, base.dy, math.cos(base.angle), math.sin(base.angle),
-                         base.origin[0], base.origin[1], xs, ys, self.edge_ids, self.offsets, self._hq(), a["brk_kind"],
+                         base.origin[0], base.origin[1], xs, ys, self.edge_ids, self._voff(), self._hq(), a["brk_kind"],
                          a["brk_t"], a["ecell_ids"], a["slots"], a["nb"], a["bk"], a["bt"], a["pts"], a["arc"], out)
         if self.n_patches and xs.size:
             self.patches.evaluate(base, self.interval, self.tol, xs, ys, out)
@@ -532,7 +666,43 @@ class EZMap:
             "codes": self.codes,
             "lo": self.lo,
             "step": self.step,
-        } | {f"patch_{k}": v for k, v in (self.patches or CellPatches.empty()).to_arrays().items()}
+        } | self._window_arrays() | {f"patch_{k}": v for k, v in (self.patches or CellPatches.empty()).to_arrays().items()}
+
+    def _window_arrays(self) -> dict[str, np.ndarray]:
+        """The windows as stored: one bit per e-edge, and per windowed edge the first full
+        sample of its jump's interval ``b`` and its left knots ``dl - 1`` (uint8 or uint16);
+        the rest follows from :data:`WINDOW_HALF`, the full count and the stored count."""
+        w = np.flatnonzero(self.win >= 0)
+        if w.size == 0:
+            return {}
+        a, c, dl = self.win[w] & 0xFFFF, (self.win[w] >> 16) & 0xFFFF, (self.win[w] >> 32) & 0xFFFF
+        b = np.where(a > 0, a + WINDOW_HALF, c - 1 - WINDOW_HALF)
+        nl = np.maximum(dl - 1, 0)
+        dt = np.uint8 if max(int(b.max()), int(nl.max())) < 256 else np.uint16
+        return {"win_bits": np.packbits(self.win >= 0), "win_b": b.astype(dt), "win_nl": nl.astype(dt)}
+
+    @staticmethod
+    def _windows_from(arrays: dict, edge_ids: np.ndarray, counts: np.ndarray, full: np.ndarray) -> np.ndarray | None:
+        """Inverse of :meth:`_window_arrays` given the stored and full counts per e-edge."""
+        if "win_bits" not in arrays:
+            return None
+        E = edge_ids.size
+        on = np.flatnonzero(np.unpackbits(np.asarray(arrays["win_bits"], dtype=np.uint8), count=E))
+        b = np.asarray(arrays["win_b"]).astype(np.int64)
+        nl = np.asarray(arrays["win_nl"]).astype(np.int64)
+        if b.shape != on.shape or nl.shape != on.shape:
+            raise ValueError(f"e-map arrays: {b.size} window positions for {on.size} windowed edges")
+        m = full[on] + 1
+        a = np.maximum(b - WINDOW_HALF, 0)
+        c = np.minimum(b + 1 + WINDOW_HALF, m)
+        dl = np.where(a > 0, nl + 1, 0)
+        nr = counts[on] - nl - (np.minimum(c, m - 1) - np.maximum(a, 1) + 1)
+        dr = np.where(c < m, nr + 1, 0)
+        if np.any(nr < 0) or np.any((c >= m) & (nr != 0)):
+            raise ValueError("e-map arrays: a windowed edge's stored count does not fit its window")
+        win = np.full(E, -1, dtype=np.int64)
+        win[on] = a | (c << 16) | (dl << 32) | (dr << 48)
+        return win
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> EZMap:
@@ -560,11 +730,15 @@ class EZMap:
             if counts.shape != edge_ids.shape:
                 raise ValueError(f"e-map arrays: {counts.size} point counts for {edge_ids.size} edges")
             offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+            nxe = (nx - 1) * ny
+            full = np.where(edge_ids < nxe, _n_points(g[2], g[4]), _n_points(g[3], g[4]))
+            win = cls._windows_from(arrays, edge_ids, counts, full)
         else:
-            edge_ids, offsets = arrays["edge_ids"], arrays["offsets"]
+            edge_ids, offsets, win = arrays["edge_ids"], arrays["offsets"], None
         return cls(g[0], g[1], g[2], g[3], int(s[0]), int(s[1]), g[4], g[5], edge_ids, offsets,
                    arrays["codes"], arrays["lo"], arrays["step"], failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0,
-                   patches=patches, unresolved=int(s[4]) if s.size > 4 else 0, pruned=int(s[5]) if s.size > 5 else 0)
+                   patches=patches, unresolved=int(s[4]) if s.size > 4 else 0, pruned=int(s[5]) if s.size > 5 else 0,
+                   win=win)
 
 
 def code_patch(m: int, nodes: np.ndarray, heights: np.ndarray, counts: np.ndarray) -> tuple:
@@ -595,6 +769,30 @@ def full_counts(level, dx: float, dy: float, interval: float) -> np.ndarray:
             nx_, ny_ = _n_points(dx / m, interval), _n_points(dy / m, interval)
             out.append(np.concatenate([np.full(m * (m + 1), nx_), np.full(m * (m + 1), ny_)]).astype(np.uint16))
     return np.concatenate(out) if out else np.zeros(0, dtype=np.uint16)
+
+
+def _pack_counts(counts: np.ndarray) -> dict[str, np.ndarray]:
+    """Sub-edge counts as stored: two to a byte (``counts4``) when all are below 16, else
+    one byte (or two) each (``counts``)."""
+    c = np.asarray(counts)
+    if c.size and int(c.max()) < 16:
+        c = c.astype(np.uint8)
+        if c.size % 2:
+            c = np.concatenate([c, np.zeros(1, np.uint8)])
+        return {"counts4": (c[0::2] | (c[1::2] << 4)).astype(np.uint8)}
+    return {"counts": c.astype(np.uint8 if c.size == 0 or int(c.max()) < 256 else np.uint16)}
+
+
+def _unpack_counts(a: dict, size: int) -> np.ndarray:
+    """Inverse of :func:`_pack_counts`: ``size`` counts, int64."""
+    if "counts4" in a:
+        b = np.asarray(a["counts4"], dtype=np.uint8)
+        c = np.empty(2 * b.size, dtype=np.int64)
+        c[0::2], c[1::2] = b & 15, b >> 4
+        if c.size not in (size, size + 1):
+            raise ValueError(f"cell patches: {c.size} packed counts for {size} sub-edges")
+        return c[:size]
+    return np.asarray(a["counts"], dtype=np.int64)
 
 
 def _segment_sums(values: np.ndarray, off: np.ndarray) -> np.ndarray:
@@ -756,13 +954,13 @@ class CellPatches:
         node_codes[np.isnan(self.nodes)] = NAN_CODE
         subs = {f"sub_{k}": v for k, v in self.subs.to_arrays().items()} if self.subs is not None else {}
         return {"cells": self.cells, "level": self.level, "node_codes": node_codes, "codes": self.codes, "lo": lo,
-                "step": step, "counts": self.counts} | subs
+                "step": step} | _pack_counts(self.counts) | subs
 
     @classmethod
     def from_arrays(cls, a: dict[str, np.ndarray], grid: tuple[float, float, float] | None = None) -> CellPatches:
         """Inverse of :meth:`to_arrays`; also reads format 2's arrays (offsets, no counts: every
         sub-edge full), given ``grid = (dx, dy, interval)`` of the e-map."""
-        if "counts" not in a:
+        if "counts" not in a and "counts4" not in a:
             # format 2: float64 nodes and a scale per sub-edge, every sub-edge full; re-coded
             # on one scale per patch (heights move by at most half the patch's quantum)
             if grid is None:
@@ -780,10 +978,10 @@ class CellPatches:
                 per[c] = code_patch(m_, nodes, h, counts)
             return cls.pack(per)
         m = np.asarray(a["level"], dtype=np.int64)
-        counts = np.asarray(a["counts"], dtype=np.int64)
         off = lambda sizes: np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         ez = m > 0
         edge_off = off(np.where(ez, 2 * m * (m + 1), 1))
+        counts = _unpack_counts(a, int(edge_off[-1]))
         if edge_off[-1] != counts.size:
             raise ValueError(f"cell patches: {counts.size} counts for the {edge_off[-1]} sub-edges of the levels")
         K = m.size
@@ -801,7 +999,7 @@ class CellPatches:
         subs = SubLattices.from_arrays({k[4:]: v for k, v in a.items() if k.startswith("sub_")}) if any(
             k.startswith("sub_") for k in a) else None
         return cls(a["cells"], a["level"], node_off, nodes, code_off, a["codes"], edge_off, lo_p[ke], st_p[ke],
-                   a["counts"], subs=subs)
+                   counts, subs=subs)
 
     # ---- evaluation -----------------------------------------------------------------------
 
@@ -840,7 +1038,7 @@ class CellPatches:
                 codes[r, :ez.n_points] = ez.codes
             st.update(index=index, zs=np.ascontiguousarray(np.stack([sub.z for sub, _ in maps])),
                       x0s=np.array([sub.x0 for sub, _ in maps]), y0s=np.array([sub.y0 for sub, _ in maps]),
-                      dx=sub0.dx, dy=sub0.dy, edge_ids=ez0.edge_ids,
+                      dx=sub0.dx, dy=sub0.dy, edge_ids=ez0.edge_ids, nowin=np.full(ez0.n_edges, -1, np.int64),
                       offsets=np.ascontiguousarray(np.stack([ez.offsets for _, ez in maps])),
                       ecell_ids=tabs[0]["ecell_ids"], slots=tabs[0]["slots"], codes=codes,
                       lo=np.ascontiguousarray(np.stack([ez.lo for _, ez in maps])),
@@ -889,7 +1087,7 @@ class CellPatches:
                 kernel(st["zs"], st["x0s"], st["y0s"], st["dx"], st["dy"], c, s_, base.origin[0], base.origin[1],
                        np.ascontiguousarray(x[hit[sel]]), np.ascontiguousarray(y[hit[sel]]), ks, st["edge_ids"],
                        st["offsets"], st["codes"], st["lo"], st["step"], st["brk_kind"], st["brk_t"], st["ecell_ids"],
-                       st["slots"], st["nb"], st["bk"], st["bt"], st["pts"], st["arc"], hs)
+                       st["slots"], st["nb"], st["bk"], st["bt"], st["pts"], st["arc"], st["nowin"], hs)
                 h[sel] = hs
         if self.subs is not None and self.subs.n:
             h = self.subs.override(cid[hit], base, lx[hit], ly[hit], h)

@@ -5,7 +5,10 @@ Conventions (see :class:`zmap.refine.ez.EZMap`):
 - edge ids: x-edge ``(i, j)-(i+1, j)`` is ``i*ny + j``; y-edge ``(i, j)-(i, j+1)`` is
   ``(nx-1)*ny + i*(ny-1) + j``. Edge ``k`` of the e-map carries ``n = offsets[k+1] -
   offsets[k]`` interior samples at ``t = q/(n+1)``, ``q = 1..n``; with the two grid corners
-  (``q = 0`` and ``q = n+1``) they form the edge's boundary sequence.
+  (``q = 0`` and ``q = n+1``) they form the edge's boundary sequence. The evaluation
+  kernels take the *virtual* offsets (a windowed wall edge counts its full samples) and
+  read samples through :func:`_sample`, whose ``hq = (codes, lo, step, cstart, win)``
+  knows where each edge's codes start and how a windowed edge stores them.
 - a cell ``(i, j)`` has id ``i*(ny-1) + j`` and local edges 0 bottom (+x), 1 right (+y),
   2 top (+x), 3 left (+y); its perimeter coordinate ``s`` runs counter-clockwise from the
   corner ``(i, j)``: bottom ``s = t``, right ``1 + t``, top ``2 + (1 - t)``, left
@@ -60,18 +63,63 @@ def _edge_corners(eid, nx, ny):
 
 
 @njit(cache=True, inline="always")
+def _dec(hq, e, at):
+    """Decoded code ``at`` of e-edge slot e: ``lo[e] + step[e] * code`` (NaN for ``NAN_CODE``)."""
+    code = hq[0][at]
+    if code == NAN_CODE:
+        return np.nan
+    return np.float64(hq[1][e]) + np.float64(hq[2][e]) * np.float64(code)
+
+
+@njit(cache=True, inline="always")
+def unpack_window(w):
+    """``(a, c, dl, dr)`` of a packed window (:func:`pack_window`)."""
+    return w & 0xFFFF, (w >> 16) & 0xFFFF, (w >> 32) & 0xFFFF, (w >> 48) & 0xFFFF
+
+
+@njit(cache=True, inline="always")
+def pack_window(a, c, dl, dr):
+    """One int64 of a wall edge's window: full samples ``a..c`` kept, ``dl`` intervals over
+    ``[0, a]`` and ``dr`` over ``[c, m]`` (each < 2**15)."""
+    return np.int64(a) | (np.int64(c) << 16) | (np.int64(dl) << 32) | (np.int64(dr) << 48)
+
+
+@njit(cache=True, inline="always")
 def _sample(z, hq, e, off, n, ia, ja, ib, jb, q):
-    """Sample q of the sequence of e-edge slot e: grid corners at q = 0 and n+1, else the
-    decoded e-point ``lo[e] + step[e] * code`` (NaN for ``NAN_CODE``); ``hq`` is the tuple
-    (codes, lo, step)."""
+    """Sample q of the (virtual, full) sequence of e-edge slot e: grid corners at q = 0 and
+    n+1, else the decoded e-point; ``hq`` is the tuple (codes, lo, step, cstart, win).
+
+    ``cstart[e]`` is where the edge's codes start. ``win[e] < 0``: the edge stores its ``n``
+    samples. Else it is a windowed wall edge (:func:`pack_window`): it stores ``dl - 1``
+    knots over ``[0, a]``, the full samples ``a..c`` (those in ``1..n``) and ``dr - 1``
+    knots over ``[c, n + 1]``; a sample outside the window is read linearly between the
+    knots of its span, at its place in the full sequence (``off`` is unused here).
+    """
     if q <= 0:
         return z[ia, ja]
     if q >= n + 1:
         return z[ib, jb]
-    code = hq[0][off + q - 1]
-    if code == NAN_CODE:
-        return np.nan
-    return np.float64(hq[1][e]) + np.float64(hq[2][e]) * np.float64(code)
+    w = hq[4][e]
+    cs = hq[3][e]
+    if w < 0:
+        return _dec(hq, e, cs + q - 1)
+    a, c, dl, dr = unpack_window(w)
+    nl = dl - 1 if dl > 0 else 0
+    qlo = a if a >= 1 else 1
+    if q >= a and q <= c:
+        return _dec(hq, e, cs + nl + q - qlo)
+    if q < a:
+        g = q * dl / a
+        k = min(int(math.floor(g)), dl - 1)
+        va = z[ia, ja] if k == 0 else _dec(hq, e, cs + k - 1)
+        vb = _dec(hq, e, cs + nl + a - qlo) if k + 1 == dl else _dec(hq, e, cs + k)
+        return va + (vb - va) * (g - k)
+    nw = min(c, n) - qlo + 1
+    g = (q - c) * dr / (n + 1 - c)
+    k = min(int(math.floor(g)), dr - 1)
+    va = _dec(hq, e, cs + nl + c - qlo) if k == 0 else _dec(hq, e, cs + nl + nw + k - 1)
+    vb = z[ib, jb] if k + 1 == dr else _dec(hq, e, cs + nl + nw + k)
+    return va + (vb - va) * (g - k)
 
 
 @njit(cache=True, parallel=True)
@@ -130,11 +178,11 @@ def _next_count(d):
 
 
 @njit(cache=True, parallel=True)
-def decimate_counts(z, edge_ids, offsets, heights, limit, out_m):
-    """Fewest intervals ``d`` (2, 3, 4, 5, 6, 8, ... below the edge's ``m = n + 1``) such that
-    the edge's full sequence read at ``t = k / d`` and interpolated linearly between those
-    knots is within ``limit`` of every full sample; ``m`` where none is or a sample or corner
-    has no height. ``heights`` float64 (P,), ``out_m`` int64 (E,)."""
+def decimate_counts(z, edge_ids, offsets, heights, limit, d0, out_m):
+    """Fewest intervals ``d`` (``d0`` = 1 or 2, then 2, 3, 4, 5, 6, 8, ... below the edge's
+    ``m = n + 1``) such that the edge's full sequence read at ``t = k / d`` and interpolated
+    linearly between those knots is within ``limit`` of every full sample; ``m`` where none
+    is or a sample or corner has no height. ``heights`` float64 (P,), ``out_m`` int64 (E,)."""
     nx, ny = z.shape
     for k in prange(edge_ids.shape[0]):
         _axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
@@ -153,7 +201,7 @@ def decimate_counts(z, edge_ids, offsets, heights, limit, out_m):
                 break
         if not ok:
             continue
-        d = 2
+        d = d0
         while d < m:
             good = True
             for q in range(1, m):
@@ -174,9 +222,11 @@ def decimate_counts(z, edge_ids, offsets, heights, limit, out_m):
 def resample(z, edge_ids, offsets, heights, counts, new_offsets, out):
     """The knots of :func:`decimate_counts`: edge k's full sequence read at ``t = q / (c + 1)``,
     ``q = 1..c`` (``c = counts[k]`` interior points), into ``out[new_offsets[k]:]``; an edge
-    that keeps its count is copied."""
+    that keeps its count is copied, one with ``c < 0`` left alone."""
     nx, ny = z.shape
     for k in prange(edge_ids.shape[0]):
+        if counts[k] < 0:
+            continue
         _axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
         off = offsets[k]
         m = offsets[k + 1] - off + 1
@@ -189,6 +239,99 @@ def resample(z, edge_ids, offsets, heights, counts, new_offsets, out):
             continue
         for q in range(c):
             out[o + q] = _polyline(z[ia, ja], z[ib, jb], heights, off, m, (q + 1) * m / d)
+
+
+@njit(cache=True)
+def _span_count(za0, zb0, heights, off, m, s0, s1, limit):
+    """Fewest intervals ``d`` (1, 2, 3, 4, 5, 6, 8, ...) over the full samples ``s0..s1`` such
+    that the full sequence read at ``s0 + k (s1 - s0) / d`` and interpolated linearly
+    between those knots is within ``limit`` of every full sample between; ``s1 - s0`` where
+    none is."""
+    L = s1 - s0
+    if L <= 1:
+        return L
+    d = 1
+    while d < L:
+        good = True
+        for q in range(s0 + 1, s1):
+            g = (q - s0) * d / L
+            a = min(int(math.floor(g)), d - 1)
+            ka = _polyline(za0, zb0, heights, off, m, s0 + a * L / d)
+            kb = _polyline(za0, zb0, heights, off, m, s0 + (a + 1) * L / d)
+            if abs(ka + (kb - ka) * (g - a) - heights[off + q - 1]) > limit:
+                good = False
+                break
+        if good:
+            return d
+        d = _next_count(d)
+    return L
+
+
+@njit(cache=True, parallel=True)
+def window_counts(z, edge_ids, offsets, heights, brk_t, sel, half, limit, out_win):
+    """Windows of the wall edges ``sel`` (jump at ``brk_t``): the full samples from ``half``
+    before the jump's interval to ``half`` after it are kept, each side of them thinned to
+    the fewest knots within ``limit`` (:func:`_span_count`); ``out_win[k]`` packed
+    (:func:`pack_window`), -1 where the edge or a corner has a NaN height."""
+    nx, ny = z.shape
+    for r in prange(sel.shape[0]):
+        k = sel[r]
+        _axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
+        off = offsets[k]
+        n = offsets[k + 1] - off
+        m = n + 1
+        out_win[k] = -1
+        za0 = z[ia, ja]
+        zb0 = z[ib, jb]
+        if math.isnan(za0) or math.isnan(zb0) or m >= 0x7FFF:
+            continue
+        ok = True
+        for q in range(n):
+            if math.isnan(heights[off + q]):
+                ok = False
+                break
+        if not ok:
+            continue
+        b = min(max(int(math.floor(brk_t[k] * m)), 0), m - 1)  # the jump's interval b..b+1
+        a = max(b - half, 0)
+        c = min(b + 1 + half, m)
+        dl = _span_count(za0, zb0, heights, off, m, 0, a, limit)
+        dr = _span_count(za0, zb0, heights, off, m, c, m, limit)
+        out_win[k] = pack_window(a, c, dl, dr)
+
+
+@njit(cache=True)
+def window_size(win, n):
+    """Codes a windowed edge of ``n`` full samples stores."""
+    a, c, dl, dr = unpack_window(win)
+    qlo = a if a >= 1 else 1
+    return (dl - 1 if dl > 0 else 0) + (min(c, n) - qlo + 1) + (dr - 1 if dr > 0 else 0)
+
+
+@njit(cache=True, parallel=True)
+def window_resample(z, edge_ids, offsets, heights, win, new_offsets, out):
+    """The stored samples of windowed edges (``win[k] >= 0``, :func:`_sample` reads them):
+    left knots, window samples, right knots, read off the full sequence; into
+    ``out[new_offsets[k]:]``. Other edges are left alone."""
+    nx, ny = z.shape
+    for k in prange(edge_ids.shape[0]):
+        if win[k] < 0:
+            continue
+        _axis, ia, ja, ib, jb = _edge_corners(edge_ids[k], nx, ny)
+        off = offsets[k]
+        n = offsets[k + 1] - off
+        m = n + 1
+        a, c, dl, dr = unpack_window(win[k])
+        o = new_offsets[k]
+        for q in range(1, dl):
+            out[o] = _polyline(z[ia, ja], z[ib, jb], heights, off, m, q * a / dl)
+            o += 1
+        for q in range(max(a, 1), min(c, n) + 1):
+            out[o] = heights[off + q - 1]
+            o += 1
+        for q in range(1, dr):
+            out[o] = _polyline(z[ia, ja], z[ib, jb], heights, off, m, c + q * (m - c) / dr)
+            o += 1
 
 
 @njit(cache=True, parallel=True)
@@ -812,12 +955,12 @@ ez_kernel_serial = njit(cache=True)(ez_kernel.py_func)
 
 @njit(cache=True, parallel=True)
 def patch_kernel(zs, x0s, y0s, dx, dy, cs, sn, ox, oy, xs, ys, ks, edge_ids, offsets, codes, lo, step, brk_kind,
-                 brk_t, ecell_ids, slots, nb, bk, bt, pts, arc, out):
+                 brk_t, ecell_ids, slots, nb, bk, bt, pts, arc, nowin, out):
     """:func:`ez_kernel` over a stack of same-level cell patches: point ``p`` lies in patch
     ``ks[p]``, whose sub-grid is ``zs[k]`` at ``(x0s[k], y0s[k])`` and whose per-edge and
     per-cell tables are row ``k`` of the stacked arrays (ids and slots are shared: every
     patch of a level has every sub-edge; ``offsets[k]`` are patch k's, its sub-edges thinned
-    to their own counts)."""
+    to their own counts; ``nowin``: -1 per sub-edge, patches store no windows)."""
     for p in prange(xs.shape[0]):
         k = ks[p]
         z = zs[k]
@@ -830,8 +973,8 @@ def patch_kernel(zs, x0s, y0s, dx, dy, cs, sn, ox, oy, xs, ys, ks, edge_ids, off
         if c < 0 or math.isnan(z[i, j]) or math.isnan(z[i + 1, j]) or math.isnan(z[i, j + 1]) or math.isnan(z[i + 1, j + 1]):
             out[p] = np.nan
             continue
-        hq = (codes[k], lo[k], step[k])
         off = offsets[k]
+        hq = (codes[k], lo[k], step[k], off[:-1], nowin)
         if nb[k, c] == 2 and (pts[k, c, 0, 0] != pts[k, c, 2, 0] or pts[k, c, 0, 1] != pts[k, c, 2, 1]):
             out[p] = _split(z, i, j, u, v, c, slots, edge_ids, off, hq, brk_kind[k], brk_t[k], bk[k], bt[k], pts[k],
                             arc[k], dx, dy)

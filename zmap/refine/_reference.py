@@ -40,11 +40,33 @@ def edge_points(ez) -> tuple[np.ndarray, np.ndarray]:
 
 
 def edge_sequence(ez, base: ZMap, eid: int) -> np.ndarray:
-    """Boundary sequence of an e-edge: first corner, e-points, last corner (float64)."""
+    """Boundary sequence of an e-edge: first corner, e-points, last corner (float64).
+
+    A windowed wall edge (``ez.window(k)``) is its full sequence: the stored samples of its
+    window at their places, the samples either side read with ``np.interp`` between that
+    side's knots (evenly spaced over the side's span, the span's ends included)."""
     k = int(np.flatnonzero(ez.edge_ids == eid)[0])
     _, ia, ja, ib, jb = _edge(ez, eid)
     inner = ez.heights[ez.offsets[k]:ez.offsets[k + 1]].astype(np.float64)
-    return np.concatenate([[base.z[ia, ja]], inner, [base.z[ib, jb]]])
+    za, zb = base.z[ia, ja], base.z[ib, jb]
+    w = ez.window(k) if hasattr(ez, "window") else None
+    if w is None:
+        return np.concatenate([[za], inner, [zb]])
+    a, c, dl, dr = w
+    m = int(ez.full_counts()[k]) + 1
+    seq = np.full(m + 1, np.nan)
+    seq[0], seq[m] = za, zb
+    nl = max(dl - 1, 0)
+    kept = list(range(max(a, 1), min(c, m - 1) + 1))
+    seq[kept] = inner[nl:nl + len(kept)]
+    right = inner[nl + len(kept):]
+    if a > 0:
+        knots = np.concatenate([[za], inner[:nl], [seq[a]]])
+        seq[:a] = np.interp(np.arange(a), np.linspace(0, a, dl + 1), knots)
+    if c < m:
+        knots = np.concatenate([[seq[c]], right, [zb]])
+        seq[c + 1:] = np.interp(np.arange(c + 1, m + 1), np.linspace(c, m, dr + 1), knots)
+    return seq
 
 
 def detect_break(seq: np.ndarray, jump_min: float, kink_min: float, ratio: float) -> tuple[int, float]:

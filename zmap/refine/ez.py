@@ -94,7 +94,9 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
     - ``thin``: an edge (or a cell patch's sub-edge) without a wall or a sharp edge keeps
       only every ``s``-th e-point, ``s`` as large as lets the kept points interpolate all
       of them linearly within ``THIN_SHARE * tol`` (a smooth steep slope needs a few
-      samples, not one per ``interval``); the check below then tests the thinned model;
+      samples, not one per ``interval``); a wall edge of the e-map keeps its samples
+      around the jump and is thinned so either side of them (a window,
+      :func:`zmap.refine._emap.decimate`); the check below then tests the thinned model;
     - ``verify``: every refined cell, and every cell next to a candidate edge, is checked
       against ``heights`` at a lattice of test points (:func:`zmap.refine.patch.misfit`:
       off by more than ``tol`` vertically with no exact height within ``tol`` around it to
@@ -211,9 +213,9 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
             np.cumsum(np.diff(ez.offsets)[keep], out=offsets[1:])
             ez.edge_ids, ez.offsets = edge_ids, offsets
         if thin:
-            offsets, z = decimate(base.z, base.dx, base.dy, interval, tol, ez.edge_ids, ez.offsets, z,
-                                  THIN_SHARE * tol)
-            ez.offsets = offsets
+            offsets, z, win = decimate(base.z, base.dx, base.dy, interval, tol, ez.edge_ids, ez.offsets, z,
+                                       THIN_SHARE * tol, window=True)
+            ez.offsets, ez.win = offsets, win
         ez.lifted = int(lifted.sum())
         ez.codes, ez.lo, ez.step = encode_heights(offsets, z)
     ez.pruned = int(n_candidates - ez.n_edges)

@@ -212,7 +212,7 @@ def build_patches(base: ZMap, heights: Heights, cells: np.ndarray, m: int, inter
         lifted = np.zeros(ids.size, dtype=np.int64)
         _k.despike(s.z, ids, offsets, z, tol, lifted)
         if thin is not None:
-            offsets, z = decimate(s.z, s.dx, s.dy, interval, tol, ids, offsets, z, thin)
+            offsets, z, _ = decimate(s.z, s.dx, s.dy, interval, tol, ids, offsets, z, thin, bare=True)
         out[c] = code_patch(m, s.z, z, np.diff(offsets))
     return out
 

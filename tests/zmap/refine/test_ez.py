@@ -101,10 +101,14 @@ def model_height(ez, base, x, y):
 def test_layout_matches_table_2_spacing_and_contract_ids():
     f = Step(0.3, 2.0)
     base = ZMap.from_function(f, (0, 0, 4, 4), 0.4)
-    ez = build_ez(base, f, tol=0.02)
+    ez = build_ez(base, f, tol=0.02, thin=False)
     assert ez.interval == 0.02 and ez.tol == 0.02
     n = np.diff(ez.offsets)
-    assert np.all(n == 19)  # paper: 0.4 mm grid, 0.02 mm e-map, 19 points per edge (walls are not thinned)
+    assert np.all(n == 19)  # paper: 0.4 mm grid, 0.02 mm e-map, 19 points per edge
+    # thinned (the default), every edge here is a wall edge read as its 19 samples through a window
+    win = build_ez(base, f, tol=0.02)
+    assert win.n_windows == win.n_edges == ez.n_edges and np.all(win.full_counts() == 19)
+    assert np.all(np.diff(win.offsets) < 19)
     assert ez.codes.dtype == np.uint16 and ez.edge_ids.dtype == np.int64 and ez.heights.dtype == np.float64
     assert np.all(np.diff(ez.edge_ids) > 0)
     assert ez.edge_ratio == pytest.approx(ez.n_edges / edge_count(base.nx, base.ny))
@@ -135,7 +139,7 @@ def test_uneven_grid_spacing_holds_interval():
     base = ZMap.from_function(f, (0, 0, 4, 4), 0.5, 0.3)
     ez = build_ez(base, f, tol=0.013)
     nxe = (base.nx - 1) * base.ny
-    n = np.diff(ez.offsets)
+    n = ez.full_counts()  # the wall edges are windowed: read as their full samples
     assert np.all(n[ez.edge_ids < nxe] == math.ceil(0.5 / 0.013) - 1)
     assert np.all(n[ez.edge_ids >= nxe] == math.ceil(0.3 / 0.013) - 1)
     assert 0.5 / (n[ez.edge_ids < nxe][0] + 1) <= 0.013

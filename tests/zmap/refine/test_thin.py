@@ -43,7 +43,7 @@ def test_kernel_counts_match_reference(m, seed, noise, limit):
     z = np.array([[seq[0]], [seq[-1]]])  # a 2 x 1 grid: one x-edge, id 0
     out = np.empty(1, dtype=np.int64)
     _k.decimate_counts(z, np.array([0], np.int64), np.array([0, m - 1], np.int64),
-                       np.ascontiguousarray(seq[1:-1]), limit, out)
+                       np.ascontiguousarray(seq[1:-1]), limit, 2, out)
     assert out[0] == ref.thin_intervals(seq, limit)
 
 
@@ -53,7 +53,7 @@ def test_decimate_keeps_walls_and_nan_edges_whole_and_holds_the_limit():
     ez = build_ez(base, f, tol=TOL, eps_r=0.0, prune=False, verify=False, thin=False)
     h = ez.heights.copy()
     h[ez.offsets[3] + 5] = np.nan  # edge 3 has a missing height: kept whole
-    off, hh = decimate(base.z, base.dx, base.dy, ez.interval, TOL, ez.edge_ids, ez.offsets, h, THIN_SHARE * TOL)
+    off, hh, _ = decimate(base.z, base.dx, base.dy, ez.interval, TOL, ez.edge_ids, ez.offsets, h, THIN_SHARE * TOL)
     n0, n1 = np.diff(ez.offsets), np.diff(off)
     thin = EZMap.from_heights(ez.x0, ez.y0, ez.dx, ez.dy, ez.nx, ez.ny, ez.interval, TOL, ez.edge_ids, off, hh)
     kind, _ = ez.breaks(base)
@@ -103,8 +103,11 @@ def test_stored_bytes_are_bits_counts_codes_and_scales():
 
     E = edge_count(base.nx, base.ny)
     # header (version, grid, shape: 104 bytes), a bit per grid edge, a byte count, two float32
-    # scales per e-edge, two bytes per e-point; no patches
-    assert ez.nbytes == 104 + math.ceil(E / 8) + 9 * ez.n_edges + 2 * ez.n_points
+    # scales per e-edge, two bytes per e-point; a bit per e-edge and two bytes per windowed
+    # wall edge; no patches
+    assert ez.n_windows >= 8
+    assert ez.nbytes == (104 + math.ceil(E / 8) + 9 * ez.n_edges + 2 * ez.n_points
+                         + math.ceil(ez.n_edges / 8) + 2 * ez.n_windows)
     assert ez.index_nbytes == 8 * (2 * ez.n_edges + 1)
 
 
@@ -124,3 +127,83 @@ def test_patches_thin_their_sub_edges(thin):
     from zmap.refine.patch import misfit
 
     assert not misfit(ez.height(base, x, y), x, y, z, rib, TOL).any()
+
+
+# ---- windowed wall edges -------------------------------------------------------------------
+
+def test_wall_edges_keep_a_window_read_as_their_full_sequence():
+    f = SlopeWall()
+    base = ZMap.from_function(f, (0, 0, 4, 4), 0.5)
+    full = build_ez(base, f, tol=TOL, eps_r=0.0, prune=False, thin=False, verify=False)
+    ez = build_ez(base, f, tol=TOL, eps_r=0.0, prune=False, verify=False)
+    kind, t = full.breaks(base)
+    w = np.flatnonzero(ez.win >= 0)
+    # every wall edge is windowed, and stores far fewer codes than its 49 samples
+    assert set(w.tolist()) == set(np.flatnonzero(kind == 1).tolist()) and w.size >= 8
+    assert np.diff(ez.offsets)[w].max() <= 12 and np.all(ez.full_counts()[w] == 49)
+    # the kernels find the same breaks on the windowed sequences
+    k2, t2 = ez.breaks(base)
+    assert np.array_equal(kind, k2) and np.array_equal(t, t2)
+    for k in w:
+        eid = int(ez.edge_ids[k])
+        a, b = ref.edge_sequence(full, base, eid), ref.edge_sequence(ez, base, eid)
+        lo, c, _, _ = ez.window(int(k))
+        # the window's samples are the full ones (to the coding); the rest within the thinning limit
+        assert np.abs(a - b)[lo:c + 1].max() <= full.resolution + ez.resolution
+        assert np.abs(a - b).max() <= THIN_SHARE * TOL + full.resolution + ez.resolution
+    # the kernels read the windows as the slow reference does
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(0, 4, (2, 20000))
+    h = ez.evaluate(base, x, y)
+    r = ref.evaluate(ez, base, x, y)
+    assert np.array_equal(np.isnan(h), np.isnan(r)) and np.nanmax(np.abs(h - r)) <= 1e-12
+    # the stored points lie where the windows place them
+    px, py = ez.points()
+    assert np.abs(ez.heights - f(px, py)).max() <= THIN_SHARE * TOL + ez.resolution
+
+
+def test_windowed_map_holds_tol_round_trips_and_old_files_load(tmp_path):
+    f = SlopeWall(angle=1.1, c=2.6)
+    base = ZMap.from_function(f, (0, 0, 4, 4), 0.5)
+    ez = build_ez(base, f, tol=TOL, eps_r=0.0, prune=False)
+    unwin = build_ez(base, f, tol=TOL, eps_r=0.0, prune=False, verify=False, thin=False)
+    assert ez.n_windows >= 8 and ez.unresolved == 0
+    rng = np.random.default_rng(9)
+    x, y = rng.uniform(0, 4, (2, 40000))
+    wall = np.abs(f.d(x, y)) < TOL
+    assert np.abs(ez.height(base, x, y) - f(x, y))[~wall].max() <= TOL
+    m = PrecisionModel(base, ez=ez, meta={"method": "ez"})
+    back = PrecisionModel.load(m.save(tmp_path / "win.zpm"))
+    assert np.array_equal(back.ez.win, ez.win) and np.array_equal(back.ez.offsets, ez.offsets)
+    assert np.array_equal(back.height(x, y), m.height(x, y), equal_nan=True)
+    # stored: a bit per e-edge and two bytes per windowed edge over the format-3 layout
+    arrays = ez.to_arrays()
+    assert arrays["win_b"].size == ez.n_windows and arrays["win_nl"].dtype == np.uint8
+    # a format-3 map (no windows) loads and evaluates as before
+    a3 = {k: v for k, v in unwin.to_arrays().items() if not k.startswith("win_")} | {"version": np.array([3])}
+    old = EZMap.from_arrays(a3)
+    assert old.n_windows == 0 and np.array_equal(old.evaluate(base, x, y), unwin.evaluate(base, x, y), equal_nan=True)
+    # a window that does not fit its edge's stored count is refused, naming the edge
+    bad = dict(arrays)
+    bad["win_nl"] = arrays["win_nl"] + 40
+    with pytest.raises(ValueError, match="window"):
+        EZMap.from_arrays(bad)
+
+
+def test_patch_sub_edges_may_keep_no_point_and_counts_pack_two_to_a_byte():
+    from tests.zmap.refine.test_patch import Rib
+    from zmap.refine._emap import CellPatches
+
+    rib = Rib()
+    base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
+    ez = build_ez(base, rib, tol=TOL)
+    p = ez.patches
+    assert p is not None and (p.counts[:p.edge_off[-1]] == 0).any()  # linear between sub-grid nodes
+    arr = p.to_arrays()
+    assert "counts4" in arr and arr["counts4"].size == (p.counts.size + 1) // 2
+    back = CellPatches.from_arrays(arr)
+    assert np.array_equal(back.counts, p.counts)
+    x, y = np.random.default_rng(5).uniform(0, 4, (2, 20000))
+    from zmap.refine.patch import misfit
+
+    assert not misfit(ez.height(base, x, y), x, y, rib(x, y), rib, TOL).any()
