@@ -110,6 +110,7 @@ def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods
         "ez_lattices": r["ez"].get("ez_lattices") if "ez" in r else None,
         "ez_unresolved": r["ez"].get("ez_unresolved") if "ez" in r else None,
         "ez_pruned": r["ez"].get("ez_pruned") if "ez" in r else None,
+        "ez_bytes_by_part": _ez_bytes(models["ez"][0].ez) if "ez" in models else None,
         "max_vertical_flat": {k: v["max_vertical_flat"] for k, v in r.items()},
         "max_dist_in_cz": r["cz"].get("max_dist_in_cz") if "cz" in r else None,
         "facet_points": {k: v.get("facet_points") for k, v in r.items() if k != "base"},
@@ -122,6 +123,26 @@ def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods
         "seconds": round(time.perf_counter() - t0, 2),
     }
     return out
+
+
+def _ez_bytes(ez) -> dict:
+    """Where the stored e-map's bytes go (KB): e-point codes of the windowed wall edges and of
+    the other e-edges, their scales, the edge bits and counts, the windows, and the cell
+    patches' codes, nodes, counts and sub-lattices; with the counts of edges and windows."""
+    import numpy as np
+
+    a = ez.to_arrays()
+    kb = lambda *names: round(sum(a[n].nbytes for n in names if n in a) / 1024, 1)
+    win = np.diff(ez.offsets)[ez.win >= 0].sum()
+    return {"codes_windowed_edges": round(2 * int(win) / 1024, 1),
+            "codes_other_edges": round(2 * (ez.n_points - int(win)) / 1024, 1),
+            "lo_step": kb("lo", "step"), "edge_bits_counts": kb("edge_bits", "counts"),
+            "windows": kb("win_bits", "win_b", "win_nl"),
+            "patch_codes": kb("patch_codes"), "patch_nodes": kb("patch_node_codes"),
+            "patch_counts": kb("patch_counts", "patch_counts4"),
+            "patch_cells_levels_scales": kb("patch_cells", "patch_level", "patch_lo", "patch_step"),
+            "sub_lattices": kb(*[k for k in a if k.startswith("patch_sub_")]),
+            "n_edges": ez.n_edges, "n_windows": ez.n_windows, "n_patches": ez.n_patches}
 
 
 def _cz_plan(part, base, tol: float) -> dict:

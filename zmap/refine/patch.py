@@ -53,6 +53,8 @@ def patch_levels(base: ZMap, tol: float, interval: float) -> tuple[int, ...]:
     while 2 * levels[-1] <= finest * (1 + 1e-9):
         levels.append(2 * levels[-1])
     return tuple(m for m in levels if h / m >= 3.0 * interval)
+#: :func:`misfit`: a surface no steeper than this around a point is held to ``tol`` vertically
+GENTLE_SLOPE = 1.0
 #: test points per base interval and axis when a refined cell is checked (a lattice)
 TEST_POINTS = 8
 #: a cell is checked against this share of the tolerance, a margin for the points between
@@ -71,7 +73,10 @@ def misfit(h: np.ndarray, x: np.ndarray, y: np.ndarray, z_exact: np.ndarray, hei
     bracket it within ``tol/2``: where they do, the top-most surface passes within
     ``tol/2`` of the point's height within ``3 tol/4`` horizontally (on a face, or on a wall
     the model places off by that much), a 3D distance within ``0.9 tol``. A conservative
-    stand-in for the 3D distance as far as the probes see. A model height over no surface misses unless one of those
+    stand-in for the 3D distance as far as the probes see. Where the surface is gentle (no
+    probe rises or falls more than :data:`GENTLE_SLOPE` times its distance, and none is
+    empty) the bracket does not excuse a point: there the vertical deviation itself is held
+    to ``tol`` (Table 2's "max vertical deviation, not steep"). A model height over no surface misses unless one of those
     neighbours has a surface; no model height (NaN) is never a miss (the base has none there).
 
     Parameters
@@ -107,13 +112,16 @@ def misfit(h: np.ndarray, x: np.ndarray, y: np.ndarray, z_exact: np.ndarray, hei
         oy = np.concatenate([f * tol * np.sin(ang) for f in (0.25, 0.5, 0.75)])
         z2 = np.asarray(heights((xi[:, None] + ox).ravel(), (yi[:, None] + oy).ravel()),
                         dtype=np.float64).reshape(idx.size, ox.size)
+        r = np.hypot(ox, oy)
+        with np.errstate(invalid="ignore"):
+            gentle = np.all(np.abs(z2 - z_exact[idx, None]) <= GENTLE_SLOPE * r, axis=1)
         with np.errstate(invalid="ignore"):
             lo = np.fmin(lo, np.nanmin(np.where(np.isnan(z2), np.inf, z2), axis=1))
             hi = np.fmax(hi, np.nanmax(np.where(np.isnan(z2), -np.inf, z2), axis=1))
         lo[~np.isfinite(lo)] = np.nan
         hi[~np.isfinite(hi)] = np.nan
         with np.errstate(invalid="ignore"):
-            ok = (h[idx] >= lo - 0.5 * tol) & (h[idx] <= hi + 0.5 * tol)
+            ok = (h[idx] >= lo - 0.5 * tol) & (h[idx] <= hi + 0.5 * tol) & ~gentle
         bad[idx[ok]] = False
     return bad
 

@@ -289,3 +289,14 @@ def test_sub_lattices_over_the_missing_sub_cells_hold_tol_and_cost_less(tmp_path
     back = PrecisionModel.load(m_.save(tmp_path / "subs.zpm"))
     assert back.ez.patches.subs is not None and np.array_equal(back.ez.patches.subs.keys, subs.keys)
     assert np.array_equal(back.height(x, y), m_.height(x, y), equal_nan=True)
+
+
+def test_misfit_holds_gentle_slopes_to_tol_vertically():
+    # on a slope of 0.8 the probes (up to 0.75 tol away) bracket a point 1.05 tol off vertically
+    # within tol/2, which would excuse it on a steep face; on a gentle one it misses
+    f = lambda x, y: 0.8 * x + 0.0 * y
+    x, y = np.array([1.0, 1.0, 1.0]), np.zeros(3)
+    h = f(x, y) + np.array([1.05 * TOL, 0.95 * TOL, -1.05 * TOL])
+    assert misfit(h, x, y, f(x, y), f, TOL).tolist() == [True, False, True]
+    steep = lambda x, y: 1.6 * x + 0.0 * y  # steeper than 1: the bracket still excuses it
+    assert not misfit(steep(x, y) + 1.05 * TOL, x, y, steep(x, y), steep, TOL).any()

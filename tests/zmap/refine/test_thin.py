@@ -102,11 +102,11 @@ def test_stored_bytes_are_bits_counts_codes_and_scales():
     from zmap.refine.ez import edge_count
 
     E = edge_count(base.nx, base.ny)
-    # header (version, grid, shape: 104 bytes), a bit per grid edge, a byte count, two float32
-    # scales per e-edge, two bytes per e-point; a bit per e-edge and two bytes per windowed
-    # wall edge; no patches
-    assert ez.n_windows >= 8
-    assert ez.nbytes == (104 + math.ceil(E / 8) + 9 * ez.n_edges + 2 * ez.n_points
+    # header (version, grid, shape: 104 bytes), a bit per grid edge, a byte count, a float32
+    # offset and a float16 quantum per e-edge, two bytes per e-point; a bit per e-edge and two
+    # bytes per windowed wall edge; no patches
+    assert ez.n_windows >= 8 and ez.to_arrays()["step"].dtype == np.float16
+    assert ez.nbytes == (104 + math.ceil(E / 8) + 7 * ez.n_edges + 2 * ez.n_points
                          + math.ceil(ez.n_edges / 8) + 2 * ez.n_windows)
     assert ez.index_nbytes == 8 * (2 * ez.n_edges + 1)
 
@@ -207,3 +207,20 @@ def test_patch_sub_edges_may_keep_no_point_and_counts_pack_two_to_a_byte():
     from zmap.refine.patch import misfit
 
     assert not misfit(ez.height(base, x, y), x, y, rib(x, y), rib, TOL).any()
+
+
+def test_quanta_are_stored_in_two_bytes_and_still_span_the_range():
+    from zmap.refine._emap import encode_heights, half_step
+
+    rng = np.random.default_rng(11)
+    h = np.concatenate([rng.uniform(-50, 80, 40), [1.0, 1.0 + 3e-9], rng.uniform(0, 1e-4, 9), [2.0, 2.0]])
+    off = np.array([0, 40, 42, 51, 53])
+    codes, lo, step = encode_heights(off, h)
+    assert np.array_equal(step.astype(np.float16).astype(np.float32), step)
+    e = np.repeat(np.arange(4), np.diff(off))
+    back = lo[e].astype(np.float64) + step[e].astype(np.float64) * codes
+    span = np.array([np.ptp(h[a:b]) for a, b in zip(off[:-1], off[1:])])
+    # the error stays within half the exact quantum (grown by float16's 1/1024) or 3e-8 mm
+    assert np.all(np.abs(back - h) <= np.maximum(span[e] / 65534 / 2 * (1 + 2 ** -10), 3e-8) + 1e-6 * np.abs(h) * 2 ** -23)
+    assert codes.max() <= 65534 and step[3] == 0.0
+    assert np.all(half_step(np.array([1e-3, 5e-9])) >= np.array([1e-3, 5e-9], np.float32))
