@@ -572,10 +572,10 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     2. no voxel of ``E_n(v)`` has a concave curvature above 1/a;
     3. no voxel of ``E_n(v)`` is a crease (several faces meeting at an angle);
 
-    and no occupied voxel (boundary or interior) reaches above the ball's centre within the
+    and no boundary box reaches above the ball's centre within the
     shank's radius, nor above the stick-out within the holder's radius (both tested upward
     without end; cells of the depth buffers: ``cell``, d by default, and ``cell_holder``, the
-    larger of d and a fifth of the holder's radius). A voxel where the ball
+    larger of d and a fifth of the holder's radius; see :func:`tool_clearance`). A voxel where the ball
     itself would hold a boundary or interior voxel centre closer than a - half a diagonal to
     its centre has no direction.
 
