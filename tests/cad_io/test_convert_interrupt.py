@@ -51,7 +51,7 @@ def test_ctrl_c_during_the_first_second_of_convert(tmp_path):
                              stderr=subprocess.PIPE, text=True,
                              env={**os.environ, "PYTHONPATH": str(ROOT)},
                              # a runner started in the background ignores SIGINT, and the child would inherit that
-                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # noqa: PLW1509
         assert p.stderr.readline() == "ready\n"
         time.sleep(delay)
         p.send_signal(signal.SIGINT)
