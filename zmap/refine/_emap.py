@@ -25,6 +25,8 @@ __all__ = ["BREAK_RATIO", "FORMAT_VERSION", "WINDOW_HALF", "NAN_CODE", "SERIAL_B
            "cells_around", "edge_count", "encode_heights", "sub_grid"]
 
 FORMAT_VERSION = 4
+#: Tries at more knots for a thinned edge whose knots show a break (:func:`decimate`).
+THIN_ROUNDS = 4
 #: A windowed wall edge keeps its full samples from this many before the jump's interval
 #: to this many after it (the jump and the slopes its two sides are extended by).
 WINDOW_HALF = 1
@@ -163,10 +165,13 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
     thinned sequence would show one, or where a height is missing: its cells split the same
     way (no break either way).
 
-    ``window``: an edge whose break is a jump (a wall) keeps the full samples from
-    :data:`WINDOW_HALF` before the jump's interval to as many after it, and each side of
-    them is thinned the same way to its own fewest knots (spans of 1, 2, 3, 4, 5, 6, 8, ...
-    intervals). The kernels read it as its full sequence, a sample outside the window
+    A smooth edge whose thinned sequence shows a break gets more knots (the next counts,
+    :data:`THIN_ROUNDS` tries) before it is kept whole.
+
+    ``window``: an edge with a break (a wall's jump or a sharp edge's kink) keeps the full
+    samples from :data:`WINDOW_HALF` before the break's interval to as many after it, and
+    each side of them is thinned the same way to its own fewest knots (spans of 1, 2, 3, 4,
+    5, 6, 8, ... intervals). The kernels read it as its full sequence, a sample outside the window
     linear between the knots of its side (:func:`zmap.refine._ez_kernels._sample`), so the
     jump, the samples either side of it and the break found are those of the full sequence
     (checked: an edge whose windowed sequence shows another break keeps all its points).
@@ -234,7 +239,7 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
     d[full] = n[full] + 1
     win = nowin.copy()
     if window:
-        sel = np.flatnonzero(kind0 == 1).astype(np.int64)
+        sel = np.flatnonzero(kind0 != 0).astype(np.int64)
         _k.window_counts(z, edge_ids, offsets, heights, t0, sel, WINDOW_HALF, float(limit), win)
         # a window that stores no fewer codes than the full edge is not one
         small = np.array([_k.window_size(int(win[k]), int(n[k])) < n[k] if win[k] >= 0 else False for k in sel],
@@ -243,11 +248,19 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
     if not np.any((d < n + 1) | (win >= 0)):
         return offsets, heights, nowin
     off, h = thinned(d, win)
-    kind1, t1 = breaks(off, h, win)
-    again = ((kind1 != 0) & (d < n + 1) & (win < 0)) | ((win >= 0) & ((kind1 != kind0) | (t1 != t0)))
-    if again.any():
-        d[again] = n[again] + 1
-        win[again] = -1
+    for _ in range(THIN_ROUNDS + 1):
+        kind1, t1 = breaks(off, h, win)
+        bad_w = (win >= 0) & ((kind1 != kind0) | (t1 != t0))
+        bad_u = (kind1 != 0) & (d < n + 1) & (win < 0)
+        if not (bad_w.any() or bad_u.any()):
+            break
+        # a window that moves the break keeps its edge whole; a smooth edge whose knots show a
+        # break gets more knots (the whole edge after THIN_ROUNDS tries)
+        win[bad_w] = -1
+        d[bad_w] = n[bad_w] + 1
+        d[bad_u] = np.minimum(np.maximum(d[bad_u] + 1, (d[bad_u] * 5) // 4), n[bad_u] + 1)
+        if _ == THIN_ROUNDS - 1:
+            d[bad_u] = n[bad_u] + 1
         off, h = thinned(d, win)
     return off, h, win
 
