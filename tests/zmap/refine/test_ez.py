@@ -296,6 +296,8 @@ def test_kernel_matches_reference(seed):
     assert kind.tolist() == [k for k, _ in expect]
     assert np.allclose(t, [tb for _, tb in expect], rtol=0, atol=1e-12)
     assert set(kind.tolist()) == {0, 1, 2}
+    # wall (jump) and sharp-edge (kink) edges windowed: the reference reads their full sequences
+    assert (ez.win[kind == 1] >= 0).all() and (ez.win[kind == 2] >= 0).any()
     x, y = rng.uniform(-0.1, 4.1, 2000), rng.uniform(-0.1, 4.1, 2000)
     a = ez.evaluate(base, x, y)
     b = ref.evaluate(ez, base, x, y)
