@@ -530,15 +530,23 @@ def _disc_clear(buf, A0, B0, u0, cell, pu, pv, rr, h0, skip):
         du = 0.0 if ua <= pu <= ua + cell else min(abs(ua - pu), abs(ua + cell - pu))
         dp = abs(p - pc)
         w = skip[dp] if dp < skip.shape[0] else -1
-        for r in range(ja, jb + 1):
-            if w >= 0 and rc - w <= r <= rc + w:
-                continue
-            va = u0 + r * cell
-            dv = 0.0 if va <= pv <= va + cell else min(abs(va - pv), abs(va + cell - pv))
-            if du * du + dv * dv >= r2:
-                continue
-            if buf[p - A0, r - B0] > h0:
-                return False
+        # the columns left and right of the skipped run
+        for side in range(2):
+            if w < 0:
+                if side == 1:
+                    break
+                r0, r1 = ja, jb
+            elif side == 0:
+                r0, r1 = ja, min(jb, rc - w - 1)
+            else:
+                r0, r1 = max(ja, rc + w + 1), jb
+            for r in range(r0, r1 + 1):
+                va = u0 + r * cell
+                dv = 0.0 if va <= pv <= va + cell else min(abs(va - pv), abs(va + cell - pv))
+                if du * du + dv * dv >= r2:
+                    continue
+                if buf[p - A0, r - B0] > h0:
+                    return False
     return True
 
 
