@@ -25,6 +25,9 @@ __all__ = ["BREAK_RATIO", "FORMAT_VERSION", "WINDOW_HALF", "NAN_CODE", "SERIAL_B
            "cells_around", "edge_count", "encode_heights", "sub_grid"]
 
 FORMAT_VERSION = 4
+#: A windowed edge's break may move this share of an e-map interval from the full
+#: sequence's (a kink placed from coded heights: 0.05 of 0.01 mm is 5e-4 mm).
+KINK_SHIFT = 0.05
 #: Tries at more knots for a thinned edge whose knots show a break (:func:`decimate`).
 THIN_ROUNDS = 4
 #: A windowed wall edge keeps its full samples from this many before the jump's interval
@@ -248,14 +251,30 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
     if not np.any((d < n + 1) | (win >= 0)):
         return offsets, heights, nowin
     off, h = thinned(d, win)
+    w_limit = np.full(E, float(limit))
     for _ in range(THIN_ROUNDS + 1):
         kind1, t1 = breaks(off, h, win)
-        bad_w = (win >= 0) & ((kind1 != kind0) | (t1 != t0))
+        # a kink's place moves with the codes' quantum (the window's range is not the edge's):
+        # up to KINK_SHIFT samples is the same break
+        bad_w = (win >= 0) & ((kind1 != kind0) | (np.abs(t1 - t0) * (n + 1) > KINK_SHIFT))
         bad_u = (kind1 != 0) & (d < n + 1) & (win < 0)
         if not (bad_w.any() or bad_u.any()):
             break
-        # a window that moves the break keeps its edge whole; a smooth edge whose knots show a
-        # break gets more knots (the whole edge after THIN_ROUNDS tries)
+        # a window whose knots move the break (a kink's second differences against those at
+        # the knots) gets knots at a quarter of the limit, then keeps its edge whole; a
+        # smooth edge whose knots show a break gets more knots (the whole edge after
+        # THIN_ROUNDS tries)
+        retry = bad_w & (w_limit > limit / 20.0) & (_ < THIN_ROUNDS - 1)
+        if retry.any():
+            w_limit[retry] /= 4.0
+            for lim in np.unique(w_limit[retry]):
+                sel = np.flatnonzero(retry & (w_limit == lim)).astype(np.int64)
+                _k.window_counts(z, edge_ids, offsets, heights, t0, sel, WINDOW_HALF, float(lim), win)
+            bad_w &= ~retry
+            small = np.array([_k.window_size(int(win[k]), int(n[k])) < n[k] if win[k] >= 0 else False
+                              for k in np.flatnonzero(retry)], dtype=bool)
+            win[np.flatnonzero(retry)[~small]] = -1
+            d[np.flatnonzero(retry)[~small]] = n[np.flatnonzero(retry)[~small]] + 1
         win[bad_w] = -1
         d[bad_w] = n[bad_w] + 1
         d[bad_u] = np.minimum(np.maximum(d[bad_u] + 1, (d[bad_u] * 5) // 4), n[bad_u] + 1)
