@@ -16,7 +16,8 @@ _WHERE = {
     "DirectionSet": "directions", "direction_set": "directions", "to_bool": "directions",
     "from_bool": "directions", "count": "directions",
     "VoxelMap": "voxelmap", "Tool": "voxelmap", "parse_tool": "voxelmap", "paint": "voxelmap",
-    "global_visibility": "voxelmap", "accessibility": "voxelmap", "three_axis": "voxelmap",
+    "global_visibility": "voxelmap", "accessibility": "voxelmap", "tool_clearance": "voxelmap",
+    "three_axis": "voxelmap",
     "set_cover": "voxelmap", "node_directions": "voxelmap", "AccessResult": "voxelmap",
     "AccessModelError": "voxelmap", "voxels_3d": "plot", "sphere_3d": "plot",
 }
