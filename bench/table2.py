@@ -247,6 +247,16 @@ def markdown(res: dict) -> str:
         ("", "CZ", lambda r: _fmt(r["p999_dist"].get("cz"))),
         ("Max vertical dev, not steep (mm)", "base", lambda r: _fmt(r["max_vertical_flat"]["base"])),
         ("", "EZ", lambda r: _fmt(r["max_vertical_flat"].get("ez"))),
+        ("E-map bytes (KB)", "codes on windowed edges", lambda r: kb(r["ez_bytes_by_part"]["codes_windowed_edges"])),
+        ("", "codes on other e-edges", lambda r: kb(r["ez_bytes_by_part"]["codes_other_edges"])),
+        ("", "edge scales, bits, counts, windows", lambda r: kb(sum(
+            r["ez_bytes_by_part"][k] for k in ("lo_step", "edge_bits_counts", "windows")))),
+        ("", "cell patches", lambda r: kb(sum(
+            r["ez_bytes_by_part"][k] for k in ("patch_codes", "patch_nodes", "patch_counts",
+                                               "patch_cells_levels_scales")))),
+        ("", "sub-lattices", lambda r: kb(r["ez_bytes_by_part"]["sub_lattices"])),
+        ("", "windowed / all e-edges", lambda r: f"{r['ez_bytes_by_part']['n_windows']:,} / "
+                                                  f"{r['ez_bytes_by_part']['n_edges']:,}"),
         ("EZ cell check", "patched cells", lambda r: f"{r['ez_patches']:,}"),
         ("", "of them lattices", lambda r: f"{r['ez_lattices']:,}"),
         ("", "still off", lambda r: f"{r['ez_unresolved']:,}"),
