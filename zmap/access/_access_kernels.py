@@ -146,34 +146,6 @@ def orientation_votes(pts, nrm, face, origin, d, state, out):
 
 
 @njit(cache=True, inline="always")
-def _slab(bx, by, bz, nx, ny, nz, cx, cy, cz, hx, hy, hz):
-    """Parameter interval [s0, s1] of the line base + s n inside the cube (centre c, half h);
-    s0 > s1 when it misses."""
-    s0 = -1.0e300
-    s1 = 1.0e300
-    for m in range(3):
-        if m == 0:
-            b, n, c, h = bx, nx, cx, hx
-        elif m == 1:
-            b, n, c, h = by, ny, cy, hy
-        else:
-            b, n, c, h = bz, nz, cz, hz
-        if abs(n) < 1e-12:
-            if abs(b - c) > h:
-                return 1.0, -1.0
-        else:
-            a0 = (c - h - b) / n
-            a1 = (c + h - b) / n
-            if a0 > a1:
-                a0, a1 = a1, a0
-            if a0 > s0:
-                s0 = a0
-            if a1 < s1:
-                s1 = a1
-    return s0, s1
-
-
-@njit(cache=True, inline="always")
 def _basis(nx, ny, nz):
     # e1 perpendicular to n, e2 = n x e1
     if abs(nx) < 0.9:
@@ -220,7 +192,7 @@ def _line_setup(n, e, f):
 
 @njit(cache=True, inline="always")
 def _zin(uc, vc, e, f, r, h):
-    # the slab test of an axis the line runs parallel to (as in _slab)
+    # the slab test of an axis the line runs parallel to: it misses when |base - centre| > h
     return not (abs(uc * e + vc * f - r) > h)
 
 
