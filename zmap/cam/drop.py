@@ -40,6 +40,11 @@ __all__ = ["drop_cutter", "model_heights", "as_cutter"]
 _B = 8
 _K = 4  # candidate samples by bound, searched from while their bound beats the contact found
 _MAX_SAMPLES = 200_000_000
+# how far along a crease (a wall's top, a sharp edge, the rim) the numba refinement walks
+# from the contact the compass search stopped at, as a share of the cutter radius
+_REACH = 0.1
+# compass iterations per start in the numba refinement (creases are followed by the ridge walk)
+_MAX_ITER = 200
 
 
 def as_cutter(cutter: Any) -> Any:
@@ -160,7 +165,8 @@ def _pattern_search(hf, cut, qx, qy, ux, uy, g, step, xtol, max_iter=400):
 
 
 def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None = None,
-                xtol: float = 1e-6, return_contact: bool = False, refine: bool = True) -> Any:
+                xtol: float = 1e-6, return_contact: bool = False, refine: bool = True,
+                engine: str = "auto") -> Any:
     """Cutter-location heights of a cutter dropped onto a design at axis positions (x, y).
 
     Parameters
@@ -175,6 +181,10 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
     xtol : float — mm, the final step of the pattern search on non-smooth contacts.
     return_contact : bool — also return the contact points ``(cx, cy, cz)``.
     refine : bool — steps 2 and 3 (exact heights); False: the discrete drop alone.
+    engine : {"auto", "numba", "python"} — where step 3 runs: "numba" (a ZMap or a
+        PrecisionModel: one kernel per point, with a ridge walk along creases,
+        :mod:`zmap.cam._model_eval`), "python" (batched height calls, any model; no ridge
+        walk), "auto" (numba where the model allows).
 
     Returns
     -------
@@ -196,6 +206,8 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
     from . import _drop_kernels as K
 
     cut = as_cutter(cutter)
+    if engine not in ("auto", "numba", "python"):
+        raise ValueError(f"engine must be 'auto', 'numba' or 'python', got {engine!r}")
     xb, yb = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
     shape = xb.shape
     qx = np.ascontiguousarray(xb.ravel())
@@ -204,6 +216,22 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
         raise ValueError("x and y must be finite axis positions in mm")
     R = cut.radius
     hf, zm, natural = model_heights(model)
+    M = None
+    if refine and engine != "python":
+        from . import _model_eval as ME
+
+        if ME.supported(model):
+            M = ME.pack_model(model)
+            if zm is None:  # a PrecisionModel: sample it through the same kernel
+                def hf(x, y, M=M):
+                    xs = np.ascontiguousarray(np.ravel(np.asarray(x, dtype=np.float64)))
+                    ys = np.ascontiguousarray(np.ravel(np.asarray(y, dtype=np.float64)))
+                    out = np.empty(xs.size)
+                    ME.threaded(ME.heights, xs.size, M, xs, ys, out, chunk=16384)
+                    return out.reshape(np.shape(x))
+        elif engine == "numba":
+            raise ValueError(f"engine='numba' needs a ZMap or a PrecisionModel without dense lattices, "
+                             f"got {type(model).__name__}")
     if pitch is not None:
         pitch = float(pitch)
         if not (math.isfinite(pitch) and pitch > 0):
@@ -308,6 +336,7 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
         rough = idx[~smooth]
         st_p, st_x, st_y, st_g, st_s = [rough], [ux[rough]], [uy[rough]], [val[rough]], \
             [np.full(rough.size, 0.5 * max(dx, dy))]
+        st_b = [np.full(rough.size, np.inf)]
         # a sample whose cell could hold a higher contact than the one found (an edge between
         # samples near the rim, where the envelope is steep): search from it too
         for kk in range(_K):
@@ -327,11 +356,45 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
                 st_y.append(sy0)
                 st_g.append(_contact(hf, cut, qx[other], qy[other], sx0, sy0))
                 st_s.append(np.full(other.size, 0.5 * max(dx, dy)))
+                st_b.append(uval[other, kk])
         # the rim: a feature may reach into the disk between samples there; sample a band of
         # three rings every pitch/4 of arc exactly, and search from the best ring point
         # (a flat end mill touches a slope with its rim, where maxima between samples hide:
         # its rims are always sampled)
         ring = np.flatnonzero(ok) if cut.code == 0 else np.flatnonzero(ok & (band > val + 1e-9))
+        if M is not None:
+            from . import _model_eval as ME
+
+            # every point with a start or a ring is searched in one kernel, per point
+            sp = np.concatenate(st_p)
+            need = np.zeros(n, dtype=bool)
+            need[sp] = True
+            need[ring] = True
+            pts = np.flatnonzero(need)
+            # per point, its starts best bound first (the rough contact itself: unbounded)
+            bnd = np.concatenate(st_b)
+            order = np.lexsort((-bnd, sp))
+            cnt = np.bincount(sp, minlength=n)[pts]
+            ptr = np.zeros(pts.size + 1, dtype=np.int64)
+            np.cumsum(cnt, out=ptr[1:])
+            bandf = np.full(n, -np.inf)
+            bandf[ring] = np.inf if cut.code == 0 else band[ring]
+            sub_v = np.ascontiguousarray(val[pts])
+            sub_x = np.ascontiguousarray(ux[pts])
+            sub_y = np.ascontiguousarray(uy[pts])
+            ME.threaded(ME.refine_points, pts.size, M, cut.code, R, cut.corner_radius,
+                        np.ascontiguousarray(qx[pts]), np.ascontiguousarray(qy[pts]), ptr,
+                        np.ascontiguousarray(np.concatenate(st_x)[order], dtype=np.float64),
+                        np.ascontiguousarray(np.concatenate(st_y)[order], dtype=np.float64),
+                        np.ascontiguousarray(np.concatenate(st_s)[order], dtype=np.float64),
+                        np.ascontiguousarray(bnd[order], dtype=np.float64),
+                        np.ascontiguousarray(bandf[pts]), min(dx, dy), cell, _REACH * R, xtol, _MAX_ITER,
+                        sub_v, sub_x, sub_y, chunk=64)
+            b = sub_v > val[pts]
+            val[pts[b]], ux[pts[b]], uy[pts[b]] = sub_v[b], sub_x[b], sub_y[b]
+            ring = ring[:0]
+            st_p, st_x, st_y, st_g, st_s = [np.zeros(0, np.int64)], [np.zeros(0)], [np.zeros(0)], [np.zeros(0)], \
+                [np.zeros(0)]
         if ring.size:
             h = 0.25 * min(dx, dy)
             m = max(16, int(math.ceil(2 * math.pi * R / h)))

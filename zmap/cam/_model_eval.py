@@ -1,0 +1,477 @@
+"""numba entry to a precision model's heights, and the drop-cutter's exact refinement on it.
+
+:func:`pack_model` gathers the flat arrays of a :class:`zmap.model.PrecisionModel` (or a
+plain :class:`zmap.ZMap`): the base map, the CZ-maps packed as :mod:`zmap._model_kernels`
+packs them, the EZ-map's e-points and tables (taken through :class:`zmap.refine.ez.EZMap`'s
+own ``_tables``/``_hq``/offsets, never re-derived, so that its storage can change under us)
+and its EZ cell patches (each through ``CellPatches._patch_maps``: a patch is an EZ-map on a
+sub-grid). :func:`height_at` answers one point inside numba with the model's rule: the CZ-map
+in which the point lies deepest, else the EZ-map in an EZ cell (a patch where one covers the
+cell), else the base's Bezier surface. The tests hold it to ``PrecisionModel.height``.
+
+:func:`refine_points` runs the drop-cutter's exact refinement per point in one ``prange``
+kernel: pattern searches from the starts the discrete drop proposes and from the best point
+of three rings at the rim, then a ridge walk at a contact that sits on a crease (the top of a
+wall, a sharp edge, the rim): the contact is maximised along the crease with the height
+across it maximised at every step, which a compass search cannot do (it stops wherever the
+crease is not along one of its directions).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .._interp_kernels import _locate
+from .._model_kernels import bezier_at
+from .._interp_kernels import _EDGE_SLACK
+from ..refine import _ez_kernels as _ezk
+from ..sim._tool_kernels import _envelope
+
+__all__ = ["pack_model", "heights", "refine_points", "supported", "threaded"]
+
+_GOLD = 0.6180339887498949
+#: mm between the stations of the ridge walk along a crease
+_STATION = 0.004
+
+
+def threaded(kernel, n: int, *args, chunk: int = 256) -> None:
+    """``kernel(*args, k0, k1)`` over ``0:n`` in chunks on numba's thread count of threads
+    (the kernels hold no GIL); one thread for a single chunk."""
+    import numba
+
+    nt = max(1, numba.get_num_threads())
+    bounds = [(a, min(n, a + chunk)) for a in range(0, n, chunk)]
+    if nt == 1 or len(bounds) <= 1:
+        kernel(*args, 0, n)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=min(nt, len(bounds))) as ex:
+        for f in [ex.submit(kernel, *args, a, b) for a, b in bounds]:
+            f.result()
+
+
+def _ez_arrays(ez, base):
+    """``(z, par, edge_ids, offsets, hq, brk_kind, brk_t, ecell_ids, slots, nb, bk, bt, pts, arc)``
+    of an EZ-map over ``base`` (its own tables and codes)."""
+    a = ez._tables(base)
+    off = ez._voff() if hasattr(ez, "_voff") else ez.offsets
+    par = np.array([base.x0, base.y0, base.dx, base.dy, math.cos(base.angle), math.sin(base.angle),
+                    base.origin[0], base.origin[1]], dtype=np.float64)
+    return (np.ascontiguousarray(base.z, dtype=np.float64), par, ez.edge_ids, off, ez._hq(), a["brk_kind"],
+            a["brk_t"], a["ecell_ids"], a["slots"], a["nb"], a["bk"], a["bt"], a["pts"], a["arc"])
+
+
+def supported(model) -> bool:
+    """Whether :func:`pack_model` covers every part of ``model`` (dense lattices in cell
+    patches are not: the caller falls back to batched Python height calls)."""
+    from ..grid import ZMap
+    from ..model import PrecisionModel
+
+    if isinstance(model, ZMap):
+        return True
+    if not isinstance(model, PrecisionModel):
+        return False
+    ez = model.ez
+    if ez is None or ez.patches is None or not ez.patches.n_patches:
+        return True
+    p = ez.patches
+    return bool(np.all(p.level > 0)) and getattr(p, "subs", None) is None
+
+
+def pack_model(model) -> tuple:
+    """The arrays :func:`height_at` reads, for a PrecisionModel or a ZMap (see :func:`supported`)."""
+    from ..grid import ZMap
+    from ..model import PrecisionModel
+
+    if isinstance(model, ZMap):
+        model = PrecisionModel(model)
+    b = model.base
+    bpar = np.array([b.x0, b.y0, b.dx, b.dy, math.cos(b.angle), math.sin(b.angle), b.origin[0], b.origin[1]],
+                    dtype=np.float64)
+    head = (np.ascontiguousarray(b.z, dtype=np.float64), bpar, model._cz_z, model._cz_off, model._cz_shape,
+            model._cz_par, model._cell_ptr, model._cell_cz, model._ez_cell)
+    ez = model.ez
+    if ez is not None and ez.n_edges:
+        main = _ez_arrays(ez, b)
+        has_main = True
+    else:
+        from ..refine.ez import build_ez
+
+        # an EZ-map without edges, built by its own constructor (its arrays' types are the
+        # real ones); never read (has_main False)
+        dummy = build_ez(b, lambda x, y: np.zeros(np.shape(x)), tol=min(b.dx, b.dy) / 4, eps_r=math.inf,
+                         prune=False, verify=False, thin=False)
+        main = _ez_arrays(dummy, b)
+        has_main = False
+    cells = np.zeros(0, dtype=np.int64)
+    plist = []
+    if ez is not None and ez.patches is not None and ez.patches.n_patches:
+        p = ez.patches
+        cells = p.cells
+        for k in range(p.n_patches):
+            sub, pez = p._patch_maps(k, b, ez.interval, ez.tol)
+            plist.append(_ez_arrays(pez, sub))
+    from numba.typed import List
+
+    pl = List()
+    for t in plist:
+        pl.append(t)
+    if not plist:  # a typed list needs its item type: one patch-shaped item, never indexed
+        pl.append(main)
+    return head + (has_main, main, np.ascontiguousarray(cells, dtype=np.int64), pl)
+
+
+@njit(cache=True)
+def _ez_at(E, x, y):
+    """One EZ-map's height at world xy (its kernel's rule); NaN outside its e-cells."""
+    z, par, edge_ids, offsets, hq, brk_kind, brk_t, ecell_ids, slots, nb, bk, bt, pts, arc = E
+    nx, ny = z.shape
+    i, j, u, v = _locate(x, y, par[0], par[1], par[2], par[3], par[4], par[5], par[6], par[7], nx, ny)
+    if i < 0:
+        return np.nan
+    c = _ezk._find(ecell_ids, i * (ny - 1) + j)
+    if c < 0 or math.isnan(z[i, j]) or math.isnan(z[i + 1, j]) or math.isnan(z[i, j + 1]) or math.isnan(z[i + 1, j + 1]):
+        return np.nan
+    if nb[c] == 2 and (pts[c, 0, 0] != pts[c, 2, 0] or pts[c, 0, 1] != pts[c, 2, 1]):
+        return _ezk._split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, bk, bt, pts, arc,
+                           par[2], par[3])
+    return _ezk._coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, par[2], par[3], nb[c] > 0)
+
+
+@njit(cache=True)
+def height_at(M, x, y):
+    """The model's height at world xy (NaN: no surface), as ``PrecisionModel.height``."""
+    bz, bp, cz_z, cz_off, cz_shape, cz_par, cell_ptr, cell_cz, ez_cell, has_main, E, pcells, PL = M
+    nx, ny = bz.shape
+    i, j, u, v = _locate(x, y, bp[0], bp[1], bp[2], bp[3], bp[4], bp[5], bp[6], bp[7], nx, ny)
+    if i < 0:
+        return np.nan
+    cell = i * (ny - 1) + j
+    # the CZ-map in which the point lies deepest (zmap._model_kernels.model_heights)
+    best = -1
+    depth = -1.0
+    for q in range(cell_ptr[cell], cell_ptr[cell + 1]):
+        m = cell_cz[q]
+        x0 = cz_par[m, 0]
+        y0 = cz_par[m, 1]
+        dx = cz_par[m, 2]
+        dy = cz_par[m, 3]
+        c = cz_par[m, 4]
+        s = cz_par[m, 5]
+        px = x - cz_par[m, 6]
+        py = y - cz_par[m, 7]
+        lx = c * px + s * py
+        ly = -s * px + c * py
+        ex = min(lx - x0, x0 + (cz_shape[m, 0] - 1) * dx - lx)
+        ey = min(ly - y0, y0 + (cz_shape[m, 1] - 1) * dy - ly)
+        d = min(ex, ey)
+        if d >= -_EDGE_SLACK * min(dx, dy) and d > depth:
+            depth = d
+            best = m
+    if best >= 0:
+        zz = cz_z[cz_off[best]:cz_off[best + 1]].reshape((cz_shape[best, 0], cz_shape[best, 1]))
+        h = bezier_at(zz, cz_par[best, 0], cz_par[best, 1], cz_par[best, 2], cz_par[best, 3], cz_par[best, 4],
+                      cz_par[best, 5], cz_par[best, 6], cz_par[best, 7], x, y, 0, 0)
+        if h == h:
+            return h
+    hb = bezier_at(bz, bp[0], bp[1], bp[2], bp[3], bp[4], bp[5], bp[6], bp[7], x, y, 0, 0)
+    if not ez_cell[cell]:
+        return hb
+    he = np.nan
+    if has_main:
+        he = _ez_at(E, x, y)
+    if pcells.shape[0]:
+        # the patched cell, by the local coordinates as CellPatches.evaluate finds it
+        px = x - bp[6]
+        py = y - bp[7]
+        lx = bp[4] * px + bp[5] * py
+        ly = -bp[5] * px + bp[4] * py
+        pi = int(math.floor((lx - bp[0]) / bp[2]))
+        pj = int(math.floor((ly - bp[1]) / bp[3]))
+        if pi == nx - 1:
+            pi = nx - 2
+        if pj == ny - 1:
+            pj = ny - 2
+        if 0 <= pi <= nx - 2 and 0 <= pj <= ny - 2:
+            k = _ezk._find(pcells, pi * (ny - 1) + pj)
+            if k >= 0:
+                hp = _ez_at(PL[k], x, y)
+                if hp == hp:
+                    he = hp
+    if he == he:
+        return he
+    return hb
+
+
+@njit(cache=True, nogil=True)
+def heights(M, xs, ys, out, k0, k1):
+    """:func:`height_at` at points ``k0:k1`` (no GIL held: callers thread over chunks, since
+    numba's parallel loops do not take the tuple of arrays a model is)."""
+    for k in range(k0, k1):
+        out[k] = height_at(M, xs[k], ys[k])
+
+
+@njit(cache=True)
+def _g(M, code, R, rc, qx, qy, x, y):
+    """Contact height of the surface point above (x, y) for the axis at (qx, qy); -inf off
+    the disk or without surface."""
+    d = math.hypot(x - qx, y - qy)
+    if d > R * (1.0 + 1e-12):
+        return -np.inf
+    h = height_at(M, x, y)
+    if not (h == h):
+        return -np.inf
+    return h - _envelope(code, R, rc, min(d, R))
+
+
+@njit(cache=True)
+def _onto_disk(qx, qy, R, x, y):
+    ox = x - qx
+    oy = y - qy
+    r = math.hypot(ox, oy)
+    if r > R:
+        f = R / r
+        return qx + ox * f, qy + oy * f
+    return x, y
+
+
+@njit(cache=True)
+def _pattern(M, code, R, rc, qx, qy, ux, uy, g, step, xtol, max_iter):
+    """Compass search on the disk (zmap.cam.drop._pattern_search's moves: 8 cartesian, 8
+    polar about the axis and 8 arcs with a small step inwards); a step that finds nothing
+    better halves. (Creases that none of these moves follows are left to :func:`_ridge`.)"""
+    s = step
+    it = 0
+    h = 0.7071067811865476
+    while s > xtol and it < max_iter:
+        it += 1
+        bg = g
+        bx = ux
+        by = uy
+        for m in range(24):
+            if m < 8:
+                a = m
+                cx = (1.0, -1.0, 0.0, 0.0, h, -h, h, -h)[a]
+                cy = (0.0, 0.0, 1.0, -1.0, h, h, -h, -h)[a]
+                px = ux + s * cx
+                py = uy + s * cy
+            else:
+                a = m - 8
+                dr = (1.0, -1.0, 0.0, 0.0, 1.0, -1.0, 1.0, -1.0, -0.25, -0.25, -0.0625, -0.0625, -1 / 64, -1 / 64,
+                      -1 / 256, -1 / 256)[a]
+                dt = (0.0, 0.0, 1.0, -1.0, 1.0, 1.0, -1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0)[a]
+                ox = ux - qx
+                oy = uy - qy
+                r0 = math.hypot(ox, oy)
+                th = math.atan2(oy, ox) + s * dt / max(r0, s)
+                rr = min(max(r0 + s * dr, 0.0), R)
+                px = qx + rr * math.cos(th)
+                py = qy + rr * math.sin(th)
+            px, py = _onto_disk(qx, qy, R, px, py)
+            gc = _g(M, code, R, rc, qx, qy, px, py)
+            if gc > bg:
+                bg = gc
+                bx = px
+                by = py
+        if bg > g:
+            g = bg
+            ux = bx
+            uy = by
+        else:
+            s *= 0.5
+    return ux, uy, g
+
+
+@njit(cache=True)
+def _line_max(M, code, R, rc, qx, qy, ax, ay, nx_, ny_, W, xtol, bx, by, bg):
+    """Max of the contact along ``a + s n``, ``|s| <= W`` (golden section, which walks onto
+    a crease or a jump); returns the best point seen (or ``(bx, by, bg)``)."""
+    lo = -W
+    hi = W
+    s1 = hi - _GOLD * (hi - lo)
+    s2 = lo + _GOLD * (hi - lo)
+    x1, y1 = _onto_disk(qx, qy, R, ax + s1 * nx_, ay + s1 * ny_)
+    x2, y2 = _onto_disk(qx, qy, R, ax + s2 * nx_, ay + s2 * ny_)
+    g1 = _g(M, code, R, rc, qx, qy, x1, y1)
+    g2 = _g(M, code, R, rc, qx, qy, x2, y2)
+    x0, y0 = _onto_disk(qx, qy, R, ax, ay)
+    g0 = _g(M, code, R, rc, qx, qy, x0, y0)
+    if g0 > bg:
+        bx, by, bg = x0, y0, g0
+    while hi - lo > xtol:
+        if g1 >= g2:
+            if g1 > bg:
+                bx, by, bg = x1, y1, g1
+            hi = s2
+            s2 = s1
+            x2, y2, g2 = x1, y1, g1
+            s1 = hi - _GOLD * (hi - lo)
+            x1, y1 = _onto_disk(qx, qy, R, ax + s1 * nx_, ay + s1 * ny_)
+            g1 = _g(M, code, R, rc, qx, qy, x1, y1)
+        else:
+            if g2 > bg:
+                bx, by, bg = x2, y2, g2
+            lo = s1
+            s1 = s2
+            x1, y1, g1 = x2, y2, g2
+            s2 = lo + _GOLD * (hi - lo)
+            x2, y2 = _onto_disk(qx, qy, R, ax + s2 * nx_, ay + s2 * ny_)
+            g2 = _g(M, code, R, rc, qx, qy, x2, y2)
+    if g1 > bg:
+        bx, by, bg = x1, y1, g1
+    if g2 > bg:
+        bx, by, bg = x2, y2, g2
+    return bx, by, bg
+
+
+@njit(cache=True)
+def _ridge(M, code, R, rc, qx, qy, ux, uy, g, reach, xtol):
+    """Walk a crease through (ux, uy): detected by the drops on a small ring (linear, not
+    quadratic), its direction the best point of a wider ring; then the contact maximised
+    along it, each station's point the max across it."""
+    rho = 2e-3
+    wmax = 0.0
+    for m in range(16):
+        th = 2.0 * math.pi * m / 16.0
+        px, py = _onto_disk(qx, qy, R, ux + rho * math.cos(th), uy + rho * math.sin(th))
+        gc = _g(M, code, R, rc, qx, qy, px, py)
+        w = g - gc if gc > -np.inf else 1.0
+        wmax = max(wmax, min(max(w, 0.0), 1.0))
+    if wmax < 0.05 * rho:  # a smooth maximum: no crease here
+        return ux, uy, g
+    # a sliver of surface, or a corner, beside the contact: a 17 x 17 lattice of 2 um
+    bx, by, bg = ux, uy, g
+    for a in range(-8, 9):
+        for b in range(-8, 9):
+            px, py = _onto_disk(qx, qy, R, ux + 0.002 * a, uy + 0.002 * b)
+            gc = _g(M, code, R, rc, qx, qy, px, py)
+            if gc > bg:
+                bx, by, bg = px, py, gc
+    ux, uy, g = bx, by, bg
+    # the crease's direction: towards the best of 32 points on a ring of 0.01 mm (along a
+    # crease the contact falls least; across it, by its slope times the offset)
+    tb_ = -np.inf
+    phi = 0.0
+    for m in range(32):
+        th = 2.0 * math.pi * m / 32.0
+        px, py = _onto_disk(qx, qy, R, ux + 0.01 * math.cos(th), uy + 0.01 * math.sin(th))
+        gc = _g(M, code, R, rc, qx, qy, px, py)
+        if gc > tb_:
+            tb_ = gc
+            phi = th
+    tx = math.cos(phi)
+    ty = math.sin(phi)
+    nx_ = -ty
+    ny_ = tx
+    W = 0.25 * reach
+    bx, by, bg = ux, uy, g
+    # scan along the crease both ways at stations ``_STATION`` apart (a wall's top in an EZ
+    # model wiggles by the e-map interval, its position being held to it: with the slope of
+    # the envelope, local maxima of the contact a hundredth of a mm apart along it), then a
+    # golden section about the best station
+    ltol = max(xtol, 1e-5)
+    best_t = 0.0
+    ns = int(math.ceil(reach / _STATION))
+    dt = reach / ns
+    for a in range(-ns, ns + 1):
+        if a == 0:
+            continue
+        t = a * dt
+        ww = W * abs(t) / reach + 4 * rho
+        px, py, pg = _line_max(M, code, R, rc, qx, qy, ux + t * tx, uy + t * ty, nx_, ny_, ww, ltol, bx, by, -np.inf)
+        if pg > bg:
+            bx, by, bg = px, py, pg
+            best_t = t
+    lo = best_t - dt
+    hi = best_t + dt
+    ww = W * (abs(best_t) + dt) / reach + 4 * rho
+    tb = best_t
+    gb = -np.inf
+    while hi - lo > 1e-3:
+        t1 = hi - _GOLD * (hi - lo)
+        t2 = lo + _GOLD * (hi - lo)
+        x1, y1, g1 = _line_max(M, code, R, rc, qx, qy, ux + t1 * tx, uy + t1 * ty, nx_, ny_, ww, ltol, bx, by, -np.inf)
+        x2, y2, g2 = _line_max(M, code, R, rc, qx, qy, ux + t2 * tx, uy + t2 * ty, nx_, ny_, ww, ltol, bx, by, -np.inf)
+        if g1 > gb:
+            tb, gb = t1, g1
+        if g2 > gb:
+            tb, gb = t2, g2
+        if g1 > bg:
+            bx, by, bg = x1, y1, g1
+        if g2 > bg:
+            bx, by, bg = x2, y2, g2
+        if g1 >= g2:
+            hi = t2
+        else:
+            lo = t1
+    if ltol > xtol:
+        bx, by, bg = _line_max(M, code, R, rc, qx, qy, ux + tb * tx, uy + tb * ty, nx_, ny_, ww, xtol, bx, by, bg)
+    return bx, by, bg
+
+
+@njit(cache=True, nogil=True)
+def refine_points(M, code, R, rc, qx, qy, ptr, sx, sy, ss, sb, band, ring_h, cell, reach, xtol, max_iter,
+                  val, ux, uy, k0, k1):
+    """Exact refinement of points ``k0:k1`` (``val[k]``, ``(ux[k], uy[k])`` in: the contact
+    so far; out: the best found).
+
+    The starts of point ``k`` are ``ptr[k]:ptr[k+1]`` of ``(sx, sy)``, each with a first
+    step ``ss`` and a bound ``sb`` (the most the discrete drop says the surface near it can
+    give), best bound first; a start whose bound does not beat the contact found is skipped.
+    ``band[k]``: the bound of the rim band; where it beats the contact found, three rings
+    (radius R, R - cell/2, R - cell; a point every ``ring_h`` of arc) are sampled and the
+    best ring point searched from. Then a ridge walk (``reach`` along the crease) from the
+    best contact where it sits on a crease, and a last pattern search."""
+    m = max(16, int(math.ceil(2.0 * math.pi * R / ring_h)))
+    for k in range(k0, k1):
+        q_x = qx[k]
+        q_y = qy[k]
+        bx = ux[k]
+        by = uy[k]
+        bg = val[k]
+        if not (bg > -np.inf):
+            bg = -np.inf
+        any_start = False
+        for s in range(ptr[k], ptr[k + 1]):
+            if not (sb[s] > bg + 1e-9):
+                continue
+            px, py = _onto_disk(q_x, q_y, R, sx[s], sy[s])
+            g0 = _g(M, code, R, rc, q_x, q_y, px, py)
+            if g0 == -np.inf:
+                continue
+            px, py, g0 = _pattern(M, code, R, rc, q_x, q_y, px, py, g0, ss[s], xtol, max_iter)
+            any_start = True
+            if g0 > bg:
+                bx, by, bg = px, py, g0
+        if band[k] > bg + 1e-9:
+            rb = -np.inf
+            rx = 0.0
+            ry = 0.0
+            for a in range(3):
+                rad = R - 0.5 * cell * a
+                for b in range(m):
+                    th = 2.0 * math.pi * b / m
+                    px = q_x + rad * math.cos(th)
+                    py = q_y + rad * math.sin(th)
+                    gc = _g(M, code, R, rc, q_x, q_y, px, py)
+                    if gc > rb:
+                        rb, rx, ry = gc, px, py
+            if rb > -np.inf:
+                rx, ry, rb = _pattern(M, code, R, rc, q_x, q_y, rx, ry, rb, ring_h, xtol, max_iter)
+                any_start = True
+                if rb > bg:
+                    bx, by, bg = rx, ry, rb
+        if any_start and bg > -np.inf:
+            for _round in range(2):
+                px, py, pg = _ridge(M, code, R, rc, q_x, q_y, bx, by, bg, reach, xtol)
+                if not (pg > bg + 1e-7):
+                    break
+                px, py, pg = _pattern(M, code, R, rc, q_x, q_y, px, py, pg, 0.25 * cell, xtol, max_iter)
+                bx, by, bg = px, py, pg
+        val[k] = bg
+        ux[k] = bx
+        uy[k] = by
