@@ -46,12 +46,14 @@ def _machine_memory_gb() -> float:
     return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 1e9
 
 
-def convert(part: Path, grid: float, tile: int, out: Path, workers: int) -> dict:
+def convert(part: Path, grid: float, tile: int, out: Path, workers: int, memory_limit: str | None) -> dict:
     from cad_io.tiled import convert_tiled
+    from zmap.tiled.cluster import dask_client
 
     say = lambda line: print(line, file=sys.stderr, flush=True)
     load0 = os.getloadavg()[0]
-    store, rep = convert_tiled(str(part), grid, out, tile=tile, workers=workers, progress=True, echo=say)
+    with dask_client(workers=workers, memory_limit=memory_limit) as client:
+        store, rep = convert_tiled(str(part), grid, out, tile=tile, client=client, progress=True, echo=say)
     rep["load_avg_1min_at_start"] = round(load0, 2)
     rep["load_avg_1min_at_end"] = round(os.getloadavg()[0], 2)
     runs_path = out.with_name(out.name + ".runs.json")
@@ -114,10 +116,12 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("/tmp/zmap-big/bm2.zarr"))
     ap.add_argument("--check-points", type=int, default=20000)
     ap.add_argument("--check-tiles", type=int, default=2)
+    ap.add_argument("--memory-limit", default=None,
+                    help="restart a worker above this RSS (e.g. 3GB) instead of letting the machine run out")
     ap.add_argument("--keep", action="store_true", help="leave the store (default: removed after the check)")
     a = ap.parse_args()
     a.out.parent.mkdir(parents=True, exist_ok=True)
-    res = convert(a.part, a.grid, a.tile, a.out, a.workers)
+    res = convert(a.part, a.grid, a.tile, a.out, a.workers, a.memory_limit)
     store, runs = res["store"], res["runs"]
     secs = sum(r["seconds"] for r in runs)
     done = sum(r["nodes"] / r["tiles"] * r["tiles_done_now"] for r in runs)  # tile sides vary; about

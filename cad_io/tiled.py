@@ -27,7 +27,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from zmap.tiled.cluster import CONNECT_TIMEOUT, dask_client, peak_rss_mb
+from zmap.tiled.cluster import CONNECT_TIMEOUT, dask_client, peak_rss_mb, share
 
 from .part import Part
 
@@ -225,7 +225,7 @@ def _largest_first(todo: list, store: Any) -> list:
 def _tile_task(part_path: str, g: TiledGrid, store: Any, ti: int, tj: int, threads: int, fs: Any) -> dict:
     """One Dask task: sample tile (ti, tj), write it and its marker; returns its figures.
 
-    ``fs`` is the client's face set, sent to each worker once (``Client.scatter``).
+    ``fs`` is the client's face set, sent to each worker once (:func:`zmap.tiled.cluster.share`).
     """
     import numba
 
@@ -338,7 +338,7 @@ def convert_tiled(part: str | os.PathLike, grid: Any, output: str | os.PathLike,
             t_tasks = time.perf_counter()
             # the packed faces go to every worker once; a worker reads the file itself only
             # for a fine facet pass
-            fs_remote = cl.scatter(fs, broadcast=True, hash=False)
+            fs_remote = share(cl, fs)
             futures = [cl.submit(_tile_task, part_path, g, store, ti, tj, threads, fs_remote, pure=False)
                        for ti, tj in _largest_first(todo, store)]
             try:

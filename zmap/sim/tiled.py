@@ -154,8 +154,8 @@ def _sim_tile_of(shared: tuple, pos: np.ndarray, table: tuple, history: str, x0:
                  gi0: int, gj0: int, tnx: int, tny: int, ny: int) -> dict:
     """One Dask task: tile (gi0, gj0, tnx, tny) of the whole stock and program sent once per worker.
 
-    ``shared`` is ``(xyz, slot, near, far, cnt)`` of the whole run (``Client.scatter`` with
-    ``broadcast``); the task takes its rays and its positions ``pos`` from it.
+    ``shared`` is ``(xyz, slot, near, far, cnt)`` of the whole run
+    (:func:`zmap.tiled.cluster.share`); the task takes its rays and its positions ``pos`` from it.
     """
     xyz, slot, near, far, cnt = shared
     idx = (np.arange(gi0, gi0 + tnx, dtype=np.int64)[:, None] * ny
@@ -274,7 +274,7 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
     """
     from tqdm import tqdm
 
-    from zmap.tiled.cluster import dask_client
+    from zmap.tiled.cluster import dask_client, share
 
     tile = _check_tiles(tiles)
     (ntx, nty), lists = tile_positions(stock, xyz, slot, cutters, tile)
@@ -292,7 +292,7 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
                   for k in range(ntx * nty)]
         # the program and the stock go to every worker once, straight from here (not through
         # the scheduler with each task); a task gets only its positions' indices
-        shared = cl.scatter([(xyz, slot, stock.near, stock.far, stock.cnt)], broadcast=True, hash=False)[0]
+        shared = share(cl, (xyz, slot, stock.near, stock.far, stock.cnt))
         for k in sorted(range(ntx * nty), key=lambda k: -weight[k]):
             ti, tj = divmod(k, nty)
             gi0, gj0 = ti * tile, tj * tile

@@ -58,11 +58,13 @@ def _probe(address: str, timeout: float) -> None:
 
 
 @contextlib.contextmanager
-def dask_client(scheduler: str | None = None, *, workers: int = 2, threads_per_worker: int = 1) -> Iterator[Any]:
+def dask_client(scheduler: str | None = None, *, workers: int = 2, threads_per_worker: int = 1,
+                memory_limit: str | None = None) -> Iterator[Any]:
     """A ``dask.distributed.Client``: on ``scheduler`` (address), else on a new LocalCluster.
 
-    The LocalCluster has ``workers`` worker processes of ``threads_per_worker`` threads and
-    is shut down on exit. A scheduler that does not answer within :data:`CONNECT_TIMEOUT`
+    The LocalCluster has ``workers`` worker processes of ``threads_per_worker`` threads
+    (each restarted by its nanny above ``memory_limit``, e.g. ``"3GB"``; default Dask's
+    share of the machine's memory) and is shut down on exit. A scheduler that does not answer within :data:`CONNECT_TIMEOUT`
     seconds raises :class:`zmap.errors.ZMapError` naming its address.
     """
     from . import cluster as _self  # CONNECT_TIMEOUT read at call time (tests shorten it)
@@ -88,10 +90,27 @@ def dask_client(scheduler: str | None = None, *, workers: int = 2, threads_per_w
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # "port 8787 is already in use" and friends
         cluster = LocalCluster(n_workers=workers, threads_per_worker=int(threads_per_worker), processes=True,
-                               dashboard_address=":0", silence_logs=logging.ERROR)
+                               dashboard_address=":0", silence_logs=logging.ERROR,
+                               memory_limit=memory_limit or "auto")
     client = Client(cluster)
     try:
         yield client
     finally:
         client.close()
         cluster.close()
+
+
+def _identity(obj: Any) -> Any:
+    return obj
+
+
+def share(client: Any, obj: Any) -> Any:
+    """A future holding ``obj`` for many tasks: sent once, fetched by each worker once.
+
+    Unlike ``Client.scatter``, the object lives in a task of the graph, so when the worker
+    holding it dies the scheduler computes it again on another worker (a scattered object
+    is lost with its worker, and every task that needs it fails).
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # "large object in task graph": sent once, on purpose
+        return client.submit(_identity, obj, pure=False)

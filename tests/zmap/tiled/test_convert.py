@@ -155,3 +155,21 @@ def test_cli_tiled_convert_end_to_end(tmp_path, capsys):
     assert _same(TiledZMap.open(out).to_zmap().z, zm.z)
     assert main(["info", str(out)]) == 0
     assert "tiled zarr z-map, complete" in capsys.readouterr().out
+
+
+def test_shared_input_survives_the_death_of_its_worker(dask_client):
+    """What every tile task reads (the face set, the program) is held by a task, not
+    scattered: when the worker holding it dies, the scheduler makes it again elsewhere."""
+    import os
+    import signal
+
+    from zmap.tiled.cluster import share
+
+    data = np.arange(1000.0)
+    held = share(dask_client, data)
+    held.result()
+    holder = next(iter(dask_client.who_has([held])[held.key]))
+    pid = dask_client.run(os.getpid, workers=[holder])[holder]
+    os.kill(pid, signal.SIGKILL)
+    got = dask_client.submit(lambda a: float(a.sum()), held, pure=False).result(timeout=60)
+    assert got == float(data.sum())
