@@ -204,6 +204,9 @@ def bench_sim(pitch: float, tiles: int) -> dict:
                 "sim_cpu_seconds_busiest_of_2": t2["cpu_seconds_busiest_worker"],
                 "sim_cpu_split_speedup_2_vs_1": round(single["cpu_seconds"] / t2["cpu_seconds_busiest_worker"], 3)
                 if t2["cpu_seconds_busiest_worker"] else None,
+                "sim_first_task_after_s": t2.get("first_task_after_s"),
+                "sim_results_after_last_task_s": t2.get("results_after_last_task_s"),
+                "sim_workers_busy_share": t2.get("workers_busy_share"),
                 "sim_exact": exact}
     finally:
         shutil.rmtree(folder, ignore_errors=True)

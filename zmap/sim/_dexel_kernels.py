@@ -215,7 +215,7 @@ def cut_positions(xyz, tslot, tcode, trad, tcr, tlen, start, stop, stage0,
 _NO_GPOS = np.zeros(0, dtype=np.int64)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # nogil: a Dask worker sends results while a tile cuts
 def cut_positions_window(xyz, tslot, tcode, trad, tcr, tlen, gpos, start, stop, stage0,
                          x0, y0, pitch, gi0, gj0, tnx, tny, near, far, cnt,
                          rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,

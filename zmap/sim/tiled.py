@@ -112,6 +112,7 @@ def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, xyz: np.ndarra
     from .dexel import _empty_history_args
 
     t0 = time.perf_counter()
+    wall0 = time.time()
     c0 = time.process_time()
     wp = DexelWorkpiece(x0 + gi0 * pitch, y0 + gj0 * pitch, pitch, tnx, tny, near, far, cnt)
     n_dexels0 = wp.n_dexels
@@ -146,6 +147,7 @@ def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, xyz: np.ndarra
     return {"off": off, "near": fnear, "far": ffar, "created": int(stats[_k.ST_CREATED]),
             "deleted": int(stats[_k.ST_DELETED]), "structure": structure, "positions": int(len(xyz)),
             "rays_cut": int(stats[_k.ST_RAYS_CUT]), "seconds": time.perf_counter() - t0,
+            "wall_span": (wall0, time.time()),
             "cpu_seconds": time.process_time() - c0, "pid": os.getpid(),
             "peak_rss_mb": peak_rss_mb()}
 
@@ -154,15 +156,20 @@ def _sim_tile_of(shared: tuple, pos: np.ndarray, table: tuple, history: str, x0:
                  gi0: int, gj0: int, tnx: int, tny: int, ny: int) -> dict:
     """One Dask task: tile (gi0, gj0, tnx, tny) of the whole stock and program sent once per worker.
 
-    ``shared`` is ``(xyz, slot, near, far, cnt)`` of the whole run
-    (:func:`zmap.tiled.cluster.share`); the task takes its rays and its positions ``pos`` from it.
+    ``shared`` is ``(xyz, slot, offsets, near, far)`` of the whole run, the stock as compact
+    per-ray lists (:func:`zmap.tiled.cluster.share`); the task takes its rays and its
+    positions ``pos`` from it.
     """
-    xyz, slot, near, far, cnt = shared
+    xyz, slot, off, near, far = shared
     idx = (np.arange(gi0, gi0 + tnx, dtype=np.int64)[:, None] * ny
            + np.arange(gj0, gj0 + tny, dtype=np.int64)[None, :]).ravel()
-    return _sim_tile(np.ascontiguousarray(near[idx]), np.ascontiguousarray(far[idx]), np.ascontiguousarray(cnt[idx]),
-                     np.ascontiguousarray(xyz[pos]), np.ascontiguousarray(slot[pos]), pos, table, history,
-                     x0, y0, pitch, gi0, gj0, tnx, tny)
+    cnt = off[idx + 1] - off[idx]
+    sub = np.zeros(idx.size + 1, dtype=np.int64)
+    np.cumsum(cnt, out=sub[1:])
+    src = np.repeat(off[idx], cnt) + (np.arange(int(sub[-1])) - np.repeat(sub[:-1], cnt))
+    wp = DexelWorkpiece.from_csr(x0, y0, pitch, tnx, tny, sub, near[src], far[src])
+    return _sim_tile(wp.near, wp.far, wp.cnt, np.ascontiguousarray(xyz[pos]), np.ascontiguousarray(slot[pos]), pos,
+                     table, history, x0, y0, pitch, gi0, gj0, tnx, tny)
 
 
 class TiledHistory:
@@ -284,6 +291,7 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
     results: dict[int, dict] = {}
     ctx = contextlib.nullcontext(client) if client is not None else dask_client(scheduler, workers=workers)
     t0 = time.perf_counter()
+    wall_start = time.time()
     with ctx as cl:
         n_workers = len(cl.scheduler_info().get("workers", {}))
         futures = {}
@@ -292,7 +300,7 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
                   for k in range(ntx * nty)]
         # the program and the stock go to every worker once, straight from here (not through
         # the scheduler with each task); a task gets only its positions' indices
-        shared = share(cl, (xyz, slot, stock.near, stock.far, stock.cnt))
+        shared = share(cl, (xyz, slot, *stock.to_csr()))
         for k in sorted(range(ntx * nty), key=lambda k: -weight[k]):
             ti, tj = divmod(k, nty)
             gi0, gj0 = ti * tile, tj * tile
@@ -313,6 +321,7 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
             cl.cancel(list(futures))
             raise
     seconds = time.perf_counter() - t0
+    wall_end = time.time()
     parts = []
     for k in range(ntx * nty):
         idx = _tile_rays(stock.nx, stock.ny, tile, *divmod(k, nty))[4]
@@ -337,6 +346,15 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
     for r in results.values():
         cpu[r["pid"]] = cpu.get(r["pid"], 0.0) + r["cpu_seconds"]
     busiest = max(cpu.values()) if cpu else 0.0
+    # where the wall time goes: before the first task starts, after the last one ends, and
+    # the share of the span the workers spent inside tasks
+    spans = [r["wall_span"] for r in results.values() if "wall_span" in r]
+    if spans:
+        first, last = min(a for a, _ in spans), max(b for _, b in spans)
+        busy = sum(b - a for a, b in spans)
+        report.update({"first_task_after_s": round(first - wall_start, 3),
+                       "results_after_last_task_s": round(wall_end - last, 3),
+                       "workers_busy_share": round(busy / max(n_workers, 1) / max(last - first, 1e-9), 3)})
     report.update({"cpu_seconds": round(sum(cpu.values()), 3), "cpu_seconds_busiest_worker": round(busiest, 3),
                    "cpu_split_speedup": round(sum(cpu.values()) / busiest, 3) if busiest > 0 else 0.0})
     return final, structure, report
