@@ -300,3 +300,6 @@ def test_misfit_holds_gentle_slopes_to_tol_vertically():
     assert misfit(h, x, y, f(x, y), f, TOL).tolist() == [True, False, True]
     steep = lambda x, y: 1.6 * x + 0.0 * y  # steeper than 1: the bracket still excuses it
     assert not misfit(steep(x, y) + 1.05 * TOL, x, y, steep(x, y), steep, TOL).any()
+    # gentle along x and y (0.83), 1.17 along the diagonal: held to tol, as Table 2 counts it
+    diag = lambda x, y: 0.83 * x + 0.83 * y
+    assert misfit(diag(x, y) + 1.05 * TOL, x, y, diag(x, y), diag, TOL).all()
