@@ -122,7 +122,7 @@ def _sample(z, hq, e, off, n, ia, ja, ib, jb, q):
     return va + (vb - va) * (g - k)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def edge_points(edge_ids, offsets, x0, y0, dx, dy, nx, ny, px, py):
     """Local xy of every e-point (preallocated ``px``, ``py`` of length offsets[-1])."""
     for k in prange(edge_ids.shape[0]):
@@ -139,7 +139,7 @@ def edge_points(edge_ids, offsets, x0, y0, dx, dy, nx, ny, px, py):
                 py[off + q] = y0 + (ja + t) * dy
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def despike(z, edge_ids, offsets, heights, thresh, out_count):
     """Lift every e-point that lies more than ``thresh`` below both neighbours of its
     sequence to the higher neighbour (a sample on a wall's line answered by a lower face);
@@ -177,7 +177,7 @@ def _next_count(d):
     return max(d + 1, (d * 5) // 4)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def decimate_counts(z, edge_ids, offsets, heights, limit, d0, out_m):
     """Fewest intervals ``d`` (``d0`` = 1 or 2, then 2, 3, 4, 5, 6, 8, ... below the edge's
     ``m = n + 1``) such that the edge's full sequence read at ``t = k / d`` and interpolated
@@ -218,7 +218,7 @@ def decimate_counts(z, edge_ids, offsets, heights, limit, d0, out_m):
             d = _next_count(d)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def resample(z, edge_ids, offsets, heights, counts, new_offsets, out):
     """The knots of :func:`decimate_counts`: edge k's full sequence read at ``t = q / (c + 1)``,
     ``q = 1..c`` (``c = counts[k]`` interior points), into ``out[new_offsets[k]:]``; an edge
@@ -267,7 +267,7 @@ def _span_count(za0, zb0, heights, off, m, s0, s1, limit):
     return L
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def window_counts(z, edge_ids, offsets, heights, brk_t, sel, half, limit, out_win):
     """Windows of the wall edges ``sel`` (jump at ``brk_t``): the full samples from ``half``
     before the jump's interval to ``half`` after it are kept, each side of them thinned to
@@ -308,7 +308,7 @@ def window_size(win, n):
     return (dl - 1 if dl > 0 else 0) + (min(c, n) - qlo + 1) + (dr - 1 if dr > 0 else 0)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def window_resample(z, edge_ids, offsets, heights, win, new_offsets, out):
     """The stored samples of windowed edges (``win[k] >= 0``, :func:`_sample` reads them):
     left knots, window samples, right knots, read off the full sequence; into
@@ -334,7 +334,7 @@ def window_resample(z, edge_ids, offsets, heights, win, new_offsets, out):
             o += 1
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def detect_breaks(z, edge_ids, offsets, hq, jump_min, kink_min, ratio, out_kind, out_t):
     """One break per edge: the dominant jump, else the dominant kink, of its sequence.
 
