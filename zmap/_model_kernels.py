@@ -8,12 +8,11 @@ Per base cell ``c = i * (ny - 1) + j`` the CZ-maps whose domain meets the cell a
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 from numba import njit, prange
 
-from ._interp_kernels import _EDGE_SLACK, _bezier1d, _locate, _slope
+from ._interp_kernels import _EDGE_SLACK, _bezier_cell, _locate
 
 __all__ = ["model_heights", "bezier_at"]
 
@@ -23,23 +22,7 @@ def bezier_at(z, x0, y0, dx, dy, c, s, ox, oy, x, y, tangent, boundary):
     """Paper 004 Eq. 4-7 at one world point on one map; NaN outside or on a missing corner."""
     nx, ny = z.shape
     i, j, u, v = _locate(x, y, x0, y0, dx, dy, c, s, ox, oy, nx, ny)
-    if i < 0:
-        return np.nan
-    z2 = z[i, j]
-    z3 = z[i + 1, j]
-    z6 = z[i, j + 1]
-    z7 = z[i + 1, j + 1]
-    if math.isnan(z2) or math.isnan(z3) or math.isnan(z6) or math.isnan(z7):
-        return np.nan
-    w1 = _bezier1d(z2, z3, _slope(z, i, j, 1, 0, dx, nx, ny, tangent, boundary),
-                   _slope(z, i + 1, j, 1, 0, dx, nx, ny, tangent, boundary), dx, u)
-    w2 = _bezier1d(z6, z7, _slope(z, i, j + 1, 1, 0, dx, nx, ny, tangent, boundary),
-                   _slope(z, i + 1, j + 1, 1, 0, dx, nx, ny, tangent, boundary), dx, u)
-    w3 = _bezier1d(w1, w2, _slope(z, i, j, 0, 1, dy, nx, ny, tangent, boundary),
-                   _slope(z, i, j + 1, 0, 1, dy, nx, ny, tangent, boundary), dy, v)
-    w4 = _bezier1d(w1, w2, _slope(z, i + 1, j, 0, 1, dy, nx, ny, tangent, boundary),
-                   _slope(z, i + 1, j + 1, 0, 1, dy, nx, ny, tangent, boundary), dy, v)
-    return (1.0 - u) * w3 + u * w4
+    return np.nan if i < 0 else _bezier_cell(z, i, j, u, v, dx, dy, nx, ny, tangent, boundary)
 
 
 @njit(cache=True, parallel=True)
