@@ -802,7 +802,7 @@ def _stage(bar, name: str, share: float) -> None:
         bar._zmap_start = start
     target = start + (100.0 - start) * min(max(share, 0.0), 1.0)
     if bar.desc != name + ": ":
-        bar.set_description_str(name + ": ", refresh=False)
+        bar.set_description_str(name + ": ", refresh=True)  # every stage is drawn, however short
     if target > bar.n:
         bar.update(target - bar.n)
 
