@@ -25,6 +25,32 @@ def bezier_at(z, x0, y0, dx, dy, c, s, ox, oy, x, y, tangent, boundary):
     return np.nan if i < 0 else _bezier_cell(z, i, j, u, v, dx, dy, nx, ny, tangent, boundary)
 
 
+@njit(cache=True)
+def deepest_cz(x, y, cell, cell_ptr, cell_cz, cz_par, cz_shape):
+    """The CZ-map of ``cell``'s list in which world point (x, y) lies deepest; -1 if none holds it."""
+    best = -1
+    depth = -1.0
+    for q in range(cell_ptr[cell], cell_ptr[cell + 1]):
+        m = cell_cz[q]
+        x0 = cz_par[m, 0]
+        y0 = cz_par[m, 1]
+        dx = cz_par[m, 2]
+        dy = cz_par[m, 3]
+        c = cz_par[m, 4]
+        s = cz_par[m, 5]
+        px = x - cz_par[m, 6]
+        py = y - cz_par[m, 7]
+        lx = c * px + s * py
+        ly = -s * px + c * py
+        ex = min(lx - x0, x0 + (cz_shape[m, 0] - 1) * dx - lx)
+        ey = min(ly - y0, y0 + (cz_shape[m, 1] - 1) * dy - ly)
+        d = min(ex, ey)
+        if d >= -_EDGE_SLACK * min(dx, dy) and d > depth:
+            depth = d
+            best = m
+    return best
+
+
 @njit(cache=True, parallel=True)
 def model_heights(bz, bx0, by0, bdx, bdy, bc, bs, box, boy, cz_z, cz_off, cz_shape, cz_par,
                   cell_ptr, cell_cz, ez_cell, xs, ys, tangent, boundary, out, src):
@@ -45,26 +71,7 @@ def model_heights(bz, bx0, by0, bdx, bdy, bc, bs, box, boy, cz_z, cz_off, cz_sha
             src[k] = 0
             continue
         cell = i * (ny - 1) + j
-        best = -1
-        depth = -1.0
-        for q in range(cell_ptr[cell], cell_ptr[cell + 1]):
-            m = cell_cz[q]
-            x0 = cz_par[m, 0]
-            y0 = cz_par[m, 1]
-            dx = cz_par[m, 2]
-            dy = cz_par[m, 3]
-            c = cz_par[m, 4]
-            s = cz_par[m, 5]
-            px = x - cz_par[m, 6]
-            py = y - cz_par[m, 7]
-            lx = c * px + s * py
-            ly = -s * px + c * py
-            ex = min(lx - x0, x0 + (cz_shape[m, 0] - 1) * dx - lx)
-            ey = min(ly - y0, y0 + (cz_shape[m, 1] - 1) * dy - ly)
-            d = min(ex, ey)
-            if d >= -_EDGE_SLACK * min(dx, dy) and d > depth:
-                depth = d
-                best = m
+        best = deepest_cz(x, y, cell, cell_ptr, cell_cz, cz_par, cz_shape)
         if best >= 0:
             zz = cz_z[cz_off[best]:cz_off[best + 1]].reshape((cz_shape[best, 0], cz_shape[best, 1]))
             h = bezier_at(zz, cz_par[best, 0], cz_par[best, 1], cz_par[best, 2], cz_par[best, 3],

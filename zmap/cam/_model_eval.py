@@ -25,8 +25,7 @@ import numpy as np
 from numba import njit
 
 from .._interp_kernels import _locate
-from .._model_kernels import bezier_at
-from .._interp_kernels import _EDGE_SLACK
+from .._model_kernels import bezier_at, deepest_cz
 from ..refine import _ez_kernels as _ezk
 from ..sim._tool_kernels import _envelope
 
@@ -152,26 +151,7 @@ def height_at(M, x, y):
         return np.nan
     cell = i * (ny - 1) + j
     # the CZ-map in which the point lies deepest (zmap._model_kernels.model_heights)
-    best = -1
-    depth = -1.0
-    for q in range(cell_ptr[cell], cell_ptr[cell + 1]):
-        m = cell_cz[q]
-        x0 = cz_par[m, 0]
-        y0 = cz_par[m, 1]
-        dx = cz_par[m, 2]
-        dy = cz_par[m, 3]
-        c = cz_par[m, 4]
-        s = cz_par[m, 5]
-        px = x - cz_par[m, 6]
-        py = y - cz_par[m, 7]
-        lx = c * px + s * py
-        ly = -s * px + c * py
-        ex = min(lx - x0, x0 + (cz_shape[m, 0] - 1) * dx - lx)
-        ey = min(ly - y0, y0 + (cz_shape[m, 1] - 1) * dy - ly)
-        d = min(ex, ey)
-        if d >= -_EDGE_SLACK * min(dx, dy) and d > depth:
-            depth = d
-            best = m
+    best = deepest_cz(x, y, cell, cell_ptr, cell_cz, cz_par, cz_shape)
     if best >= 0:
         zz = cz_z[cz_off[best]:cz_off[best + 1]].reshape((cz_shape[best, 0], cz_shape[best, 1]))
         h = bezier_at(zz, cz_par[best, 0], cz_par[best, 1], cz_par[best, 2], cz_par[best, 3], cz_par[best, 4],
