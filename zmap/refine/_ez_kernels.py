@@ -62,7 +62,7 @@ def _edge_corners(eid, nx, ny):
     return 1, i, j, i, j + 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _dec(hq, e, at):
     """Decoded code ``at`` of e-edge slot e: ``lo[e] + step[e] * code`` (NaN for ``NAN_CODE``)."""
     code = hq[0][at]
@@ -71,20 +71,20 @@ def _dec(hq, e, at):
     return np.float64(hq[1][e]) + np.float64(hq[2][e]) * np.float64(code)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def unpack_window(w):
     """``(a, c, dl, dr)`` of a packed window (:func:`pack_window`)."""
     return w & 0xFFFF, (w >> 16) & 0xFFFF, (w >> 32) & 0xFFFF, (w >> 48) & 0xFFFF
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def pack_window(a, c, dl, dr):
     """One int64 of a wall edge's window: full samples ``a..c`` kept, ``dl`` intervals over
     ``[0, a]`` and ``dr`` over ``[c, m]`` (each < 2**15)."""
     return np.int64(a) | (np.int64(c) << 16) | (np.int64(dl) << 32) | (np.int64(dr) << 48)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _sample(z, hq, e, off, n, ia, ja, ib, jb, q):
     """Sample q of the (virtual, full) sequence of e-edge slot e: grid corners at q = 0 and
     n+1, else the decoded e-point; ``hq`` is the tuple (codes, lo, step, cstart, win).
@@ -160,7 +160,7 @@ def despike(z, edge_ids, offsets, heights, thresh, out_count):
         out_count[k] = cnt
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _polyline(za0, zb0, heights, off, m, f):
     """The edge's full boundary sequence (corners and e-points at ``q = 0..m``) read
     linearly at fractional index ``f``."""
@@ -531,7 +531,7 @@ def _edge_value(z, i, j, k, t, side, slot, edge_ids, offsets, hq, brk_kind, brk_
     return za + (f - q) * (zb - za)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _edge_xy(k, t, dx, dy):
     if k == 0:
         return t * dx, 0.0
@@ -542,7 +542,7 @@ def _edge_xy(k, t, dx, dy):
     return 0.0, t * dy
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _perimeter(k, t):
     if k == 0:
         return t
@@ -619,7 +619,7 @@ def _far_crossing(ecell_ids, out_nb, out_bk, out_pts, corner, ci, cj, k, ri, rj,
     return False, 0.0, 0.0, 0, 0, 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _line_gap(ax, ay, bx, by, px, py):
     """Distance of P from the line through A and B."""
     L = math.hypot(bx - ax, by - ay)
