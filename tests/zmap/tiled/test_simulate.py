@@ -120,3 +120,13 @@ def test_cli_simulate_tiles(tmp_path, capsys):
     ref = simulate(PROGRAM, bounds, tools=tools, tool=tools[min(tools)], pitch=1.0)
     k = run.stage("1/2")
     assert np.array_equal(run.display(k), ref.display(k), equal_nan=True) and run.final.same_as(ref.final)
+
+
+def test_our_local_workers_run_without_the_profiler_and_the_malloc_trim_setting(dask_client):
+    """Our LocalCluster's workers: no statistical profiler, glibc's own mmap threshold (the
+    fixed 128 KB one made every tile array a fresh mmap); this process's environment is left
+    as it was (Dask's nanny writes the spawn variables into it)."""
+    got = dask_client.run(lambda: (os.environ.get("MALLOC_TRIM_THRESHOLD_"),
+                                   __import__("dask").config.get("distributed.worker.profile.enabled")))
+    assert len(got) == 2 and set(got.values()) == {(None, False)}, got
+    assert "MALLOC_TRIM_THRESHOLD_" not in os.environ
