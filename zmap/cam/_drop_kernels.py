@@ -41,7 +41,7 @@ def envelope_many(code, radius, corner, r, out):
 
 
 @njit(cache=True)
-def _drop_one(z, zu, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, ub, bid, kv, kd, ki, kj):
+def _drop_one(z, zu, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, ub, bid, kv, kd, ki, kj, w0, wi, wj):
     band = -np.inf
     nx, ny = z.shape
     nbx, nby = bmax.shape
@@ -65,6 +65,13 @@ def _drop_one(z, zu, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, 
             bd = d
             bi_ = ic
             bj_ = jc
+    # a warm start (a sample's contact known already, e.g. from the tensor-grid drop): the
+    # blocks that cannot beat it are never opened
+    if wi >= 0 and w0 > best:
+        best = w0
+        bd = math.hypot(x0 + wi * dx - qx, y0 + wj * dy - qy)
+        bi_ = wi
+        bj_ = wj
     Rs = R + slack
     i_lo = max(0, int(math.ceil((qx - Rs - x0) / dx)))
     i_hi = min(nx - 1, int(math.floor((qx + Rs - x0) / dx)))
@@ -153,7 +160,8 @@ def _drop_one(z, zu, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, 
 
 
 @njit(cache=True, parallel=True)
-def drop_samples(z, zu, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, out, oi, oj, uout, ui, uj, bout):
+def drop_samples(z, zu, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, qy, out, oi, oj, uout, ui, uj, bout,
+                 w0, wi, wj):
     """Highest ``z[i, j] - envelope(min(|sample - axis|, R))`` over the samples within
     ``R + slack`` of each axis ``(qx[k], qy[k])``: ``out[k]`` (-inf: no sample) and the sample
     ``(oi[k], oj[k])``. With ``slack`` > 0 a sample just outside the disk stands for the
@@ -162,7 +170,9 @@ def drop_samples(z, zu, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, q
     surface within ``cell`` of a sample could give (its height, its distance less ``cell``),
     best first: where one beats ``out[k]``, the true contact may be near that sample instead.
     ``bout[k]``: the best such bound over the samples within ``cell`` of the rim, where a
-    sliver of a feature may reach into the disk between samples."""
+    sliver of a feature may reach into the disk between samples. ``w0[k]`` at sample
+    ``(wi[k], wj[k])`` (-1: none): a contact known already, the search's first bound (the
+    outputs are the same with or without it: only blocks that cannot beat it are skipped)."""
     n = qx.shape[0]
     nbx, nby = bmax.shape
     cap = int((2.0 * (R + slack) / (dx * B) + 3.0) * (2.0 * (R + slack) / (dy * B) + 3.0)) + 4
@@ -174,7 +184,7 @@ def drop_samples(z, zu, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx, q
         kd = np.empty(uout.shape[1], dtype=np.float64)
         for k in range(c * chunk, min(n, c * chunk + chunk)):
             v, a, b, bb = _drop_one(z, zu, x0, y0, dx, dy, bmax, B, code, R, rc, slack, cell, qx[k], qy[k],
-                                    ub, bid, uout[k], kd, ui[k], uj[k])
+                                    ub, bid, uout[k], kd, ui[k], uj[k], w0[k], wi[k], wj[k])
             bout[k] = bb
             out[k] = v
             oi[k] = a

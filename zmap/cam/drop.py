@@ -11,9 +11,12 @@ surface), a ``PrecisionModel`` (:meth:`~zmap.model.PrecisionModel.height`), a ``
 (exact top-most heights on the B-rep, :func:`cad_io.sampler.height_function`) or any
 ``heights(x, y)`` callable. Three steps:
 
-1. a discrete drop over height samples of the model at ``pitch`` (a ZMap's own nodes), numba,
-   with a block-max pyramid that visits blocks best bound first and stops when no block can
-   beat the contact found (:mod:`zmap.cam._drop_kernels`);
+1. a discrete drop over height samples of the model at ``pitch`` (a ZMap's own nodes), numba:
+   on a tensor grid of axes (a meshgrid) a max-plus convolution of the samples with the
+   cutter, one upper envelope per sample column (:mod:`zmap.cam._grid_kernels`); elsewhere,
+   and for the bounds that step 3 needs, a block-max pyramid that visits blocks best bound
+   first and stops when no block can beat the contact found (:mod:`zmap.cam._drop_kernels`),
+   warm-started by the grid's contacts;
 2. for every point, the paraboloid through the 3 x 3 samples around the best sample gives a
    sub-sample contact, whose exact height is evaluated (a smooth contact is then within
    ~1e-6 mm);
@@ -164,6 +167,47 @@ def _pattern_search(hf, cut, qx, qy, ux, uy, g, step, xtol, max_iter=400):
     return ux, uy, g
 
 
+def _tensor_grid(xb: np.ndarray) -> int | None:
+    """0 where the axes form a tensor grid with equal x along each row (``indexing='ij'``),
+    1 where equal x down each column (``indexing='xy'``), None otherwise (or too small)."""
+    if xb.ndim != 2 or xb.shape[0] < 2 or xb.shape[1] < 2 or xb.size < 64:
+        return None
+    if (xb == xb[:, :1]).all():
+        return 0
+    if (xb == xb[:1, :]).all():
+        return 1
+    return None
+
+
+def _grid_drop(Z, x0, y0, dx, dy, cut, xb, yb, kind):
+    """The discrete drop on a tensor grid of axes: flat ``(val, oi, oj)`` in the order of
+    ``xb.ravel()`` (``val`` -inf / ``oi`` -1 where no sample is under the cutter), or None
+    when the axes are not a tensor grid (y must repeat across rows as x repeats along them)."""
+    from . import _grid_kernels as G
+
+    if kind == 1:  # rows of equal y: swap the axes' roles (and the samples')
+        xb, yb = yb.T, xb.T
+        Z, x0, y0, dx, dy = Z.T, y0, x0, dy, dx
+    qxs = np.ascontiguousarray(xb[:, 0])
+    qy = yb[0]
+    if not (yb == qy[None, :]).all():
+        return None, None, None
+    order = np.argsort(qy, kind="stable")
+    qys = np.ascontiguousarray(qy[order])
+    shp = (qxs.size, qys.size)
+    out = np.empty(shp)
+    oi = np.empty(shp, dtype=np.int64)
+    oj = np.empty(shp, dtype=np.int64)
+    G.drop_grid(np.ascontiguousarray(Z), x0, y0, dx, dy, cut.code, cut.radius, cut.corner_radius, qxs, qys,
+                out, oi, oj)
+    inv = np.empty_like(order)
+    inv[order] = np.arange(order.size)
+    out, oi, oj = out[:, inv], oi[:, inv], oj[:, inv]
+    if kind == 1:
+        out, oi, oj = out.T, oj.T, oi.T
+    return (np.ascontiguousarray(out).ravel(), np.ascontiguousarray(oi).ravel(), np.ascontiguousarray(oj).ravel())
+
+
 def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None = None,
                 xtol: float = 1e-6, return_contact: bool = False, refine: bool = True,
                 engine: str = "auto") -> Any:
@@ -255,6 +299,14 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
         X, Y = np.meshgrid(x0 + dx * np.arange(nx), y0 + dy * np.arange(ny), indexing="ij")
         Z = np.ascontiguousarray(np.asarray(hf(X.ravel(), Y.ravel()), dtype=np.float64).reshape(nx, ny))
     nx, ny = Z.shape
+    # a tensor grid of axes (rows of equal x and columns of equal y, as meshgrid gives): the
+    # discrete drop as a max-plus convolution, exact over the samples (zmap.cam._grid_kernels)
+    gv = gi = gj = None
+    tg = _tensor_grid(xb)
+    if tg is not None:
+        gv, gi, gj = _grid_drop(Z, float(x0), float(y0), float(dx), float(dy), cut, xb, yb, tg)
+        if gv is not None and not refine:
+            val, oi, oj = gv, gi, gj
     # each sample's height raised by half its largest drop to a neighbour: a bound of the
     # surface within half a pitch of it (a local maximum between samples, at an edge)
     ZU = Z
@@ -268,19 +320,25 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
                         dz = Z - P[1 + a:1 + a + nx, 1 + b:1 + b + ny]
                         np.fmax(rise, dz, out=rise)
         ZU = np.ascontiguousarray(Z + 0.5 * rise)
-    bm = np.empty(((nx + _B - 1) // _B, (ny + _B - 1) // _B))
-    K.block_max(ZU, _B, bm)
-    val = np.empty(n)
-    oi = np.empty(n, dtype=np.int64)
-    oj = np.empty(n, dtype=np.int64)
+    if gv is None or refine:
+        bm = np.empty(((nx + _B - 1) // _B, (ny + _B - 1) // _B))
+        K.block_max(ZU, _B, bm)
+        val = np.empty(n)
+        oi = np.empty(n, dtype=np.int64)
+        oj = np.empty(n, dtype=np.int64)
     slack = 0.75 * math.hypot(dx, dy) if refine else 0.0
     cell = 0.5 * math.hypot(dx, dy) if refine else 0.0
     uval = np.empty((n, _K))
     ui = np.empty((n, _K), dtype=np.int64)
     uj = np.empty((n, _K), dtype=np.int64)
     band = np.empty(n)
-    K.drop_samples(Z, ZU, float(x0), float(y0), float(dx), float(dy), bm, _B, cut.code, R, cut.corner_radius,
-                   slack, cell, qx, qy, val, oi, oj, uval, ui, uj, band)
+    if gv is None or refine:
+        if gv is None:
+            w0, wi, wj = np.full(n, -np.inf), np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
+        else:
+            w0, wi, wj = gv, gi, gj
+        K.drop_samples(Z, ZU, float(x0), float(y0), float(dx), float(dy), bm, _B, cut.code, R, cut.corner_radius,
+                       slack, cell, qx, qy, val, oi, oj, uval, ui, uj, band, w0, wi, wj)
     ok = oi >= 0
     ux = np.where(ok, x0 + oi * dx, np.nan)
     uy = np.where(ok, y0 + oj * dy, np.nan)
