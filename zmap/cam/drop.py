@@ -261,7 +261,7 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
     R = cut.radius
     hf, zm, natural = model_heights(model)
     M = None
-    if refine and engine != "python":
+    if engine != "python":
         from . import _model_eval as ME
 
         if ME.supported(model):
