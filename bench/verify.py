@@ -3,10 +3,14 @@
 * ``cl_pps``: drop-cutter CL points per second on a 1000 x 1000 axis grid, 6 mm ball, over the
   EZ precision model (tol 0.01, base grid 0.5 mm) of a window of a real die (OCCT's
   ``bug27693_cornetta-step.stp``, walls and edges inside), sample pitch 0.1 mm, JIT warm;
-  ``cl_max_err``: largest |ours - brute force| on random points of the grid and on points whose
-  contact is off-axis by more than 1 mm (walls and edges), the brute force being
-  ``zmap.cam._reference.drop_cutter_reference`` (lattice 0.005 mm, then two 20x finer) on the same
-  model's heights.
+  ``cl_discrete_pps``: the discrete phase alone (``refine=False``: sampling the model and the
+  tensor-grid max-plus drop) on the same grid;
+  ``cl_max_err``: largest |ours - reference| on random points of the grid and on points whose
+  contact is off-axis by more than 1 mm (walls and edges), the reference being
+  ``zmap.cam._reference.drop_cutter_reference_dense`` (a 0.01 mm lattice on the whole disk and
+  the rim as a curve, refinement around every candidate within its bound) on the same
+  model's ``PrecisionModel.height``; signed: ``cl_max_below_ref`` (ours low: a missed maximum,
+  the tool would gouge) and ``cl_max_above_ref`` (ours high: the reference missed one).
 * OpenCAMLib (``pip install '.[bench]'``): ``BatchDropCutter`` with a 6 mm ``BallCutter`` on the
   same part's triangles (BRepMesh at 0.01 mm deflection, the faces in the window), 1 and 2
   threads, in the same run; ``cl_vs_ocl2``: ``cl_pps`` over OCL's 2-thread rate;
@@ -123,9 +127,12 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=1000, help="CL grid side (n x n)")
     ap.add_argument("--ref-points", type=int, default=30)
     ap.add_argument("--ocl-points", type=int, default=2000)
+    ap.add_argument("--ref-h", type=float, default=0.01, help="the reference's lattice spacing on the disk, mm")
+    ap.add_argument("--discrete-n", type=int, default=1000,
+                    help="grid side (n x n) of the discrete-phase figure cl_discrete_pps")
     args = ap.parse_args()
     from zmap.cam import drop_cutter
-    from zmap.cam._reference import drop_cutter_reference
+    from zmap.cam._reference import drop_cutter_reference_dense
     from zmap.sim.tools import parse_tool_spec
 
     res: dict = {"machine_cpus": os.cpu_count()}
@@ -149,9 +156,14 @@ def main() -> None:
     res["cl_pps"] = round(X.size / dt, 1)
     # where the time goes: the discrete drop alone (sampling the model, the pyramid drop),
     # and the share of points whose contact the exact refinement searches for
+    nd = args.discrete_n
+    XD, YD = np.meshgrid(np.linspace(w[0], w[2], nd), np.linspace(w[1], w[3], nd), indexing="ij")
     t = time.perf_counter()
-    drop_cutter(model, ball, X, Y, pitch=0.1, refine=False)
+    drop_cutter(model, ball, XD, YD, pitch=0.1, refine=False)
     res["cl_discrete_s"] = round(time.perf_counter() - t, 3)
+    res["cl_discrete_points"] = int(XD.size)
+    res["cl_discrete_pps"] = round(XD.size / res["cl_discrete_s"], 1)
+    del XD, YD
     res["cl_refined_share"] = round(_searched_share(model, ball, X, Y), 4)
     # error against the brute force: random points and points with off-axis contacts
     rng = np.random.default_rng(0)
@@ -160,11 +172,14 @@ def main() -> None:
     walls = rng.choice(off, min(off.size, args.ref_points - flat.size), replace=False) if off.size else flat[:0]
     pick = np.r_[flat, walls]
     log(f"brute-force reference on {pick.size} points ...")
-    ref = drop_cutter_reference(model.height, ball, X.ravel()[pick], Y.ravel()[pick], h=0.005, levels=3)
+    t = time.perf_counter()
+    ref = drop_cutter_reference_dense(model.height, ball, X.ravel()[pick], Y.ravel()[pick], h=args.ref_h)
+    res["cl_ref_s"] = round(time.perf_counter() - t, 1)
+    res["cl_ref_h"] = args.ref_h
     err = cl.ravel()[pick] - ref
     res["cl_max_err"] = float(np.max(np.abs(err)))
     # signed: below the reference is a missed maximum (the tool would gouge); above it, the
-    # lattice search missed a maximum that ours, an exact contact of the model, found
+    # reference missed a maximum that ours, an exact contact of the model, found
     res["cl_max_below_ref"] = float(max(0.0, -np.min(err)))
     res["cl_max_above_ref"] = float(max(0.0, np.max(err)))
     res["cl_max_err_random"] = float(np.max(np.abs(err[:flat.size])))
