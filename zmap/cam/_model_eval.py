@@ -32,8 +32,9 @@ from ..sim._tool_kernels import _envelope
 __all__ = ["pack_model", "heights", "refine_points", "supported", "threaded"]
 
 _GOLD = 0.6180339887498949
-#: mm between the stations of the ridge walk along a crease
+#: mm between the stations of the ridge walk along a crease (fine, and the first coarse pass)
 _STATION = 0.004
+_COARSE = 0.02
 
 
 def threaded(kernel, n: int, *args, chunk: int = 256) -> None:
@@ -349,23 +350,51 @@ def _ridge(M, code, R, rc, qx, qy, ux, uy, g, reach, xtol):
     ny_ = tx
     W = 0.25 * reach
     bx, by, bg = ux, uy, g
-    # scan along the crease both ways at stations ``_STATION`` apart (a wall's top in an EZ
-    # model wiggles by the e-map interval, its position being held to it: with the slope of
-    # the envelope, local maxima of the contact a hundredth of a mm apart along it), then a
-    # golden section about the best station
+    # scan along the crease both ways: stations ``_COARSE`` apart, then ``_STATION`` apart
+    # about the start and the best two coarse ones (a wall's top in an EZ model wiggles by
+    # the e-map interval, its position being held to it: with the slope of the envelope,
+    # local maxima of the contact a hundredth of a mm apart along it, on a trend that the
+    # coarse stations follow), then a golden section about the best station
     ltol = max(xtol, 1e-5)
     best_t = 0.0
-    ns = int(math.ceil(reach / _STATION))
-    dt = reach / ns
-    for a in range(-ns, ns + 1):
+    nc = int(math.ceil(reach / _COARSE))
+    dtc = reach / nc
+    t1_ = 0.0
+    g1_ = -np.inf
+    t2_ = 0.0
+    g2_ = -np.inf
+    for a in range(-nc, nc + 1):
         if a == 0:
             continue
-        t = a * dt
+        t = a * dtc
         ww = W * abs(t) / reach + 4 * rho
         px, py, pg = _line_max(M, code, R, rc, qx, qy, ux + t * tx, uy + t * ty, nx_, ny_, ww, ltol, bx, by, -np.inf)
         if pg > bg:
             bx, by, bg = px, py, pg
             best_t = t
+        if pg > g1_:
+            t2_, g2_ = t1_, g1_
+            t1_, g1_ = t, pg
+        elif pg > g2_:
+            t2_, g2_ = t, pg
+    nf = int(math.ceil(dtc / _STATION))
+    dt = dtc / nf
+    for c in range(3):
+        tc = 0.0 if c == 0 else (t1_ if c == 1 else t2_)
+        if c > 0 and not (((g1_ if c == 1 else g2_)) > -np.inf):
+            continue
+        for b in range(-nf + 1, nf):
+            if b == 0:
+                continue
+            t = tc + b * dt
+            if abs(t) > reach:
+                continue
+            ww = W * abs(t) / reach + 4 * rho
+            px, py, pg = _line_max(M, code, R, rc, qx, qy, ux + t * tx, uy + t * ty, nx_, ny_, ww, ltol, bx, by,
+                                   -np.inf)
+            if pg > bg:
+                bx, by, bg = px, py, pg
+                best_t = t
     lo = best_t - dt
     hi = best_t + dt
     ww = W * (abs(best_t) + dt) / reach + 4 * rho
@@ -416,6 +445,15 @@ def refine_points(M, code, R, rc, qx, qy, ptr, sx, sy, ss, sb, band, ring_h, cel
         if not (bg > -np.inf):
             bg = -np.inf
         any_start = False
+        # the previous point's contact (the points come in grid order: usually the
+        # neighbour's, whose contact moves little): where it beats the contact found, a
+        # start, which lifts the bar the other starts must pass
+        if k > k0 and val[k - 1] > -np.inf:
+            px, py = _onto_disk(q_x, q_y, R, ux[k - 1], uy[k - 1])
+            g0 = _g(M, code, R, rc, q_x, q_y, px, py)
+            if g0 > bg:
+                px, py, g0 = _pattern(M, code, R, rc, q_x, q_y, px, py, g0, 0.25 * cell, xtol, max_iter)
+                bx, by, bg = px, py, g0
         for s in range(ptr[k], ptr[k + 1]):
             if not (sb[s] > bg + 1e-9):
                 continue
