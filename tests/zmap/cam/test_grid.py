@@ -73,7 +73,7 @@ def test_drop_cutter_grid_equals_scattered(spec, indexing):
     scattered path gives, discrete and refined."""
     f = lambda x, y: 0.4 * np.sin(0.7 * x) * np.cos(0.5 * y) + np.where(x > 0.3, 1.5, 0.0)  # noqa: E731
     zm = ZMap.from_function(f, (-12, -12, 12, 12), 0.1)
-    X, Y = np.meshgrid(np.linspace(-5, 5, 21), np.linspace(-4, 4, 17)[::-1], indexing=indexing)
+    X, Y = np.meshgrid(np.linspace(-5, 5, 11), np.linspace(-4, 4, 9)[::-1], indexing=indexing)
     for refine in (False, True):
         a = drop_cutter(zm, spec, X, Y, refine=refine, return_contact=True)
         b = drop_cutter(zm, spec, X.ravel(), Y.ravel(), refine=refine, return_contact=True)
