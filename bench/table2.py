@@ -128,17 +128,37 @@ def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods
 def _ez_bytes(ez) -> dict:
     """Where the stored e-map's bytes go (KB): e-point codes of the windowed wall edges and of
     the other e-edges, their scales, the edge bits and counts, the windows, and the cell
-    patches' codes, nodes, counts and sub-lattices; with the counts of edges and windows."""
+    patches' codes, nodes, counts and sub-lattices; with the counts of edges and windows.
+    Format 5 stores each edge's (patch's, sub-lattice's) codes in the bits its range needs
+    (``*_codes_bits``, widths in ``*_codes_w4``): a share is split by those widths."""
     import numpy as np
 
     a = ez.to_arrays()
     kb = lambda *names: round(sum(a[n].nbytes for n in names if n in a) / 1024, 1)
-    win = np.diff(ez.offsets)[ez.win >= 0].sum()
-    return {"codes_windowed_edges": round(2 * int(win) / 1024, 1),
-            "codes_other_edges": round(2 * (ez.n_points - int(win)) / 1024, 1),
+
+    def widths(w4, count):
+        w = np.empty(2 * w4.size, dtype=np.int64)
+        w[0::2], w[1::2] = w4 & 15, w4 >> 4
+        return w[:count] + 1
+
+    n = np.diff(ez.offsets)
+    if "codes_bits" in a:
+        bits = n * widths(a["codes_w4"], ez.n_edges)
+        win = bits[ez.win >= 0].sum() / 8
+        other = bits[ez.win < 0].sum() / 8 + a["codes_w4"].nbytes
+    else:
+        win, other = 2 * n[ez.win >= 0].sum(), 2 * n[ez.win < 0].sum()
+    patch_codes, patch_nodes = kb("patch_codes"), kb("patch_node_codes")
+    p = ez.patches
+    if "patch_codes_bits" in a and p is not None and p.n_patches:
+        w = widths(a["patch_codes_w4"], p.n_patches)
+        patch_nodes = round((np.diff(p.node_off) * w).sum() / 8 / 1024, 1)
+        patch_codes = round((np.diff(p.code_off) * w).sum() / 8 / 1024 + a["patch_codes_w4"].nbytes / 1024, 1)
+    return {"codes_windowed_edges": round(float(win) / 1024, 1),
+            "codes_other_edges": round(float(other) / 1024, 1),
             "lo_step": kb("lo", "step"), "edge_bits_counts": kb("edge_bits", "counts"),
-            "windows": kb("win_bits", "win_b", "win_nl"),
-            "patch_codes": kb("patch_codes"), "patch_nodes": kb("patch_node_codes"),
+            "windows": kb("win_bits", "win_b", "win_nl", "win_kink", "win_forced"),
+            "patch_codes": patch_codes, "patch_nodes": patch_nodes,
             "patch_counts": kb("patch_counts", "patch_counts4"),
             "patch_cells_levels_scales": kb("patch_cells", "patch_level", "patch_lo", "patch_step"),
             "sub_lattices": kb(*[k for k in a if k.startswith("patch_sub_")]),

@@ -20,11 +20,11 @@ import numpy as np
 
 from ..grid import ZMap
 
-__all__ = ["BREAK_RATIO", "FORMAT_VERSION", "WINDOW_HALF", "NAN_CODE", "SERIAL_BELOW", "CellPatches", "EZMap", "all_edges",
+__all__ = ["BREAK_RATIO", "FORMAT_VERSION", "QUANTUM_SHARE", "WINDOW_HALF", "NAN_CODE", "SERIAL_BELOW", "CellPatches", "EZMap", "all_edges",
            "SubLattices", "break_thresholds", "code_patch", "decimate", "full_counts",
-           "cells_around", "edge_count", "encode_heights", "sub_grid"]
+           "cells_around", "edge_count", "encode_heights", "pack_codes", "sub_grid", "unpack_codes"]
 
-FORMAT_VERSION = 4
+FORMAT_VERSION = 5
 #: A windowed edge's break may move this share of an e-map interval from the full
 #: sequence's (a kink placed from coded heights: 0.05 of 0.01 mm is 5e-4 mm).
 KINK_SHIFT = 0.05
@@ -37,6 +37,11 @@ WINDOW_HALF = 1
 SERIAL_BELOW = 4096
 #: A jump or kink must stand out this many times from its neighbours to count as a break.
 BREAK_RATIO = 4.0
+#: The finest quantum of the coded heights, as a share of the tolerance (:func:`encode_heights`'s
+#: ``quantum``): tol/128 = 7.8e-5 mm at tol 0.01, about the quantum of a 5 mm wall's 16-bit
+#: codes, so no height is coded finer than it needs; stored, an edge's codes take the bits
+#: their range needs at that quantum (:func:`pack_codes`).
+QUANTUM_SHARE = 1.0 / 128.0
 
 
 def edge_count(nx: int, ny: int) -> int:
@@ -48,7 +53,8 @@ def edge_count(nx: int, ny: int) -> int:
 NAN_CODE = 65535
 
 
-def encode_heights(offsets: np.ndarray, heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def encode_heights(offsets: np.ndarray, heights: np.ndarray, quantum: float = 0.0
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """16-bit codes of e-point heights, per edge ``height = lo + step * code``.
 
     Parameters
@@ -57,13 +63,18 @@ def encode_heights(offsets: np.ndarray, heights: np.ndarray) -> tuple[np.ndarray
         CSR offsets of the edges (each edge owns at least one point).
     heights : ndarray of shape (P,), float64
         Heights in mm, NaN = none.
+    quantum : float
+        Smallest step, mm (0: none): an edge whose range over ``NAN_CODE - 1`` steps is
+        finer codes at this step, so its codes stay below ``range / quantum`` and are
+        stored in fewer bits (:func:`pack_codes`); the error is at most ``quantum / 2``.
 
     Returns
     -------
     codes : ndarray of shape (P,), uint16
         ``round((height - lo) / step)``, :data:`NAN_CODE` for NaN.
     lo, step : ndarray of shape (E,), float32
-        The edge's lowest height and its range over ``NAN_CODE - 1`` steps.
+        The edge's lowest height and its range over ``NAN_CODE - 1`` steps (no finer than
+        ``quantum``).
 
     Examples
     --------
@@ -89,7 +100,7 @@ def encode_heights(offsets: np.ndarray, heights: np.ndarray) -> tuple[np.ndarray
     hi[none] = 0.0
     lo32 = lo.astype(np.float32)
     span = np.maximum(hi - lo32.astype(np.float64), 0.0)
-    step32 = half_step(span / (NAN_CODE - 1))
+    step32 = half_step(np.maximum(span / (NAN_CODE - 1), float(quantum)))
     e = np.repeat(np.arange(E), np.diff(offsets))
     st = step32[e].astype(np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -98,6 +109,58 @@ def encode_heights(offsets: np.ndarray, heights: np.ndarray) -> tuple[np.ndarray
     codes = q.astype(np.uint16)
     codes[~finite] = NAN_CODE
     return codes, lo32, step32
+
+
+def pack_codes(codes: np.ndarray, offsets: np.ndarray) -> dict[str, np.ndarray]:
+    """16-bit codes as stored (format 5): each segment ``offsets[k]:offsets[k+1]`` (an edge,
+    a patch, a lattice) in the fewest bits ``w`` (1..16) that hold its largest code plus
+    one, :data:`NAN_CODE` written as ``2**w - 1``; one bit stream (``bits``, MSB first) and
+    ``w - 1`` per segment, two to a byte (``w4``). :func:`unpack_codes` restores them."""
+    codes = np.asarray(codes, dtype=np.uint16)
+    offsets = np.asarray(offsets, dtype=np.int64)
+    S = offsets.shape[0] - 1
+    size = np.diff(offsets)
+    v = np.where(codes == NAN_CODE, 0, codes.astype(np.int64))
+    top = np.zeros(S, dtype=np.int64)
+    ne = np.flatnonzero(size > 0)
+    if ne.size:
+        top[ne] = np.maximum.reduceat(v, offsets[:-1][ne])
+    w = np.clip(np.ceil(np.log2(top + 2.0)).astype(np.int64), 1, 16)
+    wc = np.repeat(w, size)
+    v = np.where(codes == NAN_CODE, (1 << wc) - 1, v)
+    start = np.concatenate([[0], np.cumsum(wc)])
+    b = np.arange(int(start[-1]), dtype=np.int64) - np.repeat(start[:-1], wc)
+    bits = (np.repeat(v, wc) >> (np.repeat(wc, wc) - 1 - b)) & 1
+    w4 = (w - 1).astype(np.uint8)
+    if w4.size % 2:
+        w4 = np.concatenate([w4, np.zeros(1, np.uint8)])
+    return {"bits": np.packbits(bits.astype(np.uint8)), "w4": (w4[0::2] | (w4[1::2] << 4)).astype(np.uint8)}
+
+
+def unpack_codes(bits: np.ndarray, w4: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`pack_codes` given the segments' ``offsets``: uint16 codes."""
+    offsets = np.asarray(offsets, dtype=np.int64)
+    S = offsets.shape[0] - 1
+    w4 = np.asarray(w4, dtype=np.uint8)
+    w = np.empty(2 * w4.size, dtype=np.int64)
+    w[0::2], w[1::2] = w4 & 15, w4 >> 4
+    if w.size not in (S, S + 1):
+        raise ValueError(f"e-map arrays: {w.size} code widths for {S} segments")
+    w = w[:S] + 1
+    size = np.diff(offsets)
+    wc = np.repeat(w, size)
+    start = np.concatenate([[0], np.cumsum(wc)])
+    total = int(start[-1])
+    bits = np.asarray(bits, dtype=np.uint8)
+    if bits.size != (total + 7) // 8:
+        raise ValueError(f"e-map arrays: {bits.size} bytes of codes, {(total + 7) // 8} expected")
+    if total == 0:
+        return np.zeros(int(offsets[-1]), dtype=np.uint16)
+    bb = np.unpackbits(bits, count=total).astype(np.int64)
+    b = np.arange(total, dtype=np.int64) - np.repeat(start[:-1], wc)
+    v = np.add.reduceat(bb << (np.repeat(wc, wc) - 1 - b), start[:-1])  # every code has >= 1 bit
+    out = np.where(v == (1 << wc) - 1, NAN_CODE, v).astype(np.uint16)
+    return out
 
 
 def half_step(step: np.ndarray) -> np.ndarray:
@@ -217,12 +280,12 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
     _k.decimate_counts(z, edge_ids, offsets, heights, float(limit), 1 if bare else 2, d)
     jump_min, kink_min = break_thresholds(dx, dy, interval, tol)
 
-    def breaks(off, h, win):
+    def breaks(off, h, win, forced):
         kind = np.zeros(E, dtype=np.int8)
         t = np.zeros(E, dtype=np.float64)
-        codes, lo, step = encode_heights(off, h)
+        codes, lo, step = encode_heights(off, h, QUANTUM_SHARE * tol)
         vo = virtual_offsets(off, n, win)
-        _k.detect_breaks(z, edge_ids, vo, (codes, lo, step, np.ascontiguousarray(off[:-1]), win), jump_min,
+        _k.detect_breaks(z, edge_ids, vo, (codes, lo, step, np.ascontiguousarray(off[:-1]), win), forced, jump_min,
                          kink_min, BREAK_RATIO, kind, t)
         return kind, t
 
@@ -237,8 +300,11 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
         _k.window_resample(z, edge_ids, offsets, heights, win, off, out)
         return off, out
 
-    kind0, t0 = breaks(offsets, heights, nowin)
+    kind0, t0 = breaks(offsets, heights, nowin, np.zeros(E, dtype=np.int8))
     full = kind0 != 0
+    # a window's break is forced: the full sequence's kind, placed inside the window
+    flags = np.where(kind0 == 2, _k.WIN_FORCED | _k.WIN_KINK, _k.WIN_FORCED).astype(np.int64)
+    forced = lambda w: np.where(w >= 0, w | flags, w)
     d[full] = n[full] + 1
     win = nowin.copy()
     if window:
@@ -253,7 +319,7 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
     off, h = thinned(d, win)
     w_limit = np.full(E, float(limit))
     for _ in range(THIN_ROUNDS + 1):
-        kind1, t1 = breaks(off, h, win)
+        kind1, t1 = breaks(off, h, win, np.where(win >= 0, kind0, 0).astype(np.int8))
         # a kink's place moves with the codes' quantum (the window's range is not the edge's):
         # up to KINK_SHIFT samples is the same break
         bad_w = (win >= 0) & ((kind1 != kind0) | (np.abs(t1 - t0) * (n + 1) > KINK_SHIFT))
@@ -281,7 +347,18 @@ def decimate(z: np.ndarray, dx: float, dy: float, interval: float, tol: float, e
         if _ == THIN_ROUNDS - 1:
             d[bad_u] = n[bad_u] + 1
         off, h = thinned(d, win)
-    return off, h, win
+    return off, h, forced(win)
+
+
+def split_forced(win: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(win, forced)`` of windows that carry the flag bits :func:`decimate` returns them
+    with: the windows without them, and each edge's forced break (see :class:`EZMap`)."""
+    from . import _ez_kernels as _k
+
+    win = np.asarray(win, dtype=np.int64)
+    flag = (win >= 0) & ((win & _k.WIN_FORCED) != 0)
+    forced = np.where(flag, np.where((win & _k.WIN_KINK) != 0, 2, 1), 0).astype(np.int8)
+    return np.where(win >= 0, win & ~np.int64(_k.WIN_FORCED | _k.WIN_KINK), win), forced
 
 
 def virtual_offsets(offsets: np.ndarray, full: np.ndarray | int, win: np.ndarray | None) -> np.ndarray:
@@ -337,6 +414,12 @@ class EZMap:
         Cells still off the exact surface at a test point after the finest patch level.
     pruned : int
         Candidate edges dropped because the base already held them (``build_ez(prune=True)``).
+    forced : ndarray of shape (E,), int8, optional
+        Forced break of each windowed edge (1 a jump, 2 a kink; 0, the default, searched
+        for): the full sequence's, in the interval its window holds
+        (:func:`zmap.refine._ez_kernels.detect_breaks`). A ``win`` given with the flag bits
+        :data:`zmap.refine._ez_kernels.WIN_FORCED` / ``WIN_KINK`` (as :func:`decimate`
+        returns it) sets it, and ``win`` is kept without them.
     win : ndarray of shape (E,), int64, optional
         Windowed wall edges (``build_ez(thin=True)``): ``win[k] >= 0`` packs the window of
         edge k (:func:`zmap.refine._ez_kernels.pack_window`), whose ``offsets`` count the
@@ -374,6 +457,7 @@ class EZMap:
     unresolved: int = 0
     pruned: int = 0
     win: Any = None
+    forced: Any = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -406,12 +490,20 @@ class EZMap:
                     else np.ascontiguousarray(self.win, dtype=np.int64))
         if self.win.shape != (E,):
             raise ValueError(f"win must have shape (E,) = ({E},), got {self.win.shape}")
+        from . import _ez_kernels as _k
+
+        flag = (self.win >= 0) & ((self.win & _k.WIN_FORCED) != 0)
+        self.win, flagged = split_forced(self.win)
+        forced = flagged if self.forced is None else np.asarray(self.forced, dtype=np.int8).ravel()
+        if forced.shape != (E,):
+            raise ValueError(f"forced must have shape (E,) = ({E},), got {forced.shape}")
+        self.forced = np.ascontiguousarray(np.where(flag, flagged, forced), dtype=np.int8)
+        if np.any((self.forced < 0) | (self.forced > 2)) or np.any((self.forced != 0) & (self.win < 0)):
+            raise ValueError(f"forced must hold 0, 1 or 2 per e-edge ({E}), non-zero only on windowed edges")
         w = np.flatnonzero(self.win >= 0)
         if w.size:
-            from . import _ez_kernels as _k
-
             full = self.full_counts()[w]
-            a, c = self.win[w] & 0xFFFF, (self.win[w] >> 16) & 0xFFFF
+            a, c = self.win[w] & 0x7FFF, (self.win[w] >> 16) & 0x7FFF
             size = np.array([_k.window_size(int(v), int(f)) for v, f in zip(self.win[w], full)], dtype=np.int64)
             bad = (a >= c) | (c > full + 1) | (size != np.diff(self.offsets)[w])
             if bad.any():
@@ -435,7 +527,12 @@ class EZMap:
         """``(a, c, dl, dr)`` of e-edge ``k``'s window (full samples ``a..c`` kept, ``dl``
         intervals over ``[0, a]``, ``dr`` over ``[c, n + 1]``), None if it has none."""
         w = int(self.win[k])
-        return None if w < 0 else (w & 0xFFFF, (w >> 16) & 0xFFFF, (w >> 32) & 0xFFFF, (w >> 48) & 0xFFFF)
+        return None if w < 0 else (w & 0x7FFF, (w >> 16) & 0x7FFF, (w >> 32) & 0xFFFF, (w >> 48) & 0xFFFF)
+
+    def window_break(self, k: int) -> int:
+        """Kind of e-edge ``k``'s forced break (1 a jump, 2 a kink), 0 where it has no window
+        or its break is searched for (:func:`zmap.refine._ez_kernels.detect_breaks`)."""
+        return int(self.forced[k])
 
     @property
     def n_windows(self) -> int:
@@ -584,8 +681,8 @@ class EZMap:
         brk_t = np.zeros(E, dtype=np.float64)
         jump_min, kink_min = break_thresholds(self.dx, self.dy, self.interval, self.tol)
         if E:
-            _k.detect_breaks(base.z, self.edge_ids, self._voff(), self._hq(), jump_min, kink_min, BREAK_RATIO,
-                             kind, brk_t)
+            _k.detect_breaks(base.z, self.edge_ids, self._voff(), self._hq(), self.forced, jump_min, kink_min,
+                             BREAK_RATIO, kind, brk_t)
         # cells touching an e-edge, and the slot of each of their four edges
         ecell = np.flatnonzero(self.cell_mask().ravel()).astype(np.int64)
         ids = self.edge_ids
@@ -716,27 +813,40 @@ class EZMap:
             "edge_bits": self.edge_bits(),
             "counts": np.diff(self.offsets).astype(np.uint8 if self.n_edges == 0 or np.diff(self.offsets).max() < 256
                                                    else np.uint16),
-            "codes": self.codes,
+            **{f"codes_{k}": v for k, v in pack_codes(self.codes, self.offsets).items()},
             "lo": self.lo,
             "step": _stored_step(self.step),
         } | self._window_arrays() | {f"patch_{k}": v for k, v in (self.patches or CellPatches.empty()).to_arrays().items()}
 
     def _window_arrays(self) -> dict[str, np.ndarray]:
         """The windows as stored: one bit per e-edge, and per windowed edge the first full
-        sample of its jump's interval ``b`` and its left knots ``dl - 1`` (uint8 or uint16);
-        the rest follows from :data:`WINDOW_HALF`, the full count and the stored count."""
+        sample of its break's interval ``b`` and its left knots ``dl - 1`` (uint8 or uint16);
+        the rest follows from :data:`WINDOW_HALF`, the full count and the stored count.
+        Format 5 adds a bit per windowed edge, its forced break a kink (``win_kink``), and
+        ``win_forced`` (a bit each) only where some break is not forced (a format-4 map)."""
+        from . import _ez_kernels as _k
+
         w = np.flatnonzero(self.win >= 0)
         if w.size == 0:
             return {}
-        a, c, dl = self.win[w] & 0xFFFF, (self.win[w] >> 16) & 0xFFFF, (self.win[w] >> 32) & 0xFFFF
+        ww = self.win[w]
+        a, c, dl = ww & 0x7FFF, (ww >> 16) & 0x7FFF, (ww >> 32) & 0xFFFF
         b = np.where(a > 0, a + WINDOW_HALF, c - 1 - WINDOW_HALF)
         nl = np.maximum(dl - 1, 0)
         dt = np.uint8 if max(int(b.max()), int(nl.max())) < 256 else np.uint16
-        return {"win_bits": np.packbits(self.win >= 0), "win_b": b.astype(dt), "win_nl": nl.astype(dt)}
+        forced = self.forced[w] != 0
+        out = {"win_bits": np.packbits(self.win >= 0), "win_b": b.astype(dt), "win_nl": nl.astype(dt),
+               "win_kink": np.packbits(self.forced[w] == 2)}
+        if not forced.all():
+            out["win_forced"] = np.packbits(forced)
+        return out
 
     @staticmethod
     def _windows_from(arrays: dict, edge_ids: np.ndarray, counts: np.ndarray, full: np.ndarray) -> np.ndarray | None:
-        """Inverse of :meth:`_window_arrays` given the stored and full counts per e-edge."""
+        """Inverse of :meth:`_window_arrays` given the stored and full counts per e-edge
+        (format 4, without ``win_kink``: no break forced)."""
+        from . import _ez_kernels as _k
+
         if "win_bits" not in arrays:
             return None
         E = edge_ids.size
@@ -755,12 +865,19 @@ class EZMap:
             raise ValueError("e-map arrays: a windowed edge's stored count does not fit its window")
         win = np.full(E, -1, dtype=np.int64)
         win[on] = a | (c << 16) | (dl << 32) | (dr << 48)
+        if "win_kink" in arrays:
+            bits = lambda name: np.unpackbits(np.asarray(arrays[name], dtype=np.uint8), count=on.size).astype(bool)
+            forced = bits("win_forced") if "win_forced" in arrays else np.ones(on.size, dtype=bool)
+            kink = bits("win_kink")
+            win[on] |= np.where(forced, _k.WIN_FORCED, 0) | np.where(forced & kink, _k.WIN_KINK, 0)
         return win
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> EZMap:
         """Inverse of :meth:`to_arrays`."""
-        missing = {"version", "grid", "shape", "codes", "lo", "step"} - set(arrays)
+        missing = {"version", "grid", "shape", "lo", "step"} - set(arrays)
+        if "codes" not in arrays and "codes_bits" not in arrays:
+            missing.add("codes")
         missing |= ({"edge_bits", "counts"} if "edge_bits" in arrays or "counts" in arrays
                     else {"edge_ids", "offsets"}) - set(arrays)
         if missing:
@@ -788,22 +905,25 @@ class EZMap:
             win = cls._windows_from(arrays, edge_ids, counts, full)
         else:
             edge_ids, offsets, win = arrays["edge_ids"], arrays["offsets"], None
+        codes = (unpack_codes(arrays["codes_bits"], arrays["codes_w4"], offsets) if "codes_bits" in arrays
+                 else arrays["codes"])
         return cls(g[0], g[1], g[2], g[3], int(s[0]), int(s[1]), g[4], g[5], edge_ids, offsets,
-                   arrays["codes"], arrays["lo"], arrays["step"], failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0,
+                   codes, arrays["lo"], arrays["step"], failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0,
                    patches=patches, unresolved=int(s[4]) if s.size > 4 else 0, pruned=int(s[5]) if s.size > 5 else 0,
                    win=win)
 
 
-def code_patch(m: int, nodes: np.ndarray, heights: np.ndarray, counts: np.ndarray) -> tuple:
+def code_patch(m: int, nodes: np.ndarray, heights: np.ndarray, counts: np.ndarray, quantum: float = 0.0) -> tuple:
     """A level-``m`` patch's data ``(m, nodes, codes, lo, step, counts)`` on one 16-bit scale.
 
     Its sub-grid ``nodes`` ((m+1, m+1), float64) and e-point ``heights`` ((P,), NaN = none)
-    are coded over their common range (:func:`encode_heights`); the nodes come back decoded
+    are coded over their common range (:func:`encode_heights`, no finer than ``quantum``); the
+    nodes come back decoded
     (what the patch evaluates and stores as codes), ``lo`` and ``step`` repeated per sub-edge.
     """
     nodes = np.asarray(nodes, dtype=np.float64)
     allv = np.concatenate([nodes.ravel(), np.asarray(heights, dtype=np.float64)])
-    codes, lo, step = encode_heights(np.array([0, allv.size], dtype=np.int64), allv)
+    codes, lo, step = encode_heights(np.array([0, allv.size], dtype=np.int64), allv, quantum)
     dec = np.float64(lo[0]) + np.float64(step[0]) * codes.astype(np.float64)
     dec[codes == NAN_CODE] = np.nan
     S = int(np.asarray(counts).size)
@@ -1006,8 +1126,15 @@ class CellPatches:
         node_codes = np.clip(np.nan_to_num(q, nan=0.0), 0, NAN_CODE - 1).astype(np.uint16)
         node_codes[np.isnan(self.nodes)] = NAN_CODE
         subs = {f"sub_{k}": v for k, v in self.subs.to_arrays().items()} if self.subs is not None else {}
-        return {"cells": self.cells, "level": self.level, "node_codes": node_codes, "codes": self.codes, "lo": lo,
-                "step": _stored_step(step)} | _pack_counts(self.counts) | subs
+        # a patch's node codes and its codes, on its one scale, as one segment of the bit stream
+        nn, nc = np.diff(self.node_off), np.diff(self.code_off)
+        seg = np.concatenate([[0], np.cumsum(nn + nc)]).astype(np.int64)
+        allc = np.empty(int(seg[-1]), dtype=np.uint16)
+        allc[np.repeat(seg[:-1] - self.node_off[:-1], nn) + np.arange(node_codes.size)] = node_codes
+        allc[np.repeat(seg[:-1] + nn - self.code_off[:-1], nc) + np.arange(self.codes.size)] = self.codes
+        packed = {f"codes_{k}": v for k, v in pack_codes(allc, seg).items()}
+        return {"cells": self.cells, "level": self.level, "lo": lo,
+                "step": _stored_step(step)} | packed | _pack_counts(self.counts) | subs
 
     @classmethod
     def from_arrays(cls, a: dict[str, np.ndarray], grid: tuple[float, float, float] | None = None) -> CellPatches:
@@ -1039,8 +1166,16 @@ class CellPatches:
             raise ValueError(f"cell patches: {counts.size} counts for the {edge_off[-1]} sub-edges of the levels")
         K = m.size
         lo_p, st_p = np.asarray(a["lo"], dtype=np.float32), np.asarray(a["step"], dtype=np.float32)
-        nc = np.asarray(a["node_codes"], dtype=np.uint16)
         node_off = off(np.where(ez, (m + 1) ** 2, 0))
+        code_off = off(np.where(ez, _segment_sums(counts, edge_off), (1 - m) ** 2))
+        if "codes_bits" in a:
+            nn, ncs = np.diff(node_off), np.diff(code_off)
+            seg = off(nn + ncs)
+            allc = unpack_codes(a["codes_bits"], a["codes_w4"], seg)
+            nc = allc[np.repeat(seg[:-1] - node_off[:-1], nn) + np.arange(int(node_off[-1]))]
+            codes = allc[np.repeat(seg[:-1] + nn - code_off[:-1], ncs) + np.arange(int(code_off[-1]))]
+        else:
+            nc, codes = np.asarray(a["node_codes"], dtype=np.uint16), a["codes"]
         if lo_p.shape != (K,) or st_p.shape != (K,) or nc.size != node_off[-1]:
             raise ValueError(f"cell patches: lo, step must hold one value per patch ({K}) and the node codes "
                              f"{node_off[-1]}, got {lo_p.size}, {st_p.size}, {nc.size}")
@@ -1048,10 +1183,9 @@ class CellPatches:
         nodes = lo_p[kn].astype(np.float64) + st_p[kn].astype(np.float64) * nc
         nodes[nc == NAN_CODE] = np.nan
         ke = np.repeat(np.arange(K), np.diff(edge_off))
-        code_off = off(np.where(ez, _segment_sums(counts, edge_off), (1 - m) ** 2))
         subs = SubLattices.from_arrays({k[4:]: v for k, v in a.items() if k.startswith("sub_")}) if any(
             k.startswith("sub_") for k in a) else None
-        return cls(a["cells"], a["level"], node_off, nodes, code_off, a["codes"], edge_off, lo_p[ke], st_p[ke],
+        return cls(a["cells"], a["level"], node_off, nodes, code_off, codes, edge_off, lo_p[ke], st_p[ke],
                    counts, subs=subs)
 
     # ---- evaluation -----------------------------------------------------------------------
@@ -1210,11 +1344,19 @@ class SubLattices:
         return int(self.keys.shape[0])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        return {"mn": self.mn, "keys": self.keys, "codes": self.codes, "lo": self.lo, "step": _stored_step(self.step)}
+        seg = np.arange(self.n + 1, dtype=np.int64) * (int(self.mn[1]) + 1) ** 2
+        return {"mn": self.mn, "keys": self.keys, "lo": self.lo, "step": _stored_step(self.step)} | {
+            f"codes_{k}": v for k, v in pack_codes(self.codes, seg).items()}
 
     @classmethod
     def from_arrays(cls, a: dict[str, np.ndarray]) -> SubLattices:
-        return cls(a["mn"], a["keys"], a["codes"], a["lo"], a["step"])
+        if "codes_bits" in a:
+            mn = np.asarray(a["mn"], dtype=np.int64).ravel()
+            seg = np.arange(np.asarray(a["keys"]).size + 1, dtype=np.int64) * (int(mn[1]) + 1) ** 2
+            codes = unpack_codes(a["codes_bits"], a["codes_w4"], seg)
+        else:
+            codes = a["codes"]
+        return cls(a["mn"], a["keys"], codes, a["lo"], a["step"])
 
     def override(self, cell: np.ndarray, base: ZMap, lx: np.ndarray, ly: np.ndarray, h: np.ndarray) -> np.ndarray:
         """``h`` with the points in a sub-lattice (base ``cell`` ids, local xy) answered by it."""

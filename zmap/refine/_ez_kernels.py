@@ -71,10 +71,31 @@ def _dec(hq, e, at):
     return np.float64(hq[1][e]) + np.float64(hq[2][e]) * np.float64(code)
 
 
+#: A windowed edge keeps its full samples from this many before its break's interval to
+#: this many after it (:func:`window_counts`; the stored window is ``a = b - WINDOW_HALF``,
+#: ``c = b + 1 + WINDOW_HALF`` for the break's interval ``b..b+1``, clipped to the edge).
+WINDOW_HALF = 1
+#: Flag bits a packed window may carry on its way into :class:`zmap.refine._emap.EZMap`
+#: (bit 15 of ``a`` and of ``c``, both below 2**15): the edge's break is forced, and it is
+#: a kink (else a jump). The map keeps them apart (``forced``), so ``hq``'s windows never
+#: carry them.
+WIN_FORCED = 1 << 15
+WIN_KINK = 1 << 31
+
+
 @njit(cache=True)
 def unpack_window(w):
-    """``(a, c, dl, dr)`` of a packed window (:func:`pack_window`)."""
-    return w & 0xFFFF, (w >> 16) & 0xFFFF, (w >> 32) & 0xFFFF, (w >> 48) & 0xFFFF
+    """``(a, c, dl, dr)`` of a packed window (:func:`pack_window`), flags masked off."""
+    return w & 0x7FFF, (w >> 16) & 0x7FFF, (w >> 32) & 0xFFFF, (w >> 48) & 0xFFFF
+
+
+@njit(cache=True)
+def window_break(w, m):
+    """The first full sample ``b`` of the break's interval of a window ``w`` over ``m``
+    intervals (inverse of :func:`window_counts`' ``a``, ``c``)."""
+    a, c, _dl, _dr = unpack_window(w)
+    b = a + WINDOW_HALF if a > 0 else c - 1 - WINDOW_HALF
+    return min(max(b, 0), m - 1)
 
 
 @njit(cache=True)
@@ -335,13 +356,17 @@ def window_resample(z, edge_ids, offsets, heights, win, new_offsets, out):
 
 
 @njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
-def detect_breaks(z, edge_ids, offsets, hq, jump_min, kink_min, ratio, out_kind, out_t):
+def detect_breaks(z, edge_ids, offsets, hq, forced, jump_min, kink_min, ratio, out_kind, out_t):
     """One break per edge: the dominant jump, else the dominant kink, of its sequence.
 
     A jump is the interval whose rise exceeds its neighbours' by ``jump_min`` and is
     ``ratio`` times theirs; it is placed mid-interval. A kink is the sample pair whose second
     differences sum above ``kink_min`` and ``ratio`` times every other second difference;
     it is placed where the lines through the two samples on either side meet.
+
+    A windowed edge with ``forced[k]`` (int8: 1 a jump, 2 a kink; 0 searched for) is not
+    searched: its break is the full sequence's, of that kind, in the interval its window
+    holds (:func:`window_break`); a kink is placed there by the same rule.
     """
     nx, ny = z.shape
     for k in prange(edge_ids.shape[0]):
@@ -357,6 +382,26 @@ def detect_breaks(z, edge_ids, offsets, hq, jump_min, kink_min, ratio, out_kind,
                 ok = False
                 break
         if not ok or m < 2:
+            continue
+        w = hq[4][k]
+        if w >= 0 and forced[k] != BREAK_NONE:
+            # a forced break: the full sequence's, whose interval the window holds
+            b = window_break(w, m)
+            if forced[k] == BREAK_JUMP:
+                out_kind[k] = BREAK_JUMP
+                out_t[k] = (b + 0.5) / m
+                continue
+            a = max(b, 1)
+            b = min(a + 1, m - 1)
+            za = _sample(z, hq, k, off, n, ia, ja, ib, jb, a)
+            zb = _sample(z, hq, k, off, n, ia, ja, ib, jb, b)
+            sl = za - _sample(z, hq, k, off, n, ia, ja, ib, jb, a - 1)
+            sr = _sample(z, hq, k, off, n, ia, ja, ib, jb, b + 1) - zb
+            x = 0.5 * (a + b)
+            if sl != sr:
+                x = (zb - za + sl * a - sr * b) / (sl - sr)
+            out_kind[k] = BREAK_KINK
+            out_t[k] = min(max(x, float(a)), float(b)) / m
             continue
         # jump: the largest rise
         best = -1

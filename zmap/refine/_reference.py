@@ -14,7 +14,7 @@ import numpy as np
 
 from ..grid import ZMap
 
-__all__ = ["detect_break", "edge_points", "edge_sequence", "evaluate"]
+__all__ = ["detect_break", "edge_break", "edge_points", "edge_sequence", "evaluate"]
 
 
 def _edge(ez, eid: int) -> tuple[int, int, int, int, int]:
@@ -95,6 +95,29 @@ def detect_break(seq: np.ndarray, jump_min: float, kink_min: float, ratio: float
     if not (total > kink_min and total > ratio * rest):
         return 0, -1.0
     a = max(a, 1)
+    b = min(a + 1, m - 1)
+    sl = seq[a] - seq[a - 1]
+    sr = seq[b + 1] - seq[b]
+    x = 0.5 * (a + b) if sl == sr else (seq[b] - seq[a] + sl * a - sr * b) / (sl - sr)
+    return 2, min(max(x, a), b) / m
+
+
+def edge_break(ez, base: ZMap, eid: int, jump_min: float, kink_min: float, ratio: float) -> tuple[int, float]:
+    """(kind, t) of e-edge ``eid``'s break: a windowed edge whose break is forced
+    (``ez.window_break(k)``) has it in its window's interval ``b..b+1`` (a jump mid-way, a
+    kink where the lines through the samples either side meet); any other is searched for
+    (:func:`detect_break` over :func:`edge_sequence`)."""
+    k = int(np.flatnonzero(ez.edge_ids == eid)[0])
+    seq = edge_sequence(ez, base, eid)
+    kind = ez.window_break(k) if hasattr(ez, "window_break") else 0
+    if kind == 0 or np.isnan(seq).any():
+        return detect_break(seq, jump_min, kink_min, ratio)
+    a, c, _, _ = ez.window(k)
+    m = len(seq) - 1
+    b = min(max(a + 1 if a > 0 else c - 2, 0), m - 1)  # WINDOW_HALF = 1
+    if kind == 1:
+        return 1, (b + 0.5) / m
+    a = max(b, 1)
     b = min(a + 1, m - 1)
     sl = seq[a] - seq[a - 1]
     sr = seq[b + 1] - seq[b]

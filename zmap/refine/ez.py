@@ -60,6 +60,7 @@ from ._emap import (  # noqa: F401  (BREAK_RATIO, FORMAT_VERSION, SERIAL_BELOW: 
     BREAK_RATIO,
     FORMAT_VERSION,
     NAN_CODE,
+    QUANTUM_SHARE,
     SERIAL_BELOW,
     EZMap,
     _n_points,
@@ -67,6 +68,7 @@ from ._emap import (  # noqa: F401  (BREAK_RATIO, FORMAT_VERSION, SERIAL_BELOW: 
     decimate,
     edge_count,
     encode_heights,
+    split_forced,
 )
 from .patch import patch_failing
 
@@ -212,12 +214,13 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
             offsets = np.zeros(edge_ids.shape[0] + 1, dtype=np.int64)
             np.cumsum(np.diff(ez.offsets)[keep], out=offsets[1:])
             ez.edge_ids, ez.offsets = edge_ids, offsets
+            ez.win, ez.forced = np.full(edge_ids.shape[0], -1, np.int64), np.zeros(edge_ids.shape[0], np.int8)
         if thin:
             offsets, z, win = decimate(base.z, base.dx, base.dy, interval, tol, ez.edge_ids, ez.offsets, z,
                                        THIN_SHARE * tol, window=True)
-            ez.offsets, ez.win = offsets, win
+            ez.offsets, (ez.win, ez.forced) = offsets, split_forced(win)
         ez.lifted = int(lifted.sum())
-        ez.codes, ez.lo, ez.step = encode_heights(offsets, z)
+        ez.codes, ez.lo, ez.step = encode_heights(offsets, z, QUANTUM_SHARE * tol)
     ez.pruned = int(n_candidates - ez.n_edges)
     if verify and n_candidates:
         # the refined cells, and the cells a sharp edge crosses (a rib between the probes)

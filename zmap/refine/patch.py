@@ -33,7 +33,17 @@ from collections.abc import Callable
 import numpy as np
 
 from ..grid import ZMap
-from ._emap import CellPatches, EZMap, SubLattices, all_edges, code_patch, decimate, encode_heights, sub_grid
+from ._emap import (
+    QUANTUM_SHARE,
+    CellPatches,
+    EZMap,
+    SubLattices,
+    all_edges,
+    code_patch,
+    decimate,
+    encode_heights,
+    sub_grid,
+)
 
 __all__ = ["PATCH_SUBCELLS", "SUB_TEST", "TEST_POINTS", "CellPatches", "build_sub_lattices", "cell_test_points",
            "failing_cells", "failing_subcells", "misfit", "patch_levels", "sub_lattice_intervals"]
@@ -224,7 +234,7 @@ def build_patches(base: ZMap, heights: Heights, cells: np.ndarray, m: int, inter
         _k.despike(s.z, ids, offsets, z, tol, lifted)
         if thin is not None:
             offsets, z, _ = decimate(s.z, s.dx, s.dy, interval, tol, ids, offsets, z, thin, bare=True)
-        out[c] = code_patch(m, s.z, z, np.diff(offsets))
+        out[c] = code_patch(m, s.z, z, np.diff(offsets), QUANTUM_SHARE * tol)
     return out
 
 
@@ -233,8 +243,9 @@ def lattice_intervals(base: ZMap, tol: float) -> int:
     return max(1, math.ceil(math.hypot(base.dx, base.dy) / tol - 1e-9))
 
 
-def build_lattices(base: ZMap, heights: Heights, cells: np.ndarray, n: int) -> dict[int, tuple]:
-    """Dense lattice patch data ``{cell: (-n, nodes, codes, lo, step)}`` (one ``heights`` call)."""
+def build_lattices(base: ZMap, heights: Heights, cells: np.ndarray, n: int, quantum: float = 0.0) -> dict[int, tuple]:
+    """Dense lattice patch data ``{cell: (-n, nodes, codes, lo, step)}`` (one ``heights`` call),
+    coded no finer than ``quantum`` (:func:`zmap.refine._emap.encode_heights`)."""
     cells = [int(c) for c in np.asarray(cells, dtype=np.int64)]
     if not cells:
         return {}
@@ -243,7 +254,7 @@ def build_lattices(base: ZMap, heights: Heights, cells: np.ndarray, n: int) -> d
     P = (n + 1) ** 2
     out = {}
     for c, zc in zip(cells, z):
-        codes, lo, step = encode_heights(np.array([0, P], dtype=np.int64), zc)
+        codes, lo, step = encode_heights(np.array([0, P], dtype=np.int64), zc, quantum)
         out[c] = (-n, np.zeros(0), codes, lo, step)
     return out
 
@@ -273,8 +284,10 @@ def sub_lattice_intervals(base: ZMap, tol: float, m: int) -> int:
     return max(1, math.ceil(math.hypot(base.dx, base.dy) / m / tol - 1e-9))
 
 
-def build_sub_lattices(base: ZMap, heights: Heights, keys: np.ndarray, m: int, n: int) -> SubLattices:
-    """Dense ``n x n`` lattices over the level-``m`` sub-cells ``keys`` (one ``heights`` call)."""
+def build_sub_lattices(base: ZMap, heights: Heights, keys: np.ndarray, m: int, n: int,
+                       quantum: float = 0.0) -> SubLattices:
+    """Dense ``n x n`` lattices over the level-``m`` sub-cells ``keys`` (one ``heights`` call),
+    coded no finer than ``quantum``."""
     keys = np.asarray(keys, dtype=np.int64)
     cell, r = np.divmod(keys, m * m)
     si, sj = np.divmod(r, m)
@@ -284,7 +297,7 @@ def build_sub_lattices(base: ZMap, heights: Heights, keys: np.ndarray, m: int, n
     lx = base.x0 + (ci[:, None] + (si[:, None] + U.ravel()[None, :]) / m) * base.dx
     ly = base.y0 + (cj[:, None] + (sj[:, None] + V.ravel()[None, :]) / m) * base.dy
     z = np.asarray(heights(*base.local_to_world(lx.ravel(), ly.ravel())), dtype=np.float64)
-    codes, lo, step = encode_heights(np.arange(keys.size + 1, dtype=np.int64) * (n + 1) ** 2, z)
+    codes, lo, step = encode_heights(np.arange(keys.size + 1, dtype=np.int64) * (n + 1) ** 2, z, quantum)
     return SubLattices(np.array([m, n]), keys, codes, lo, step)
 
 
@@ -301,7 +314,7 @@ def _sub_lattices(model_height: Heights, base: ZMap, heights: Heights, tol: floa
     # a cell none of whose sub-cells misses on the finer test lattice keeps its patch
     whole = np.setdiff1d(np.intersect1d(bad, cells), cheap)
     keys = keys[np.isin(keys // (m * m), cheap)]
-    return (build_sub_lattices(base, heights, keys, m, n) if keys.size else None), whole
+    return (build_sub_lattices(base, heights, keys, m, n, QUANTUM_SHARE * tol) if keys.size else None), whole
 
 
 def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: float, interval: float,
@@ -342,7 +355,7 @@ def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: floa
             if levels:
                 # over the sub-cells of the finest patch that miss, if cheaper than the whole cell
                 subs, whole = _sub_lattices(model_height, base, heights, tol, tol_check, bad, levels[-1])
-            per_cell.update(build_lattices(base, heights, whole, lattice_intervals(base, tol)))
+            per_cell.update(build_lattices(base, heights, whole, lattice_intervals(base, tol), QUANTUM_SHARE * tol))
         patches = CellPatches.pack(per_cell)
         if not m and subs is not None:
             keep = np.isin(subs.keys // (levels[-1] ** 2), patches.cells[patches.level > 0])

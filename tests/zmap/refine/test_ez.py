@@ -20,6 +20,7 @@ from zmap import ZMap
 from zmap.errors import RefineError
 from zmap.interpolate import bezier
 from zmap.refine import _reference as ref
+from zmap.refine._emap import QUANTUM_SHARE
 from zmap.refine.ez import BREAK_RATIO, EZMap, build_ez, edge_count
 
 DATA = Path(__file__).resolve().parents[3] / "data"
@@ -112,13 +113,19 @@ def test_layout_matches_table_2_spacing_and_contract_ids():
     assert ez.codes.dtype == np.uint16 and ez.edge_ids.dtype == np.int64 and ez.heights.dtype == np.float64
     assert np.all(np.diff(ez.edge_ids) > 0)
     assert ez.edge_ratio == pytest.approx(ez.n_edges / edge_count(base.nx, base.ny))
-    # stored: header, one bit per grid edge, a byte count, a float32 offset and a float16 quantum
-    # per e-edge, 2 bytes per e-point
-    assert ez.nbytes == 104 + math.ceil(edge_count(base.nx, base.ny) / 8) + 7 * ez.n_edges + 2 * ez.n_points
+    # stored: header, one bit per grid edge, a byte count, a float32 offset, a float16 quantum
+    # and a 4-bit code width per e-edge; each edge's codes in the bits its largest code needs
+    # (15 here: the 3 mm wall at the finest quantum tol/128 = 1.6e-4 mm)
+    bits = sum(n * (int(ez.codes[o:o + n].max()) + 1).bit_length()
+               for o, n in zip(ez.offsets[:-1].tolist(), np.diff(ez.offsets).tolist()))
+    assert bits <= 15 * ez.n_points
+    assert ez.nbytes == (104 + math.ceil(edge_count(base.nx, base.ny) / 8) + 7 * ez.n_edges
+                         + math.ceil(ez.n_edges / 2) + math.ceil(bits / 8))
     px, py = ez.points()
     qx, qy = ref.edge_points(ez)
     assert np.array_equal(px, qx) and np.array_equal(py, qy)
-    assert f.H / 65534 / 2 <= ez.resolution <= f.H / 65534 / 2 * (1 + 2 ** -10)  # the quantum rounded up to float16
+    q = max(f.H / 65534, QUANTUM_SHARE * ez.tol)  # the quantum (no finer than tol/128) rounded up to float16
+    assert q / 2 <= ez.resolution <= q / 2 * (1 + 2 ** -10)
     assert np.abs(ez.heights - f(px, py)).max() <= ez.resolution + 1e-6
     # every selected edge is steep or crosses the wall; every edge crossing the wall is selected
     nx, ny = base.shape
@@ -291,8 +298,7 @@ def test_kernel_matches_reference(seed):
     ez = build_ez(base, f, tol=0.02, eps_r=0.6, se_curves=[np.array([[1.3, -1.0], [2.3, 5.0]])], verify=False)
     kind, t = ez.breaks(base)
     m = int(np.diff(ez.offsets).max()) + 1
-    expect = [ref.detect_break(ref.edge_sequence(ez, base, int(e)), ez.tol, 4 * ez.tol / m, BREAK_RATIO)
-              for e in ez.edge_ids]
+    expect = [ref.edge_break(ez, base, int(e), ez.tol, 4 * ez.tol / m, BREAK_RATIO) for e in ez.edge_ids]
     assert kind.tolist() == [k for k, _ in expect]
     assert np.allclose(t, [tb for _, tb in expect], rtol=0, atol=1e-12)
     assert set(kind.tolist()) == {0, 1, 2}
@@ -356,7 +362,7 @@ def test_round_trip(tmp_path):
     assert np.array_equal(back.evaluate(base, x, x[::-1]), ez.evaluate(base, x, x[::-1]), equal_nan=True)
     assert np.array_equal(back.heights, ez.heights, equal_nan=True)
     arrays = ez.to_arrays()
-    del arrays["codes"]
+    del arrays["codes_bits"]
     with pytest.raises(ValueError, match="codes"):
         EZMap.from_arrays(arrays)
     arrays = ez.to_arrays()
@@ -368,7 +374,12 @@ def test_round_trip(tmp_path):
     with pytest.raises(ValueError, match="point counts"):
         EZMap.from_arrays(arrays)
     arrays = ez.to_arrays()
-    arrays["codes"] = arrays["codes"][:-1]
+    arrays["codes_bits"] = arrays["codes_bits"][:-1]
+    with pytest.raises(ValueError, match="bytes of codes"):
+        EZMap.from_arrays(arrays)
+    arrays = ez.to_arrays()
+    arrays["codes"] = ez.codes[:-1]  # format 4: 16-bit codes
+    del arrays["codes_bits"]
     with pytest.raises(ValueError, match="offsets"):
         EZMap.from_arrays(arrays)
     # format 2 (edge ids and offsets stored) still loads

@@ -14,6 +14,7 @@ import pytest
 
 from zmap import ZMap
 from zmap.model import PrecisionModel
+from zmap.refine._emap import QUANTUM_SHARE
 from zmap.refine.ez import EZMap, build_ez
 from zmap.refine.patch import (
     CellPatches,
@@ -169,7 +170,15 @@ def test_bad_patch_arrays():
     bad = dict(a, **{key: a[key][:-2]})
     with pytest.raises(ValueError, match="counts"):
         CellPatches.from_arrays(bad)
-    bad = dict(a, codes=a["codes"][:-1])
+    bad = dict(a, codes_bits=a["codes_bits"][:-1])
+    with pytest.raises(ValueError, match="bytes of codes"):
+        CellPatches.from_arrays(bad)
+    old = {k: v for k, v in a.items() if not k.startswith("codes_")}  # format 4: 16-bit codes
+    p = CellPatches.from_arrays(a)
+    node_codes = np.rint((p.nodes - np.repeat(p.lo[p.edge_off[:-1]], np.diff(p.node_off)))
+                         / np.repeat(p.step[p.edge_off[:-1]], np.diff(p.node_off))).astype(np.uint16)
+    assert np.array_equal(CellPatches.from_arrays(old | {"codes": p.codes, "node_codes": node_codes}).nodes, p.nodes)
+    bad = dict(old, codes=p.codes[:-1], node_codes=node_codes)
     with pytest.raises(ValueError, match="offsets"):
         CellPatches.from_arrays(bad)
     with pytest.raises(ValueError, match="increasing"):
@@ -278,7 +287,7 @@ def test_sub_lattices_over_the_missing_sub_cells_hold_tol_and_cost_less(tmp_path
     assert rib.distance(x, y, ez.height(base, x, y)).max() <= TOL
     # a sub-lattice answers bilinearly from its own corners: at a lattice node, the exact height
     k = subs.keys[0]
-    one = build_sub_lattices(base, rib, np.array([k]), m, n)
+    one = build_sub_lattices(base, rib, np.array([k]), m, n, QUANTUM_SHARE * TOL)
     c, r = divmod(int(k), m * m)
     ci, cj = divmod(c, base.ny - 1)
     xn = base.x0 + (ci + (r // m + 0.5) / m) * base.dx

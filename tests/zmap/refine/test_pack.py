@@ -1,0 +1,86 @@
+"""Format 5 of the e-map: codes stored in the bits their range needs at the finest quantum,
+and forced breaks on windowed edges (the full sequence's, not re-detected)."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from zmap import ZMap
+from zmap.model import PrecisionModel
+from zmap.refine import _ez_kernels as _k
+from zmap.refine import _reference as ref
+from zmap.refine._emap import (
+    NAN_CODE,
+    QUANTUM_SHARE,
+    WINDOW_HALF,
+    EZMap,
+    encode_heights,
+    pack_codes,
+    unpack_codes,
+)
+from zmap.refine.ez import BREAK_RATIO, build_ez
+
+from .test_thin import TOL, SlopeWall
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(st.lists(st.integers(0, NAN_CODE), min_size=0, max_size=9), min_size=0, max_size=12))
+def test_packed_codes_round_trip(segments):
+    codes = np.array([c for s in segments for c in s], dtype=np.uint16)
+    off = np.concatenate([[0], np.cumsum([len(s) for s in segments])]).astype(np.int64)
+    a = pack_codes(codes, off)
+    assert np.array_equal(unpack_codes(a["bits"], a["w4"], off), codes)
+    # each segment takes the bits of its largest code + 1 (the no-height code is all ones)
+    bits = sum(len(s) * max(1, (max([c for c in s if c != NAN_CODE], default=0) + 1).bit_length()) for s in segments)
+    assert a["bits"].size == (bits + 7) // 8 and a["w4"].size == (len(segments) + 1) // 2
+
+
+def test_quantum_floor_bounds_the_error_and_the_codes():
+    rng = np.random.default_rng(4)
+    h = np.concatenate([rng.uniform(2.0, 2.05, 40), rng.uniform(-3.0, 9.0, 40), [np.nan]])
+    off = np.array([0, 40, 81], dtype=np.int64)
+    q = QUANTUM_SHARE * TOL
+    codes, lo, step = encode_heights(off, h, q)
+    e = np.repeat([0, 1], [40, 41])
+    back = lo[e].astype(float) + step[e].astype(float) * codes
+    ok = codes != NAN_CODE
+    # the 0.05 mm edge is coded at the floor (within 1/1024 of it), the 12 mm edge as before
+    assert q <= step[0] <= q * (1 + 1 / 1024) and step[1] > q
+    assert np.abs(back - h)[ok].max() <= step.max() / 2 + 1e-9 and codes[~ok].tolist() == [NAN_CODE]
+    assert int(codes[:40].max()) <= 0.05 / q + 1 and int(codes[:40].max()).bit_length() <= 10
+
+
+def test_windowed_edges_force_the_full_sequences_break(tmp_path):
+    f = SlopeWall()
+    base = ZMap.from_function(f, (0, 0, 4, 4), 0.5)
+    full = build_ez(base, f, tol=TOL, eps_r=0.0, prune=False, thin=False, verify=False,
+                    se_curves=[np.array([[1.3, -1.0], [2.3, 5.0]])])
+    ez = build_ez(base, f, tol=TOL, eps_r=0.0, prune=False, verify=False, se_curves=[np.array([[1.3, -1.0], [2.3, 5.0]])])
+    kind0, t0 = full.breaks(base)
+    kind, t = ez.breaks(base)
+    w = np.flatnonzero(ez.win >= 0)
+    assert w.size >= 8 and all(ez.window_break(int(k)) == kind0[k] for k in w)
+    assert np.array_equal(kind[w], kind0[w]) and np.abs(t - t0)[w].max() * 50 <= 0.05
+    # the slow reference forces them the same way
+    m = 50
+    exp = [ref.edge_break(ez, base, int(e), ez.tol, 4 * ez.tol / m, BREAK_RATIO) for e in ez.edge_ids]
+    assert kind.tolist() == [k for k, _ in exp] and np.allclose(t, [x for _, x in exp], rtol=0, atol=1e-12)
+    assert _k.WINDOW_HALF == WINDOW_HALF
+    # format 5 keeps the forced kinds; format-4 arrays (16-bit codes, no kinds) still load,
+    # their breaks searched for as before
+    pm = PrecisionModel(base, ez=ez, meta={"method": "ez"})
+    back = PrecisionModel.load(pm.save(tmp_path / "v5.zpm")).ez
+    assert np.array_equal(back.win, ez.win) and np.array_equal(back.codes, ez.codes)
+    a4 = {k: v for k, v in ez.to_arrays().items() if k not in ("codes_bits", "codes_w4", "win_kink")}
+    a4 = a4 | {"version": np.array([4]), "codes": ez.codes}
+    assert "patch_codes_bits" in a4 and ez.patches is None  # no patches: their codes are empty
+    a4 = {k: v for k, v in a4.items() if not k.startswith("patch_codes")} | {
+        "patch_codes": np.zeros(0, np.uint16), "patch_node_codes": np.zeros(0, np.uint16)}
+    old = EZMap.from_arrays(a4)
+    assert np.array_equal(old.win >= 0, ez.win >= 0) and old.window_break(int(w[0])) == 0
+    assert np.array_equal(old.codes, ez.codes)
+    x, y = np.random.default_rng(1).uniform(0, 4, (2, 20000))
+    wall = np.abs(f.d(x, y)) < TOL
+    assert np.abs(old.height(base, x, y) - f(x, y))[~wall].max() <= 2 * TOL
