@@ -111,56 +111,126 @@ def encode_heights(offsets: np.ndarray, heights: np.ndarray, quantum: float = 0.
     return codes, lo32, step32
 
 
+def _nibbles(v: np.ndarray) -> np.ndarray:
+    """Values 0..15, two to a byte."""
+    v = np.asarray(v, dtype=np.uint8)
+    if v.size % 2:
+        v = np.concatenate([v, np.zeros(1, np.uint8)])
+    return (v[0::2] | (v[1::2] << 4)).astype(np.uint8)
+
+
+def _unnibble(b: np.ndarray, count: int, what: str) -> np.ndarray:
+    """Inverse of :func:`_nibbles`: ``count`` values, int64."""
+    b = np.asarray(b, dtype=np.uint8)
+    v = np.empty(2 * b.size, dtype=np.int64)
+    v[0::2], v[1::2] = b & 15, b >> 4
+    if v.size not in (count, count + 1):
+        raise ValueError(f"e-map arrays: {v.size} {what} for {count} segments")
+    return v[:count]
+
+
+def _segment_cumsum(x: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Running sums of ``x`` restarted at each segment ``offsets[k]:offsets[k+1]``."""
+    cs = np.cumsum(x)
+    size = np.diff(offsets)
+    st = offsets[:-1][size > 0]
+    return cs - np.repeat(cs[st] - x[st], size[size > 0])
+
+
 def pack_codes(codes: np.ndarray, offsets: np.ndarray) -> dict[str, np.ndarray]:
-    """16-bit codes as stored (format 5): each segment ``offsets[k]:offsets[k+1]`` (an edge,
-    a patch, a lattice) in the fewest bits ``w`` (1..16) that hold its largest code plus
-    one, :data:`NAN_CODE` written as ``2**w - 1``; one bit stream (``bits``, MSB first) and
-    ``w - 1`` per segment, two to a byte (``w4``). :func:`unpack_codes` restores them."""
+    """16-bit codes as stored (format 5), segment by segment (``offsets[k]:offsets[k+1]``: an
+    edge, a patch, a lattice), in one bit stream (``bits``, MSB first).
+
+    A segment is stored plainly, each code in the fewest bits ``w`` (1..16) that hold its
+    largest code plus one (:data:`NAN_CODE` written as ``2**w - 1``), or, where that takes
+    fewer bits and it has no :data:`NAN_CODE`, as its first two codes (``w`` bits each) and
+    the second differences of the rest (zigzag, ``rw`` bits each: a smooth run of heights
+    differs little from the line through the two before). ``w4`` holds ``w - 1`` per
+    segment and ``r4`` ``rw - 1`` per differenced segment (two to a byte), ``mode`` a bit
+    per segment. :func:`unpack_codes` restores the codes exactly."""
     codes = np.asarray(codes, dtype=np.uint16)
     offsets = np.asarray(offsets, dtype=np.int64)
     S = offsets.shape[0] - 1
     size = np.diff(offsets)
-    v = np.where(codes == NAN_CODE, 0, codes.astype(np.int64))
+    P = codes.shape[0]
+    nan = codes == NAN_CODE
+    c = codes.astype(np.int64)
+    v = np.where(nan, 0, c)
     top = np.zeros(S, dtype=np.int64)
     ne = np.flatnonzero(size > 0)
     if ne.size:
         top[ne] = np.maximum.reduceat(v, offsets[:-1][ne])
     w = np.clip(np.ceil(np.log2(top + 2.0)).astype(np.int64), 1, 16)
-    wc = np.repeat(w, size)
-    v = np.where(codes == NAN_CODE, (1 << wc) - 1, v)
+    seg = np.repeat(np.arange(S), size)
+    pos = np.arange(P, dtype=np.int64) - np.repeat(offsets[:-1], size)
+    # second differences from the third code of a segment on, zigzagged
+    r = np.zeros(P, dtype=np.int64)
+    if P > 2:
+        r[2:] = c[2:] - 2 * c[1:-1] + c[:-2]
+    r = np.where(pos >= 2, r, 0)
+    zr = np.where(r >= 0, 2 * r, -2 * r - 1)
+    rtop = np.zeros(S, dtype=np.int64)
+    if ne.size:
+        rtop[ne] = np.maximum.reduceat(zr, offsets[:-1][ne])
+    has_nan = np.zeros(S, dtype=bool)
+    if ne.size:
+        has_nan[ne] = np.logical_or.reduceat(nan, offsets[:-1][ne])
+    rw = np.clip(np.ceil(np.log2(rtop + 1.0)).astype(np.int64), 1, 17)
+    mode = (~has_nan & (size >= 3) & (rw <= 16)
+            & (np.minimum(size, 2) * w + (size - 2) * rw + 4 < size * w))
+    dcode = mode[seg] & (pos >= 2)
+    wc = np.where(dcode, rw[seg], w[seg])
+    val = np.where(dcode, zr, np.where(nan, (1 << wc) - 1, v))
     start = np.concatenate([[0], np.cumsum(wc)])
     b = np.arange(int(start[-1]), dtype=np.int64) - np.repeat(start[:-1], wc)
-    bits = (np.repeat(v, wc) >> (np.repeat(wc, wc) - 1 - b)) & 1
-    w4 = (w - 1).astype(np.uint8)
-    if w4.size % 2:
-        w4 = np.concatenate([w4, np.zeros(1, np.uint8)])
-    return {"bits": np.packbits(bits.astype(np.uint8)), "w4": (w4[0::2] | (w4[1::2] << 4)).astype(np.uint8)}
+    bits = (np.repeat(val, wc) >> (np.repeat(wc, wc) - 1 - b)) & 1
+    return {"bits": np.packbits(bits.astype(np.uint8)), "w4": _nibbles(w - 1), "mode": np.packbits(mode),
+            "r4": _nibbles(rw[mode] - 1)}
 
 
-def unpack_codes(bits: np.ndarray, w4: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`pack_codes` given the segments' ``offsets``: uint16 codes."""
+def unpack_codes(bits: np.ndarray, w4: np.ndarray, offsets: np.ndarray, mode: np.ndarray | None = None,
+                 r4: np.ndarray | None = None) -> np.ndarray:
+    """Inverse of :func:`pack_codes` given the segments' ``offsets``: uint16 codes (``mode``
+    None: every segment plain)."""
     offsets = np.asarray(offsets, dtype=np.int64)
     S = offsets.shape[0] - 1
-    w4 = np.asarray(w4, dtype=np.uint8)
-    w = np.empty(2 * w4.size, dtype=np.int64)
-    w[0::2], w[1::2] = w4 & 15, w4 >> 4
-    if w.size not in (S, S + 1):
-        raise ValueError(f"e-map arrays: {w.size} code widths for {S} segments")
-    w = w[:S] + 1
     size = np.diff(offsets)
-    wc = np.repeat(w, size)
+    P = int(offsets[-1])
+    w = _unnibble(w4, S, "code widths") + 1
+    md = (np.zeros(S, dtype=bool) if mode is None
+          else np.unpackbits(np.asarray(mode, dtype=np.uint8), count=S).astype(bool))
+    rw = np.zeros(S, dtype=np.int64)
+    rw[md] = _unnibble(r4 if r4 is not None else np.zeros(0, np.uint8), int(md.sum()), "difference widths") + 1
+    seg = np.repeat(np.arange(S), size)
+    pos = np.arange(P, dtype=np.int64) - np.repeat(offsets[:-1], size)
+    dcode = md[seg] & (pos >= 2)
+    wc = np.where(dcode, rw[seg], w[seg])
     start = np.concatenate([[0], np.cumsum(wc)])
     total = int(start[-1])
     bits = np.asarray(bits, dtype=np.uint8)
     if bits.size != (total + 7) // 8:
         raise ValueError(f"e-map arrays: {bits.size} bytes of codes, {(total + 7) // 8} expected")
-    if total == 0:
-        return np.zeros(int(offsets[-1]), dtype=np.uint16)
+    if P == 0:
+        return np.zeros(0, dtype=np.uint16)
     bb = np.unpackbits(bits, count=total).astype(np.int64)
     b = np.arange(total, dtype=np.int64) - np.repeat(start[:-1], wc)
     v = np.add.reduceat(bb << (np.repeat(wc, wc) - 1 - b), start[:-1])  # every code has >= 1 bit
-    out = np.where(v == (1 << wc) - 1, NAN_CODE, v).astype(np.uint16)
-    return out
+    out = np.where(v == (1 << wc) - 1, NAN_CODE, v)
+    if md.any():
+        # differenced segments: c[q] = 2 c[q-1] - c[q-2] + r[q], as running sums
+        r = np.where(dcode, (v >> 1) ^ -(v & 1), 0)
+        ne = np.flatnonzero(size > 0)
+        c0s, c1s = np.zeros(S, dtype=np.int64), np.zeros(S, dtype=np.int64)
+        c0s[ne] = np.add.reduceat(np.where(pos == 0, v, 0), offsets[:-1][ne])
+        c1s[ne] = np.add.reduceat(np.where(pos == 1, v, 0), offsets[:-1][ne])
+        c0 = c0s[seg]
+        d = c1s[seg] - c0  # c1 - c0
+        dd = d + _segment_cumsum(r, offsets)  # c[q] - c[q-1] for q >= 2 (and q = 1)
+        c = c0 + _segment_cumsum(np.where(pos >= 1, dd, 0), offsets)
+        out = np.where(md[seg], c, out)
+    if np.any((out < 0) | (out > NAN_CODE)):
+        raise ValueError("e-map arrays: decoded codes out of range")
+    return out.astype(np.uint16)
 
 
 def half_step(step: np.ndarray) -> np.ndarray:
@@ -905,8 +975,8 @@ class EZMap:
             win = cls._windows_from(arrays, edge_ids, counts, full)
         else:
             edge_ids, offsets, win = arrays["edge_ids"], arrays["offsets"], None
-        codes = (unpack_codes(arrays["codes_bits"], arrays["codes_w4"], offsets) if "codes_bits" in arrays
-                 else arrays["codes"])
+        codes = (unpack_codes(arrays["codes_bits"], arrays["codes_w4"], offsets, arrays.get("codes_mode"),
+                              arrays.get("codes_r4")) if "codes_bits" in arrays else arrays["codes"])
         return cls(g[0], g[1], g[2], g[3], int(s[0]), int(s[1]), g[4], g[5], edge_ids, offsets,
                    codes, arrays["lo"], arrays["step"], failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0,
                    patches=patches, unresolved=int(s[4]) if s.size > 4 else 0, pruned=int(s[5]) if s.size > 5 else 0,
@@ -1171,7 +1241,7 @@ class CellPatches:
         if "codes_bits" in a:
             nn, ncs = np.diff(node_off), np.diff(code_off)
             seg = off(nn + ncs)
-            allc = unpack_codes(a["codes_bits"], a["codes_w4"], seg)
+            allc = unpack_codes(a["codes_bits"], a["codes_w4"], seg, a.get("codes_mode"), a.get("codes_r4"))
             nc = allc[np.repeat(seg[:-1] - node_off[:-1], nn) + np.arange(int(node_off[-1]))]
             codes = allc[np.repeat(seg[:-1] + nn - code_off[:-1], ncs) + np.arange(int(code_off[-1]))]
         else:
@@ -1353,7 +1423,7 @@ class SubLattices:
         if "codes_bits" in a:
             mn = np.asarray(a["mn"], dtype=np.int64).ravel()
             seg = np.arange(np.asarray(a["keys"]).size + 1, dtype=np.int64) * (int(mn[1]) + 1) ** 2
-            codes = unpack_codes(a["codes_bits"], a["codes_w4"], seg)
+            codes = unpack_codes(a["codes_bits"], a["codes_w4"], seg, a.get("codes_mode"), a.get("codes_r4"))
         else:
             codes = a["codes"]
         return cls(a["mn"], a["keys"], codes, a["lo"], a["step"])

@@ -113,14 +113,15 @@ def test_layout_matches_table_2_spacing_and_contract_ids():
     assert ez.codes.dtype == np.uint16 and ez.edge_ids.dtype == np.int64 and ez.heights.dtype == np.float64
     assert np.all(np.diff(ez.edge_ids) > 0)
     assert ez.edge_ratio == pytest.approx(ez.n_edges / edge_count(base.nx, base.ny))
-    # stored: header, one bit per grid edge, a byte count, a float32 offset, a float16 quantum
-    # and a 4-bit code width per e-edge; each edge's codes in the bits its largest code needs
-    # (15 here: the 3 mm wall at the finest quantum tol/128 = 1.6e-4 mm)
+    # stored: header, one bit per grid edge, a byte count, a float32 offset, a float16 quantum,
+    # a 4-bit code width and a mode bit per e-edge; each edge's codes in the bits its largest
+    # code needs (15 here: the 3 mm wall at the finest quantum tol/128 = 1.6e-4 mm), none
+    # differenced (a wall's jump)
     bits = sum(n * (int(ez.codes[o:o + n].max()) + 1).bit_length()
                for o, n in zip(ez.offsets[:-1].tolist(), np.diff(ez.offsets).tolist()))
     assert bits <= 15 * ez.n_points
     assert ez.nbytes == (104 + math.ceil(edge_count(base.nx, base.ny) / 8) + 7 * ez.n_edges
-                         + math.ceil(ez.n_edges / 2) + math.ceil(bits / 8))
+                         + math.ceil(ez.n_edges / 2) + math.ceil(ez.n_edges / 8) + math.ceil(bits / 8))
     px, py = ez.points()
     qx, qy = ref.edge_points(ez)
     assert np.array_equal(px, qx) and np.array_equal(py, qy)

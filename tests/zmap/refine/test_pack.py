@@ -31,10 +31,31 @@ def test_packed_codes_round_trip(segments):
     codes = np.array([c for s in segments for c in s], dtype=np.uint16)
     off = np.concatenate([[0], np.cumsum([len(s) for s in segments])]).astype(np.int64)
     a = pack_codes(codes, off)
-    assert np.array_equal(unpack_codes(a["bits"], a["w4"], off), codes)
-    # each segment takes the bits of its largest code + 1 (the no-height code is all ones)
-    bits = sum(len(s) * max(1, (max([c for c in s if c != NAN_CODE], default=0) + 1).bit_length()) for s in segments)
-    assert a["bits"].size == (bits + 7) // 8 and a["w4"].size == (len(segments) + 1) // 2
+    assert np.array_equal(unpack_codes(a["bits"], a["w4"], off, a["mode"], a["r4"]), codes)
+    # a segment takes the bits of its largest code + 1 (the no-height code is all ones), or
+    # fewer with its second differences (4 bits for their width)
+    plain = [len(s) * max(1, (max([c for c in s if c != NAN_CODE], default=0) + 1).bit_length()) for s in segments]
+    mode = np.unpackbits(a["mode"], count=len(segments)).astype(bool)
+    assert a["bits"].size <= (sum(plain) + 7) // 8 and a["w4"].size == (len(segments) + 1) // 2
+    assert a["r4"].size == (int(mode.sum()) + 1) // 2
+    assert all(len(s) >= 3 and NAN_CODE not in s for s, md in zip(segments, mode) if md)
+
+
+def test_smooth_segments_are_stored_as_second_differences():
+    q = np.arange(12)
+    smooth = np.rint(40000 + 900 * q - 3.0 * q ** 2).astype(np.uint16)  # 16 bits plain
+    wall = np.where(q < 6, 100, 60000).astype(np.uint16)
+    off = np.array([0, 12, 24, 24], dtype=np.int64)  # and an empty segment
+    codes = np.concatenate([smooth, wall])
+    a = pack_codes(codes, off)
+    mode = np.unpackbits(a["mode"], count=3).astype(bool)
+    assert mode.tolist() == [True, False, False]
+    # the smooth run: two codes of 16 bits, ten second differences of -6 (zigzag 11: 4 bits)
+    assert a["bits"].size == (2 * 16 + 10 * 4 + 12 * 16 + 7) // 8
+    assert np.array_equal(unpack_codes(a["bits"], a["w4"], off, a["mode"], a["r4"]), codes)
+    # without the mode bits (the first format-5 files) every segment is plain
+    p = pack_codes(codes[12:], np.array([0, 12], dtype=np.int64))
+    assert np.array_equal(unpack_codes(p["bits"], p["w4"], np.array([0, 12], dtype=np.int64)), codes[12:])
 
 
 def test_quantum_floor_bounds_the_error_and_the_codes():

@@ -102,17 +102,23 @@ def test_stored_bytes_are_bits_counts_codes_and_scales():
     from zmap.refine.ez import edge_count
 
     E = edge_count(base.nx, base.ny)
-    # each e-edge's codes in the bits their largest code (+1: the no-height code) needs
-    bits = sum(n * max(1, (int(ez.codes[o:o + n].max()) + 1).bit_length()) if n else 0
-               for o, n in zip(ez.offsets[:-1].tolist(), np.diff(ez.offsets).tolist()))
+    # each e-edge's codes in the bits their largest code (+1: the no-height code) needs, or
+    # fewer (second differences along a smooth edge): the bit stream, a 4-bit width and a
+    # mode bit per e-edge, a 4-bit difference width per differenced edge
+    plain = sum(n * max(1, (int(ez.codes[o:o + n].max()) + 1).bit_length()) if n else 0
+                for o, n in zip(ez.offsets[:-1].tolist(), np.diff(ez.offsets).tolist()))
+    a = ez.to_arrays()
+    nd = int(np.unpackbits(a["codes_mode"], count=ez.n_edges).sum())
+    assert a["codes_bits"].size <= math.ceil(plain / 8)
+    codes = a["codes_bits"].size + math.ceil(ez.n_edges / 2) + math.ceil(ez.n_edges / 8) + math.ceil(nd / 2)
     # header (version, grid, shape: 104 bytes), a bit per grid edge, a byte count, a float32
-    # offset, a float16 quantum and a 4-bit code width per e-edge, the codes' bit stream; a
-    # bit per e-edge, two bytes and a bit (its break a kink) per windowed wall edge; no patches
-    assert ez.n_windows >= 8 and ez.to_arrays()["step"].dtype == np.float16
-    assert ez.nbytes == (104 + math.ceil(E / 8) + 7 * ez.n_edges + math.ceil(ez.n_edges / 2) + math.ceil(bits / 8)
+    # offset and a float16 quantum per e-edge, the codes; a bit per e-edge, two bytes and a
+    # bit (its break a kink) per windowed wall edge; no patches
+    assert ez.n_windows >= 8 and a["step"].dtype == np.float16
+    assert ez.nbytes == (104 + math.ceil(E / 8) + 7 * ez.n_edges + codes
                          + math.ceil(ez.n_edges / 8) + 2 * ez.n_windows + math.ceil(ez.n_windows / 8))
     # fewer than 16 bits a code: smooth edges' ranges at the finest quantum
-    assert bits < 16 * ez.n_points
+    assert plain < 16 * ez.n_points
     assert ez.index_nbytes == 8 * (2 * ez.n_edges + 1)
 
 
