@@ -1063,6 +1063,54 @@ def all_edges(sub: ZMap, interval: float) -> tuple[np.ndarray, np.ndarray]:
     return ids, offsets
 
 
+def _patch_chords(level: np.ndarray, node_off: np.ndarray, edge_off: np.ndarray, code_off: np.ndarray,
+                  counts: np.ndarray, node_codes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per code of the EZ patches' sub-edges: its place in the codes, the sub-edge it lies
+    on (global index) and the code the chord between the sub-edge's two end nodes gives at
+    it (integer arithmetic on the node codes: what :meth:`CellPatches.to_arrays` stores the
+    codes' differences from)."""
+    m = np.asarray(level, dtype=np.int64)
+    K = m.size
+    counts = np.asarray(counts, dtype=np.int64)
+    kk = np.repeat(np.arange(K), np.diff(edge_off))
+    me = np.maximum(m[kk], 1)
+    le = np.arange(kk.size, dtype=np.int64) - edge_off[kk]
+    nxe = me * (me + 1)
+    isx = le < nxe
+    i = np.where(isx, le // (me + 1), (le - nxe) // me)
+    j = np.where(isx, le % (me + 1), (le - nxe) % me)
+    ia = node_off[kk] + i * (me + 1) + j
+    ib = np.where(isx, ia + me + 1, ia + 1)
+    ez = m[kk] > 0
+    cnt = np.where(ez, counts, 0)
+    first = code_off[kk] + _segment_cumsum(cnt, edge_off) - cnt  # each sub-edge's first code
+    g = np.repeat(np.arange(kk.size), cnt)
+    q = np.arange(g.size, dtype=np.int64) - np.repeat(np.cumsum(cnt) - cnt, cnt) + 1
+    nc = np.asarray(node_codes, dtype=np.int64)
+    A = nc[ia[g]] if g.size else np.zeros(0, np.int64)
+    B = nc[ib[g]] if g.size else np.zeros(0, np.int64)
+    c1 = cnt[g] + 1
+    pred = A + (2 * (B - A) * q + c1) // (2 * c1)
+    return np.repeat(first, cnt) + q - 1, g, pred
+
+
+def _patch_segments(seg: np.ndarray, nn: np.ndarray, edge_off: np.ndarray, counts: np.ndarray,
+                    raw: np.ndarray) -> np.ndarray:
+    """Offsets of the bit stream's segments of the cell patches: a plain patch (``raw``) is
+    one (its nodes then its codes), any other its nodes, then each sub-edge that holds codes."""
+    total = int(seg[-1])
+    start = np.zeros(total + 1, dtype=bool)
+    start[seg[:-1]] = True
+    K = nn.size
+    counts = np.asarray(counts, dtype=np.int64)
+    kk = np.repeat(np.arange(K), np.diff(edge_off))
+    split = ~np.asarray(raw, dtype=bool)[kk] & (counts > 0)
+    first = seg[:-1][kk] + nn[kk] + _segment_cumsum(counts, edge_off) - counts
+    start[first[split]] = True
+    start[total] = True
+    return np.flatnonzero(start).astype(np.int64)
+
+
 @dataclass(eq=False)
 class CellPatches:
     """Finer EZ-maps over single base cells (levels, lattices and storage: see :mod:`zmap.refine.patch`).
@@ -1196,15 +1244,37 @@ class CellPatches:
         node_codes = np.clip(np.nan_to_num(q, nan=0.0), 0, NAN_CODE - 1).astype(np.uint16)
         node_codes[np.isnan(self.nodes)] = NAN_CODE
         subs = {f"sub_{k}": v for k, v in self.subs.to_arrays().items()} if self.subs is not None else {}
-        # a patch's node codes and its codes, on its one scale, as one segment of the bit stream
+        # a patch's node codes and its codes, on its one scale, in the bit stream; an EZ patch
+        # with heights everywhere stores each sub-edge's codes as their (zigzag) differences
+        # from the chord between its end nodes, a segment each (see _patch_segments)
         nn, nc = np.diff(self.node_off), np.diff(self.code_off)
         seg = np.concatenate([[0], np.cumsum(nn + nc)]).astype(np.int64)
-        allc = np.empty(int(seg[-1]), dtype=np.uint16)
-        allc[np.repeat(seg[:-1] - self.node_off[:-1], nn) + np.arange(node_codes.size)] = node_codes
-        allc[np.repeat(seg[:-1] + nn - self.code_off[:-1], nc) + np.arange(self.codes.size)] = self.codes
-        packed = {f"codes_{k}": v for k, v in pack_codes(allc, seg).items()}
-        return {"cells": self.cells, "level": self.level, "lo": lo,
-                "step": _stored_step(step)} | packed | _pack_counts(self.counts) | subs
+        allc = np.empty(int(seg[-1]), dtype=np.int64)
+        at_node = np.repeat(seg[:-1] - self.node_off[:-1], nn) + np.arange(node_codes.size)
+        at_code = np.repeat(seg[:-1] + nn - self.code_off[:-1], nc) + np.arange(self.codes.size)
+        allc[at_node] = node_codes
+        allc[at_code] = self.codes
+        K = self.n_patches
+        raw = self.level <= 0
+        if K:
+            nan_p = np.zeros(K, dtype=bool)
+            ne = np.flatnonzero(nn + nc > 0)
+            nan_p[ne] = np.logical_or.reduceat(allc == NAN_CODE, seg[:-1][ne])
+            raw |= nan_p
+            where, g, pred = _patch_chords(self.level, self.node_off, self.edge_off, self.code_off, self.counts,
+                                           node_codes)
+            # the difference modulo 2**16, as a signed 16-bit value, zigzagged (a wall's sub-edge:
+            # up to 16 bits, as plain)
+            r = (self.codes[where].astype(np.int64) - pred + 32768) % 65536 - 32768
+            zz = np.where(r >= 0, 2 * r, -2 * r - 1)
+            kk = np.repeat(np.arange(K), np.diff(self.edge_off))[g]
+            use = ~raw[kk]
+            allc[at_code[where[use]]] = zz[use]
+        packed = {f"codes_{k}": v for k, v in pack_codes(allc.astype(np.uint16),
+                                                         _patch_segments(seg, nn, self.edge_off, self.counts,
+                                                                         raw)).items()}
+        return {"cells": self.cells, "level": self.level, "lo": lo, "step": _stored_step(step),
+                "codes_raw": np.packbits(raw)} | packed | _pack_counts(self.counts) | subs
 
     @classmethod
     def from_arrays(cls, a: dict[str, np.ndarray], grid: tuple[float, float, float] | None = None) -> CellPatches:
@@ -1241,9 +1311,22 @@ class CellPatches:
         if "codes_bits" in a:
             nn, ncs = np.diff(node_off), np.diff(code_off)
             seg = off(nn + ncs)
-            allc = unpack_codes(a["codes_bits"], a["codes_w4"], seg, a.get("codes_mode"), a.get("codes_r4"))
+            raw = (np.unpackbits(np.asarray(a["codes_raw"], dtype=np.uint8), count=K).astype(bool)
+                   if "codes_raw" in a else np.ones(K, dtype=bool))
+            allc = unpack_codes(a["codes_bits"], a["codes_w4"], _patch_segments(seg, nn, edge_off, counts, raw),
+                                a.get("codes_mode"), a.get("codes_r4"))
             nc = allc[np.repeat(seg[:-1] - node_off[:-1], nn) + np.arange(int(node_off[-1]))]
-            codes = allc[np.repeat(seg[:-1] + nn - code_off[:-1], ncs) + np.arange(int(code_off[-1]))]
+            codes = allc[np.repeat(seg[:-1] + nn - code_off[:-1], ncs) + np.arange(int(code_off[-1]))].astype(np.int64)
+            if not raw.all():
+                where, g, pred = _patch_chords(m, node_off, edge_off, code_off, counts, nc)
+                kk = np.repeat(np.arange(K), np.diff(edge_off))[g]
+                use = ~raw[kk]
+                zz = codes[where[use]]
+                codes[where[use]] = (pred[use] + ((zz >> 1) ^ -(zz & 1))) % 65536
+                d = codes[where[use]]
+                if np.any((d < 0) | (d >= NAN_CODE)):
+                    raise ValueError("cell patches: a sub-edge's decoded codes are out of range")
+            codes = codes.astype(np.uint16)
         else:
             nc, codes = np.asarray(a["node_codes"], dtype=np.uint16), a["codes"]
         if lo_p.shape != (K,) or st_p.shape != (K,) or nc.size != node_off[-1]:

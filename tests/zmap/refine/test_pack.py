@@ -105,3 +105,43 @@ def test_windowed_edges_force_the_full_sequences_break(tmp_path):
     x, y = np.random.default_rng(1).uniform(0, 4, (2, 20000))
     wall = np.abs(f.d(x, y)) < TOL
     assert np.abs(old.height(base, x, y) - f(x, y))[~wall].max() <= 2 * TOL
+
+
+def test_patch_sub_edges_are_stored_as_differences_from_their_chords():
+    from zmap.refine._emap import CellPatches
+
+    from .test_patch import Rib
+
+    rib = Rib()
+    base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
+    p = build_ez(base, rib, tol=TOL).patches
+    assert p is not None and (p.level > 0).sum() >= 2
+    a = p.to_arrays()
+    raw = np.unpackbits(a["codes_raw"], count=p.n_patches).astype(bool)
+    assert not raw[p.level > 0].all()
+    back = CellPatches.from_arrays(a)
+    assert np.array_equal(back.codes, p.codes) and np.array_equal(back.nodes, p.nodes, equal_nan=True)
+    # the first format-5 layout (every patch one plain segment, no raw bits) still loads,
+    # and takes more bits
+    nn, nc = np.diff(p.node_off), np.diff(p.code_off)
+    seg = np.concatenate([[0], np.cumsum(nn + nc)]).astype(np.int64)
+    allc = np.concatenate([np.concatenate([a_, b_]) for a_, b_ in zip(
+        np.split(_node_codes(p), p.node_off[1:-1]), np.split(p.codes, p.code_off[1:-1]))]).astype(np.uint16)
+    old = {k: v for k, v in a.items() if not k.startswith("codes_")} | {
+        f"codes_{k}": v for k, v in pack_codes(allc, seg).items()}
+    assert np.array_equal(CellPatches.from_arrays(old).codes, p.codes)
+    assert a["codes_bits"].size < old["codes_bits"].size
+    # a patch with a missing height stays plain (one segment), and still round-trips
+    codes = p.codes.copy()
+    k = int(np.flatnonzero(p.level > 0)[0])
+    codes[p.code_off[k]] = NAN_CODE
+    q = CellPatches(p.cells, p.level, p.node_off, p.nodes, p.code_off, codes, p.edge_off, p.lo, p.step, p.counts)
+    b = q.to_arrays()
+    assert np.unpackbits(b["codes_raw"], count=q.n_patches)[k] == 1
+    assert np.array_equal(CellPatches.from_arrays(b).codes, codes)
+
+
+def _node_codes(p):
+    k = np.repeat(np.arange(p.n_patches), np.diff(p.node_off))
+    lo, st = p.lo[p.edge_off[:-1]][k].astype(np.float64), p.step[p.edge_off[:-1]][k].astype(np.float64)
+    return np.where(np.isnan(p.nodes), NAN_CODE, np.rint((np.nan_to_num(p.nodes) - lo) / st)).astype(np.uint16)
