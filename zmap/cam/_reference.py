@@ -67,8 +67,8 @@ def _g(heights, cutter, qx, qy, ux, uy):
 
 
 def drop_cutter_reference_dense(heights, cutter, x, y, *, h: float = 0.005, rim_h: float | None = None,
-                                sub: int = 5, xtol: float = 1e-8, max_cand: int = 400, keep: int = 60, max_iter: int = 200,
-                                chunk: int = 400_000) -> np.ndarray:
+                                sub: int = 5, xtol: float = 1e-8, max_cand: int = 400, keep: int = 60,
+                                max_iter: int = 200, n_seg: int = 24, chunk: int = 400_000) -> np.ndarray:
     """CL heights by a dense lattice and refinement around every candidate (slow; benches).
 
     Shares nothing with the fast path but ``heights``: per axis, ``g(u) = heights(u) -
@@ -79,12 +79,13 @@ def drop_cutter_reference_dense(heights, cutter, x, y, *, h: float = 0.005, rim_
     only the best one (up to ``max_cand``, highest ``g`` first). Around each candidate a
     ``(2*sub + 1)^2`` lattice of spacing ``s / sub`` (``s`` the spacing so far; points off the
     disk projected onto the rim, so the rim is followed too), and again with the new
-    candidates (the ``keep`` highest, and each window's best point, with the same bound:
-    every candidate's lineage lives on); while the best still rises, the windows keep their
-    size and walk on (a contact sliding along a crease), then the spacing shrinks, down to
-    ``xtol`` (at most ``max_iter`` rounds). Each round, every window's best point is also
-    searched along the segments to its 8 neighbours (golden section: a crease or a jump that
-    the lattice straddles is met on it); without that a lattice walk stalls on a curved
+    candidates (the ``keep`` highest, and the best points of the ``keep`` best windows, with
+    the same bound: the leading candidates' lineages live on); while the best still rises,
+    the windows keep their size and walk on (a contact sliding along a crease), then the
+    spacing shrinks, down to ``xtol`` (at most ``max_iter`` rounds). Each round, the best
+    point of each of the ``n_seg`` best windows is also searched along the segments to its
+    8 neighbours (golden section: a crease or a jump that the lattice straddles is met on
+    it); without that a lattice walk stalls on a curved
     crease 1e-5 to 1e-4 mm short of its top (tests/zmap/cam/test_reference.py).
     Every value is an exact contact of a surface point under the cutter: a lower bound of
     the true CL, tight up to the features narrower than the lattice that no candidate's
@@ -101,6 +102,7 @@ def drop_cutter_reference_dense(heights, cutter, x, y, *, h: float = 0.005, rim_
     xtol : float — the last level's spacing, mm.
     max_cand, keep : int — candidates refined at the first level and at each later one.
     max_iter : int — rounds of windows at most.
+    n_seg : int — windows whose best point is searched along the segments, per round.
     chunk : int — heights per call.
 
     Returns
@@ -173,14 +175,17 @@ def drop_cutter_reference_dense(heights, cutter, x, y, *, h: float = 0.005, rim_
             # each window's best point, searched along the segments to its 8 neighbours
             # (golden section: onto the crease or the jump between them, which a lattice
             # only straddles)
+            # (the ``n_seg`` windows with the highest best points)
             wb = np.argmax(g, axis=1)
             rr_ = np.arange(g.shape[0])
-            bx_, by_, bg_ = px[rr_, wb], py[rr_, wb], g[rr_, wb]
-            lx_, ly_, lg_ = _segments(heights, cutter, qx, qy, bx_, by_, step, R)
+            rr_ = rr_[np.argsort(-g[rr_, wb], kind="stable")[:n_seg]]
+            wb_ = wb[rr_]
+            bx_, by_, bg_ = px[rr_, wb_], py[rr_, wb_], g[rr_, wb_]
+            lx_, ly_, lg_ = _segments(heights, cutter, qx, qy, bx_, by_, step[rr_], R)
             better = lg_ > bg_
-            px[rr_[better], wb[better]] = lx_[better]
-            py[rr_[better], wb[better]] = ly_[better]
-            g[rr_[better], wb[better]] = lg_[better]
+            px[rr_[better], wb_[better]] = lx_[better]
+            py[rr_[better], wb_[better]] = ly_[better]
+            g[rr_[better], wb_[better]] = lg_[better]
             gbest = float(np.max(g))
             moved = gbest > best + 1e-13
             best = max(best, gbest)
@@ -205,7 +210,13 @@ def drop_cutter_reference_dense(heights, cutter, x, y, *, h: float = 0.005, rim_
             wb = np.argmax(g, axis=1)
             wsel = np.arange(g.shape[0]) * g.shape[1] + wb
             wsel = wsel[ub.ravel()[wsel] >= best]
+            wsel = wsel[np.argsort(-g.ravel()[wsel], kind="stable")[:keep]]
             sel = np.unique(np.concatenate([sel, wsel]))
+            # windows that overlap (points closer than half a step) are one
+            key = np.stack([np.round(px.ravel()[sel] / (0.5 * np.repeat(step, g.shape[1])[sel])),
+                            np.round(py.ravel()[sel] / (0.5 * np.repeat(step, g.shape[1])[sel]))], axis=1)
+            _u, first = np.unique(key, axis=0, return_index=True)
+            sel = sel[np.sort(first)]
             cx, cy = px.ravel()[sel], py.ravel()[sel]
             # while the best still moves (along a crease), windows of the same size walk on;
             # then the next level, finer
