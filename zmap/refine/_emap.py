@@ -1015,19 +1015,24 @@ def full_counts(level, dx: float, dy: float, interval: float) -> np.ndarray:
 
 
 def _pack_counts(counts: np.ndarray) -> dict[str, np.ndarray]:
-    """Sub-edge counts as stored: two to a byte (``counts4``) when all are below 16, else
-    one byte (or two) each (``counts``)."""
+    """Sub-edge counts as stored: when all are below 16, a bit per sub-edge (it keeps
+    points: most keep none) and the non-zero counts two to a byte (``counts_nz``,
+    ``counts4nz``); else one byte (or two) each (``counts``). Format 5's first commits
+    stored every count two to a byte (``counts4``)."""
     c = np.asarray(counts)
     if c.size and int(c.max()) < 16:
         c = c.astype(np.uint8)
-        if c.size % 2:
-            c = np.concatenate([c, np.zeros(1, np.uint8)])
-        return {"counts4": (c[0::2] | (c[1::2] << 4)).astype(np.uint8)}
+        return {"counts_nz": np.packbits(c > 0), "counts4nz": _nibbles(c[c > 0])}
     return {"counts": c.astype(np.uint8 if c.size == 0 or int(c.max()) < 256 else np.uint16)}
 
 
 def _unpack_counts(a: dict, size: int) -> np.ndarray:
     """Inverse of :func:`_pack_counts`: ``size`` counts, int64."""
+    if "counts_nz" in a:
+        nz = np.unpackbits(np.asarray(a["counts_nz"], dtype=np.uint8), count=size).astype(bool)
+        c = np.zeros(size, dtype=np.int64)
+        c[nz] = _unnibble(a["counts4nz"], int(nz.sum()), "sub-edge counts")
+        return c
     if "counts4" in a:
         b = np.asarray(a["counts4"], dtype=np.uint8)
         c = np.empty(2 * b.size, dtype=np.int64)
@@ -1280,7 +1285,7 @@ class CellPatches:
     def from_arrays(cls, a: dict[str, np.ndarray], grid: tuple[float, float, float] | None = None) -> CellPatches:
         """Inverse of :meth:`to_arrays`; also reads format 2's arrays (offsets, no counts: every
         sub-edge full), given ``grid = (dx, dy, interval)`` of the e-map."""
-        if "counts" not in a and "counts4" not in a:
+        if "counts" not in a and "counts4" not in a and "counts_nz" not in a:
             # format 2: float64 nodes and a scale per sub-edge, every sub-edge full; re-coded
             # on one scale per patch (heights move by at most half the patch's quantum)
             if grid is None:

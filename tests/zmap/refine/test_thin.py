@@ -211,9 +211,15 @@ def test_patch_sub_edges_may_keep_no_point_and_counts_pack_two_to_a_byte():
     p = ez.patches
     assert p is not None and (p.counts[:p.edge_off[-1]] == 0).any()  # linear between sub-grid nodes
     arr = p.to_arrays()
-    assert "counts4" in arr and arr["counts4"].size == (p.counts.size + 1) // 2
+    # a bit per sub-edge, the non-zero counts two to a byte
+    nz = int(np.count_nonzero(p.counts))
+    assert arr["counts_nz"].size == (p.counts.size + 7) // 8 and arr["counts4nz"].size == (nz + 1) // 2
     back = CellPatches.from_arrays(arr)
     assert np.array_equal(back.counts, p.counts)
+    # every count two to a byte (the first format-5 files) still loads
+    c = np.concatenate([p.counts, np.zeros(p.counts.size % 2, np.uint16)]).astype(np.uint8)
+    old = {k: v for k, v in arr.items() if not k.startswith("counts")} | {"counts4": c[0::2] | (c[1::2] << 4)}
+    assert np.array_equal(CellPatches.from_arrays(old).counts, p.counts)
     x, y = np.random.default_rng(5).uniform(0, 4, (2, 20000))
     from zmap.refine.patch import misfit
 
