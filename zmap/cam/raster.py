@@ -214,8 +214,10 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
     cols = np.array_split(np.arange(nv), max(1, min(nv, 10, int(np.ceil(X.size / 200_000)))))
     for q, cidx in enumerate(cols):
         sel = inside[:, cidx]
-        Xs, Ys = X[:, cidx][sel], Y[:, cidx][sel]
-        zc = drop_cutter(model, cut, Xs, Ys, pitch=pitch)
+        if sel.all():  # the block whole: a tensor grid where the passes run along x or y
+            zc = drop_cutter(model, cut, X[:, cidx], Y[:, cidx], pitch=pitch).ravel()
+        else:
+            zc = drop_cutter(model, cut, X[:, cidx][sel], Y[:, cidx][sel], pitch=pitch)
         block = Z[:, cidx]
         block[sel] = zc
         Z[:, cidx] = block
