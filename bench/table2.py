@@ -159,7 +159,8 @@ def _ez_bytes(ez) -> dict:
             "lo_step": kb("lo", "step"), "edge_bits_counts": kb("edge_bits", "counts"),
             "windows": kb("win_bits", "win_b", "win_nl", "win_kink", "win_forced"),
             "patch_codes": patch_codes, "patch_nodes": patch_nodes,
-            "patch_counts": kb("patch_counts", "patch_counts4", "patch_counts_nz", "patch_counts4nz"),
+            "patch_counts": kb("patch_counts", "patch_counts4", "patch_counts_nz", "patch_counts4nz",
+                                               "patch_counts8nz"),
             "patch_cells_levels_scales": kb("patch_cells", "patch_level", "patch_lo", "patch_step"),
             "sub_lattices": kb(*[k for k in a if k.startswith("patch_sub_")]),
             "n_edges": ez.n_edges, "n_windows": ez.n_windows, "n_patches": ez.n_patches}

@@ -1015,14 +1015,16 @@ def full_counts(level, dx: float, dy: float, interval: float) -> np.ndarray:
 
 
 def _pack_counts(counts: np.ndarray) -> dict[str, np.ndarray]:
-    """Sub-edge counts as stored: when all are below 16, a bit per sub-edge (it keeps
-    points: most keep none) and the non-zero counts two to a byte (``counts_nz``,
-    ``counts4nz``); else one byte (or two) each (``counts``). Format 5's first commits
+    """Sub-edge counts as stored: a bit per sub-edge (it keeps points: most keep none) and
+    the non-zero counts, two to a byte when all are below 16 (``counts_nz``, ``counts4nz``),
+    else a byte each (``counts8nz``); above 255 two bytes each (``counts``). Format 5's first commits
     stored every count two to a byte (``counts4``)."""
     c = np.asarray(counts)
     if c.size and int(c.max()) < 16:
         c = c.astype(np.uint8)
         return {"counts_nz": np.packbits(c > 0), "counts4nz": _nibbles(c[c > 0])}
+    if c.size and int(c.max()) < 256:  # finer sub-grids of a coarse base (grid 2: up to 24 points)
+        return {"counts_nz": np.packbits(c > 0), "counts8nz": c[c > 0].astype(np.uint8)}
     return {"counts": c.astype(np.uint8 if c.size == 0 or int(c.max()) < 256 else np.uint16)}
 
 
@@ -1031,7 +1033,13 @@ def _unpack_counts(a: dict, size: int) -> np.ndarray:
     if "counts_nz" in a:
         nz = np.unpackbits(np.asarray(a["counts_nz"], dtype=np.uint8), count=size).astype(bool)
         c = np.zeros(size, dtype=np.int64)
-        c[nz] = _unnibble(a["counts4nz"], int(nz.sum()), "sub-edge counts")
+        if "counts8nz" in a:
+            v = np.asarray(a["counts8nz"]).astype(np.int64)
+            if v.size != int(nz.sum()):
+                raise ValueError(f"cell patches: {v.size} sub-edge counts for {int(nz.sum())} sub-edges with points")
+            c[nz] = v
+        else:
+            c[nz] = _unnibble(a["counts4nz"], int(nz.sum()), "sub-edge counts")
         return c
     if "counts4" in a:
         b = np.asarray(a["counts4"], dtype=np.uint8)

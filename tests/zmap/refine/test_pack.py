@@ -145,3 +145,15 @@ def _node_codes(p):
     k = np.repeat(np.arange(p.n_patches), np.diff(p.node_off))
     lo, st = p.lo[p.edge_off[:-1]][k].astype(np.float64), p.step[p.edge_off[:-1]][k].astype(np.float64)
     return np.where(np.isnan(p.nodes), NAN_CODE, np.rint((np.nan_to_num(p.nodes) - lo) / st)).astype(np.uint16)
+
+
+def test_sub_edge_counts_above_15_are_a_byte_each_behind_a_bit():
+    from zmap.refine._emap import _pack_counts, _unpack_counts
+
+    c = np.array([0, 0, 17, 0, 3, 200, 0, 0, 0], dtype=np.uint16)
+    a = _pack_counts(c)
+    assert set(a) == {"counts_nz", "counts8nz"} and a["counts8nz"].tolist() == [17, 3, 200]
+    assert np.array_equal(_unpack_counts(a, c.size), c)
+    a = _pack_counts(np.minimum(c, 15))
+    assert set(a) == {"counts_nz", "counts4nz"} and np.array_equal(_unpack_counts(a, c.size), np.minimum(c, 15))
+    assert set(_pack_counts(np.array([300, 0]))) == {"counts"}
