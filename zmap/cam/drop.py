@@ -32,6 +32,7 @@ true CL); what can be missed is a feature narrower than ``pitch`` between the sa
 from __future__ import annotations
 
 import math
+import weakref
 from typing import Any, Callable
 
 import numpy as np
@@ -48,6 +49,27 @@ _MAX_SAMPLES = 200_000_000
 _REACH = 0.1
 # compass iterations per start in the numba refinement (creases are followed by the ridge walk)
 _MAX_ITER = 200
+
+
+_PACKS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _packed(model: Any) -> tuple:
+    """:func:`zmap.cam._model_eval.pack_model`, kept per PrecisionModel (packing an EZ model
+    gathers its tables and patches: seconds, paid once rather than per call; a model has no
+    mutating method, and the arrays' identities are checked)."""
+    from ..model import PrecisionModel
+    from . import _model_eval as ME
+
+    if not isinstance(model, PrecisionModel):
+        return ME.pack_model(model)
+    tok = (id(model.base), id(model.base.z), id(model.ez), id(getattr(model, "_cz_z", None)))
+    hit = _PACKS.get(model)
+    if hit is not None and hit[0] == tok:
+        return hit[1]
+    M = ME.pack_model(model)
+    _PACKS[model] = (tok, M)
+    return M
 
 
 def as_cutter(cutter: Any) -> Any:
@@ -265,7 +287,7 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
         from . import _model_eval as ME
 
         if ME.supported(model):
-            M = ME.pack_model(model)
+            M = _packed(model)
             if zm is None:  # a PrecisionModel: sample it through the same kernel
                 def hf(x, y, M=M):
                     xs = np.ascontiguousarray(np.ravel(np.asarray(x, dtype=np.float64)))
