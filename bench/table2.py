@@ -130,7 +130,9 @@ def _ez_bytes(ez) -> dict:
     the other e-edges, their scales, the edge bits and counts, the windows, and the cell
     patches' codes, nodes, counts and sub-lattices; with the counts of edges and windows.
     Format 5 stores each edge's (patch's, sub-lattice's) codes in the bits its range needs
-    (``*_codes_bits``, widths in ``*_codes_w4``): a share is split by those widths."""
+    or as second differences (``*_codes_bits``, widths in ``*_codes_w4`` and ``*_codes_r4``):
+    the edges' share is split by those widths; a patch's nodes and codes by its plain width
+    (its sub-edges are stored as differences from their chords: the split is approximate)."""
     import numpy as np
 
     a = ez.to_arrays()
@@ -144,16 +146,21 @@ def _ez_bytes(ez) -> dict:
     n = np.diff(ez.offsets)
     if "codes_bits" in a:
         bits = n * widths(a["codes_w4"], ez.n_edges)
+        if "codes_mode" in a:  # differenced edges: two plain codes, then the differences' widths
+            md = np.unpackbits(a["codes_mode"], count=ez.n_edges).astype(bool)
+            rw = widths(a["codes_r4"], int(md.sum()))
+            w = widths(a["codes_w4"], ez.n_edges)[md]
+            bits[md] = np.minimum(n[md], 2) * w + (n[md] - 2) * rw
         win = bits[ez.win >= 0].sum() / 8
-        other = bits[ez.win < 0].sum() / 8 + a["codes_w4"].nbytes
+        other = bits[ez.win < 0].sum() / 8 + sum(a[k].nbytes for k in ("codes_w4", "codes_mode", "codes_r4") if k in a)
     else:
         win, other = 2 * n[ez.win >= 0].sum(), 2 * n[ez.win < 0].sum()
     patch_codes, patch_nodes = kb("patch_codes"), kb("patch_node_codes")
     p = ez.patches
     if "patch_codes_bits" in a and p is not None and p.n_patches:
         w = widths(a["patch_codes_w4"], p.n_patches)
-        patch_nodes = round((np.diff(p.node_off) * w).sum() / 8 / 1024, 1)
-        patch_codes = round((np.diff(p.code_off) * w).sum() / 8 / 1024 + a["patch_codes_w4"].nbytes / 1024, 1)
+        patch_nodes = round(float((np.diff(p.node_off) * w).sum()) / 8 / 1024, 1)
+        patch_codes = round(float((np.diff(p.code_off) * w).sum()) / 8 / 1024 + a["patch_codes_w4"].nbytes / 1024, 1)
     return {"codes_windowed_edges": round(float(win) / 1024, 1),
             "codes_other_edges": round(float(other) / 1024, 1),
             "lo_step": kb("lo", "step"), "edge_bits_counts": kb("edge_bits", "counts"),
