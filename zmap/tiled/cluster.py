@@ -97,13 +97,18 @@ def dask_client(scheduler: str | None = None, *, workers: int = 2, threads_per_w
     workers = int(workers)
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
+    import copy
+
     import dask
 
     with warnings.catch_warnings(), dask.config.set(LOCAL_WORKER_CONFIG):
         warnings.simplefilter("ignore")  # "port 8787 is already in use" and friends
+        # a nanny keeps a shallow merge of the global config, which the end of this block
+        # would restore under it: a worker it restarts must get these settings too
+        worker_config = copy.deepcopy(dask.config.config)
         cluster = LocalCluster(n_workers=workers, threads_per_worker=int(threads_per_worker), processes=True,
                                dashboard_address=":0", silence_logs=logging.ERROR,
-                               memory_limit=memory_limit or "auto")
+                               memory_limit=memory_limit or "auto", config=worker_config)
     client = Client(cluster)
     try:
         yield client

@@ -124,8 +124,9 @@ def test_cli_simulate_tiles(tmp_path, capsys):
 
 def test_our_local_workers_run_without_the_profiler_and_the_malloc_trim_setting(dask_client):
     """Our LocalCluster's workers: no statistical profiler, glibc's own mmap threshold (the
-    fixed 128 KB one made every tile array a fresh mmap); this process's environment is left
-    as it was (Dask's nanny writes the spawn variables into it)."""
+    fixed 128 KB one made every tile array a fresh mmap), workers restarted after a death
+    included; this process's environment is left as it was (Dask's nanny writes the spawn
+    variables into it)."""
     got = dask_client.run(lambda: (os.environ.get("MALLOC_TRIM_THRESHOLD_"),
                                    __import__("dask").config.get("distributed.worker.profile.enabled")))
     assert len(got) == 2 and set(got.values()) == {(None, False)}, got
