@@ -254,6 +254,36 @@ def _stored_step(step: np.ndarray) -> np.ndarray:
     return h if np.array_equal(h.astype(np.float32), step) else step
 
 
+def _pack_steps(step: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-edge quanta as stored: most edges are coded at the finest quantum (their range is
+    below ``65534 * quantum``), so the most common value is stored once (``step_common``),
+    a bit per edge says which have it (``step_is_common``) and the others are stored
+    (``step``, :func:`_stored_step`); a map with no repeated quantum stores them all."""
+    step = np.asarray(step, dtype=np.float32)
+    if step.size < 16:
+        return {"step": _stored_step(step)}
+    vals, cnt = np.unique(step, return_counts=True)
+    common = vals[np.argmax(cnt)]
+    same = step == common
+    if same.sum() * 2 <= 2 + step.size / 8 + 2:  # not worth a bit per edge
+        return {"step": _stored_step(step)}
+    return {"step_common": np.array([common], dtype=np.float32), "step_is_common": np.packbits(same),
+            "step": _stored_step(step[~same])}
+
+
+def _unpack_steps(arrays: dict, E: int) -> np.ndarray:
+    """Inverse of :func:`_pack_steps` for ``E`` edges, float32."""
+    st = np.asarray(arrays["step"], dtype=np.float32)
+    if "step_common" not in arrays:
+        return st
+    same = np.unpackbits(np.asarray(arrays["step_is_common"], dtype=np.uint8), count=E).astype(bool)
+    out = np.full(E, np.asarray(arrays["step_common"], dtype=np.float32).ravel()[0], dtype=np.float32)
+    if st.size != E - int(same.sum()):
+        raise ValueError(f"e-map arrays: {st.size} stored quanta for {E - int(same.sum())} edges")
+    out[~same] = st
+    return out
+
+
 def cells_around(nx: int, ny: int, ids: np.ndarray) -> np.ndarray:
     """Cells next to the grid edges ``ids`` and the ring whose Bezier stencil reaches them.
 
@@ -885,7 +915,7 @@ class EZMap:
                                                    else np.uint16),
             **{f"codes_{k}": v for k, v in pack_codes(self.codes, self.offsets).items()},
             "lo": self.lo,
-            "step": _stored_step(self.step),
+            **_pack_steps(self.step),
         } | self._window_arrays() | {f"patch_{k}": v for k, v in (self.patches or CellPatches.empty()).to_arrays().items()}
 
     def _window_arrays(self) -> dict[str, np.ndarray]:
@@ -945,7 +975,9 @@ class EZMap:
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> EZMap:
         """Inverse of :meth:`to_arrays`."""
-        missing = {"version", "grid", "shape", "lo", "step"} - set(arrays)
+        missing = {"version", "grid", "shape", "lo"} - set(arrays)
+        if "step" not in arrays and "step_common" not in arrays:
+            missing.add("step")
         if "codes" not in arrays and "codes_bits" not in arrays:
             missing.add("codes")
         missing |= ({"edge_bits", "counts"} if "edge_bits" in arrays or "counts" in arrays
@@ -978,7 +1010,7 @@ class EZMap:
         codes = (unpack_codes(arrays["codes_bits"], arrays["codes_w4"], offsets, arrays.get("codes_mode"),
                               arrays.get("codes_r4")) if "codes_bits" in arrays else arrays["codes"])
         return cls(g[0], g[1], g[2], g[3], int(s[0]), int(s[1]), g[4], g[5], edge_ids, offsets,
-                   codes, arrays["lo"], arrays["step"], failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0,
+                   codes, arrays["lo"], _unpack_steps(arrays, edge_ids.size), failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0,
                    patches=patches, unresolved=int(s[4]) if s.size > 4 else 0, pruned=int(s[5]) if s.size > 5 else 0,
                    win=win)
 

@@ -120,7 +120,10 @@ def test_layout_matches_table_2_spacing_and_contract_ids():
     bits = sum(n * (int(ez.codes[o:o + n].max()) + 1).bit_length()
                for o, n in zip(ez.offsets[:-1].tolist(), np.diff(ez.offsets).tolist()))
     assert bits <= 15 * ez.n_points
-    assert ez.nbytes == (104 + math.ceil(edge_count(base.nx, base.ny) / 8) + 7 * ez.n_edges
+    a = ez.to_arrays()
+    steps = sum(a[k].nbytes for k in ("step", "step_common", "step_is_common") if k in a)
+    assert steps <= 2 * ez.n_edges
+    assert ez.nbytes == (104 + math.ceil(edge_count(base.nx, base.ny) / 8) + 5 * ez.n_edges + steps
                          + math.ceil(ez.n_edges / 2) + math.ceil(ez.n_edges / 8) + math.ceil(bits / 8))
     px, py = ez.points()
     qx, qy = ref.edge_points(ez)

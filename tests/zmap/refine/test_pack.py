@@ -157,3 +157,17 @@ def test_sub_edge_counts_above_15_are_a_byte_each_behind_a_bit():
     a = _pack_counts(np.minimum(c, 15))
     assert set(a) == {"counts_nz", "counts4nz"} and np.array_equal(_unpack_counts(a, c.size), np.minimum(c, 15))
     assert set(_pack_counts(np.array([300, 0]))) == {"counts"}
+
+
+def test_the_common_quantum_is_stored_once():
+    from zmap.refine._emap import _pack_steps, _unpack_steps, half_step
+
+    q = half_step(np.array([QUANTUM_SHARE * TOL]))[0]
+    step = np.full(40, q, dtype=np.float32)
+    step[[3, 17]] = half_step(np.array([1e-3, 2e-4]))
+    a = _pack_steps(step)
+    assert a["step"].size == 2 and a["step"].dtype == np.float16 and a["step_common"].tolist() == [q]
+    assert np.array_equal(_unpack_steps(a, 40), step)
+    # all different (or few): stored as they are
+    few = half_step(np.linspace(1e-4, 1e-3, 20))
+    assert set(_pack_steps(few)) == {"step"} and np.array_equal(_unpack_steps(_pack_steps(few), 20), few)

@@ -115,7 +115,10 @@ def test_stored_bytes_are_bits_counts_codes_and_scales():
     # offset and a float16 quantum per e-edge, the codes; a bit per e-edge, two bytes and a
     # bit (its break a kink) per windowed wall edge; no patches
     assert ez.n_windows >= 8 and a["step"].dtype == np.float16
-    assert ez.nbytes == (104 + math.ceil(E / 8) + 7 * ez.n_edges + codes
+    # quanta: one common value, a bit per edge, the others float16
+    steps = sum(a[k].nbytes for k in ("step", "step_common", "step_is_common") if k in a)
+    assert steps <= 2 * ez.n_edges
+    assert ez.nbytes == (104 + math.ceil(E / 8) + 5 * ez.n_edges + steps + codes
                          + math.ceil(ez.n_edges / 8) + 2 * ez.n_windows + math.ceil(ez.n_windows / 8))
     # fewer than 16 bits a code: smooth edges' ranges at the finest quantum
     assert plain < 16 * ez.n_points
