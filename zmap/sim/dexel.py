@@ -170,15 +170,18 @@ class DexelWorkpiece:
     def from_csr(cls, x0: float, y0: float, pitch: float, nx: int, ny: int, offsets: np.ndarray,
                  near: np.ndarray, far: np.ndarray, created: int = 0, deleted: int = 0) -> "DexelWorkpiece":
         """Build from compact per-ray lists: ray r owns ``near[offsets[r]:offsets[r+1]]``."""
-        offsets = np.asarray(offsets, dtype=np.int64)
-        cnt = np.diff(offsets).astype(np.int32)
-        K = max(4, int(cnt.max(initial=0)))
-        n_near = np.zeros((nx * ny, K), dtype=np.float32)
-        n_far = np.zeros((nx * ny, K), dtype=np.float32)
-        rows = np.repeat(np.arange(nx * ny), cnt)
-        cols = np.arange(offsets[-1]) - np.repeat(offsets[:-1], cnt)
-        n_near[rows, cols] = near
-        n_far[rows, cols] = far
+        from . import _csr_kernels
+
+        offsets = np.ascontiguousarray(offsets, dtype=np.int64)
+        n = int(nx) * int(ny)
+        if offsets.shape != (n + 1,):
+            raise ValueError(f"offsets has shape {offsets.shape}, expected ({n + 1},) for {nx} x {ny} rays")
+        K = max(4, int(np.diff(offsets).max(initial=0)))
+        n_near = np.zeros((n, K), dtype=np.float32)
+        n_far = np.zeros((n, K), dtype=np.float32)
+        cnt = np.empty(n, dtype=np.int32)
+        _csr_kernels.unpack(offsets, np.ascontiguousarray(near, dtype=np.float32),
+                            np.ascontiguousarray(far, dtype=np.float32), n_near, n_far, cnt)
         return cls(float(x0), float(y0), float(pitch), int(nx), int(ny), n_near, n_far, cnt,
                    int(created), int(deleted))
 
@@ -221,10 +224,14 @@ class DexelWorkpiece:
 
     def to_csr(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Compact lists ``(offsets (n_rays+1,) int64, near (m,) f4, far (m,) f4)``."""
-        mask = np.arange(self.slots)[None, :] < self.cnt[:, None]
+        from . import _csr_kernels
+
         offsets = np.zeros(self.n_rays + 1, dtype=np.int64)
         np.cumsum(self.cnt, out=offsets[1:])
-        return offsets, self.near[mask], self.far[mask]
+        near = np.empty(int(offsets[-1]), dtype=np.float32)
+        far = np.empty(int(offsets[-1]), dtype=np.float32)
+        _csr_kernels.pack(self.near, self.far, self.cnt, offsets, near, far)
+        return offsets, near, far
 
     def top(self) -> np.ndarray:
         """Top surface seen from above: last FarZ of every ray, NaN where empty.

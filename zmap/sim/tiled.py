@@ -101,6 +101,23 @@ def _assemble_csr(n_rays: int, parts: list[tuple[np.ndarray, np.ndarray, np.ndar
     return offsets, near, far
 
 
+
+def _assemble(stock: DexelWorkpiece, tile: int, nty: int, results: dict) -> DexelWorkpiece:
+    """The whole stock from the tiles' results (per-ray lists of each tile, in its ray order)."""
+    from . import _csr_kernels
+
+    slots = max([4] + [int(np.diff(r["off"]).max(initial=0)) for r in results.values()])
+    near = np.zeros((stock.n_rays, slots), dtype=np.float32)
+    far = np.zeros((stock.n_rays, slots), dtype=np.float32)
+    cnt = np.zeros(stock.n_rays, dtype=np.int32)
+    for k, r in results.items():
+        rows = _tile_rays(stock.nx, stock.ny, tile, *divmod(k, nty))[4]
+        _csr_kernels.scatter(rows, np.ascontiguousarray(r["off"], dtype=np.int64), r["near"], r["far"], near, far, cnt)
+    return DexelWorkpiece(stock.x0, stock.y0, stock.pitch, stock.nx, stock.ny, near, far, cnt,
+                          stock.created + sum(r["created"] for r in results.values()),
+                          stock.deleted + sum(r["deleted"] for r in results.values()))
+
+
 def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, xyz: np.ndarray, slot: np.ndarray,
               gpos: np.ndarray, table: tuple, history: str, x0: float, y0: float, pitch: float, gi0: int, gj0: int,
               tnx: int, tny: int, chunk: int = 4096) -> dict:
@@ -323,15 +340,7 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
             raise
     seconds = time.perf_counter() - t0
     wall_end = time.time()
-    parts = []
-    for k in range(ntx * nty):
-        idx = _tile_rays(stock.nx, stock.ny, tile, *divmod(k, nty))[4]
-        r = results[k]
-        parts.append((idx, r["off"], r["near"], r["far"]))
-    off, near, far = _assemble_csr(stock.n_rays, parts)
-    final = DexelWorkpiece.from_csr(stock.x0, stock.y0, stock.pitch, stock.nx, stock.ny, off, near, far,
-                                    stock.created + sum(r["created"] for r in results.values()),
-                                    stock.deleted + sum(r["deleted"] for r in results.values()))
+    final = _assemble(stock, tile, nty, results)
     structure = None
     if history != "none":
         structure = TiledHistory(history, stock.nx, stock.ny, tile, [results[k]["structure"] for k in range(ntx * nty)])
