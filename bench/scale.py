@@ -90,6 +90,8 @@ def bench_convert(part_path: Path, grid: float, tile: int, check: bool | None, d
                "peak_rss_mb_per_worker": r2["peak_rss_mb_per_worker"],
                "peak_rss_mb_per_worker_1_worker": r1["peak_rss_mb_per_worker"],
                "cpu_seconds_1_worker": r1["cpu_seconds"],
+               "task_thread_cpu_seconds_1_worker": r1.get("task_thread_cpu_seconds"),
+               "task_thread_cpu_seconds_2_workers": r2.get("task_thread_cpu_seconds"),
                "cpu_seconds_busiest_of_2": r2["cpu_seconds_busiest_worker"],
                "cpu_split_speedup_2_vs_1": round(r1["cpu_seconds"] / r2["cpu_seconds_busiest_worker"], 3)
                if r2["cpu_seconds_busiest_worker"] else None,
@@ -201,6 +203,8 @@ def bench_sim(pitch: float, tiles: int) -> dict:
                 "sim_positions_cut_over_tiles": t2["positions_cut"], "sim_ray_cuts": t2["rays_cut"],
                 "sim_ray_cuts_per_s_per_worker": round(t2["rays_cut"] / t2["seconds"] / max(t2["workers"], 1), 1),
                 "sim_cpu_seconds_single": round(single["cpu_seconds"], 3),
+                "sim_task_thread_cpu_seconds_2_workers": t2.get("task_thread_cpu_seconds"),
+                "sim_cpu_seconds_2_workers": t2.get("cpu_seconds"),
                 "sim_cpu_seconds_busiest_of_2": t2["cpu_seconds_busiest_worker"],
                 "sim_cpu_split_speedup_2_vs_1": round(single["cpu_seconds"] / t2["cpu_seconds_busiest_worker"], 3)
                 if t2["cpu_seconds_busiest_worker"] else None,
