@@ -254,6 +254,12 @@ def _stored_step(step: np.ndarray) -> np.ndarray:
     return h if np.array_equal(h.astype(np.float32), step) else step
 
 
+def _narrow(ids: np.ndarray) -> np.ndarray:
+    """Non-negative ids as stored: uint32 where they fit (the loaders widen them to int64)."""
+    ids = np.asarray(ids)
+    return ids.astype(np.uint32) if ids.size and 0 <= int(ids.min()) and int(ids.max()) < 2 ** 32 else ids
+
+
 def _pack_steps(step: np.ndarray) -> dict[str, np.ndarray]:
     """Per-edge quanta as stored: most edges are coded at the finest quantum (their range is
     below ``65534 * quantum``), so the most common value is stored once (``step_common``),
@@ -1318,7 +1324,7 @@ class CellPatches:
         packed = {f"codes_{k}": v for k, v in pack_codes(allc.astype(np.uint16),
                                                          _patch_segments(seg, nn, self.edge_off, self.counts,
                                                                          raw)).items()}
-        return {"cells": self.cells, "level": self.level, "lo": lo, "step": _stored_step(step),
+        return {"cells": _narrow(self.cells), "level": self.level, "lo": lo, "step": _stored_step(step),
                 "codes_raw": np.packbits(raw)} | packed | _pack_counts(self.counts) | subs
 
     @classmethod
@@ -1543,7 +1549,7 @@ class SubLattices:
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         seg = np.arange(self.n + 1, dtype=np.int64) * (int(self.mn[1]) + 1) ** 2
-        return {"mn": self.mn, "keys": self.keys, "lo": self.lo, "step": _stored_step(self.step)} | {
+        return {"mn": self.mn, "keys": _narrow(self.keys), "lo": self.lo, "step": _stored_step(self.step)} | {
             f"codes_{k}": v for k, v in pack_codes(self.codes, seg).items()}
 
     @classmethod
