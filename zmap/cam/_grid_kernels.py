@@ -123,20 +123,20 @@ def _drop_row(z, x0, y0, dx, dy, code, R, rc, qx, qys, out, oi, oj, stk, start):
         oj[b] = -1
     if nq == 0:
         return
-    i_lo = max(0, int(math.ceil((qx - R - x0) / dx)))
-    i_hi = min(nx - 1, int(math.floor((qx + R - x0) / dx)))
+    i_lo = max(0, math.ceil((qx - R - x0) / dx))
+    i_hi = min(nx - 1, math.floor((qx + R - x0) / dx))
     for i in range(i_lo, i_hi + 1):
         ex = x0 + i * dx - qx
         q = R * R - ex * ex
         if q < 0.0:
             continue
         rho = math.sqrt(q)
-        j_lo = max(0, int(math.ceil((qys[0] - rho - y0) / dy)))
-        j_hi = min(ny - 1, int(math.floor((qys[nq - 1] + rho - y0) / dy)))
+        j_lo = max(0, math.ceil((qys[0] - rho - y0) / dy))
+        j_hi = min(ny - 1, math.floor((qys[nq - 1] + rho - y0) / dy))
         m = 0
         for j in range(j_lo, j_hi + 1):
             zb = z[i, j]
-            if not (zb == zb):
+            if math.isnan(zb):
                 continue
             yb = y0 + j * dy
             t = -np.inf

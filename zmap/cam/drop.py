@@ -51,7 +51,7 @@ _REACH = 0.1
 _MAX_ITER = 200
 
 
-_PACKS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_PACKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _packed(model: Any) -> tuple:

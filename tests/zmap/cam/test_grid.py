@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from zmap import ZMap
 from zmap.cam import drop_cutter
@@ -71,7 +72,7 @@ def test_grid_drop_is_the_max_over_the_samples(seed, kind, holes, ties):
 def test_drop_cutter_grid_equals_scattered(spec, indexing):
     """A meshgrid of axes (either indexing, y descending) gives the heights and contacts the
     scattered path gives, discrete and refined."""
-    f = lambda x, y: 0.4 * np.sin(0.7 * x) * np.cos(0.5 * y) + np.where(x > 0.3, 1.5, 0.0)  # noqa: E731
+    f = lambda x, y: 0.4 * np.sin(0.7 * x) * np.cos(0.5 * y) + np.where(x > 0.3, 1.5, 0.0)
     zm = ZMap.from_function(f, (-12, -12, 12, 12), 0.1)
     X, Y = np.meshgrid(np.linspace(-5, 5, 11), np.linspace(-4, 4, 9)[::-1], indexing=indexing)
     for refine in (False, True):

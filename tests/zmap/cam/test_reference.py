@@ -30,7 +30,7 @@ def test_sliver_at_the_rim(spec):
     c = parse_tool_spec(spec)
     R = c.radius
     xw = R - 0.002
-    f = lambda x, y: np.where(x > xw, 3.0, 0.0)  # noqa: E731
+    f = lambda x, y: np.where(x > xw, 3.0, 0.0)
     want = 3.0 - float(c.lower_envelope(np.array([xw]))[0])
     got = drop_cutter_reference_dense(f, c, [0.0], [0.0], h=0.02)[0]
     assert abs(got - want) < 1e-6
@@ -46,8 +46,8 @@ def test_wiggly_crest():
     """A wall whose edge wiggles by 3 um every 0.06 mm: local maxima of the contact along the
     crest; the true CL is 3 - envelope(distance from the axis to the nearest edge point)."""
     c = parse_tool_spec("ball:6")
-    e = lambda y: 1.2 + 0.003 * np.sin(y / 0.01)  # noqa: E731
-    f = lambda x, y: np.where(x > e(y), 3.0, 0.0)  # noqa: E731
+    e = lambda y: 1.2 + 0.003 * np.sin(y / 0.01)
+    f = lambda x, y: np.where(x > e(y), 3.0, 0.0)
     qx, qy = np.array([-0.5, 0.1, -1.3]), np.array([0.0, 0.37, -0.81])
     got = drop_cutter_reference_dense(f, c, qx, qy, h=0.01)
     for k in range(qx.size):
@@ -60,7 +60,7 @@ def test_wiggly_crest():
 def test_dense_reference_on_a_smooth_bump_is_the_analytic_offset():
     """A sphere cap of radius 40: the ball's CL is the offset sphere's height."""
     Rs = 40.0
-    f = lambda x, y: np.sqrt(np.clip(Rs ** 2 - x * x - y * y, 0, None))  # noqa: E731
+    f = lambda x, y: np.sqrt(np.clip(Rs ** 2 - x * x - y * y, 0, None))
     c = parse_tool_spec("ball:6")
     x, y = np.array([0.0, 5.0, -9.0]), np.array([0.0, 3.0, 2.0])
     got = drop_cutter_reference_dense(f, c, x, y, h=0.05)
