@@ -41,8 +41,11 @@ def accumulate(vox, pts, nrm, kmax, face, weight, centres, frames, q, hv, hl, ex
         else:
             t = lookup_one(nx, ny, nz, centres, frames, q)
             for w in range(W):
-                vl[b, w] &= hv[t, w]
-                light[b, w] |= hl[t, w]
+                if t < 0:  # a sample without a normal: nothing is known visible (conservative)
+                    vl[b, w] = np.uint64(0)
+                else:
+                    vl[b, w] &= hv[t, w]
+                    light[b, w] |= hl[t, w]
         if kmax[s] > curv[b]:
             curv[b] = kmax[s]
         if nsamp[b] == 0:
@@ -145,7 +148,7 @@ def orientation_votes(pts, nrm, face, origin, d, state, out):
                     out[face[s], 3] += 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _basis(nx, ny, nz):
     # e1 perpendicular to n, e2 = n x e1
     if abs(nx) < 0.9:
@@ -180,7 +183,7 @@ def skin_masks(state, ijk, out):
         out[s] = m
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _line_setup(n, e, f):
     """Per axis c of direction n: (zero, 1/n_c, e_c/n_c, f_c/n_c, sign n_c)."""
     z = abs(n) < 1e-12
@@ -190,13 +193,13 @@ def _line_setup(n, e, f):
     return False, inv, e * inv, f * inv, 1.0 if n > 0 else -1.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _zin(uc, vc, e, f, r, h):
     # the slab test of an axis the line runs parallel to: it misses when |base - centre| > h
     return not (abs(uc * e + vc * f - r) > h)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _zcols(uc, e, f, r, h, u0, cell, jlo, jhi):
     """Columns b in [jlo, jhi] whose line (uc, vc_b) passes the slab test of an axis it runs
     parallel to: a range found in closed form, its ends fixed with the exact test."""
@@ -263,145 +266,155 @@ def cast_directions(dirs, opp, bxyz, bhalf, skin, hide, skin_mask, light, vl, d,
                 x1 = skin[m - mb, c] + h
             gmin[c] = min(gmin[c], x0 - lo[c])
             gmax[c] = max(gmax[c], x1 - lo[c])
-    for i in prange(k):
-        nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
-        ex, ey, ez, fx, fy, fz = _basis(nx, ny, nz)
-        zx, ix_, pex, pfx, sx = _line_setup(nx, ex, fx)
-        zy, iy_, pey, pfy, sy = _line_setup(ny, ey, fy)
-        zz, iz_, pez, pfz, sz = _line_setup(nz, ez, fz)
-        # the window of the plane grid that the part covers
-        gcx, gcy, gcz = 0.5 * (gmin[0] + gmax[0]), 0.5 * (gmin[1] + gmax[1]), 0.5 * (gmin[2] + gmax[2])
-        ghx, ghy, ghz = 0.5 * (gmax[0] - gmin[0]), 0.5 * (gmax[1] - gmin[1]), 0.5 * (gmax[2] - gmin[2])
-        cu = gcx * ex + gcy * ey + gcz * ez
-        cv = gcx * fx + gcy * fy + gcz * fz
-        au = ghx * abs(ex) + ghy * abs(ey) + ghz * abs(ez)
-        av = ghx * abs(fx) + ghy * abs(fy) + ghz * abs(fz)
-        A0 = max(0, int(np.floor((cu - au - u0) / cell)) - 1)
-        A1 = min(nc - 1, int(np.floor((cu + au - u0) / cell)) + 1)
-        B0 = max(0, int(np.floor((cv - av - u0) / cell)) - 1)
-        B1 = min(nc - 1, int(np.floor((cv + av - u0) / cell)) + 1)
-        b1 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
-        b2 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
-        id1 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1, dtype=np.int64)
-        wi = i >> 6
-        o = opp[i]
-        ow = o >> 6
-        ob = np.uint64(o & 63)
-        req = hide[i]
-        for m in range(mb + ms):
-            if m < mb:
-                if (light[m, ow] >> ob) & np.uint64(1) == 0:
-                    continue
-                cx, cy, cz = bxyz[m, 0], bxyz[m, 1], bxyz[m, 2]
-                hx, hy, hz = bhalf[m, 0] + g, bhalf[m, 1] + g, bhalf[m, 2] + g
-            else:
-                if (skin_mask[m - mb] & req) == req:
-                    continue
-                cx, cy, cz = skin[m - mb, 0], skin[m - mb, 1], skin[m - mb, 2]
-                hx, hy, hz = h, h, h
-            rx, ry, rz = cx - lo[0], cy - lo[1], cz - lo[2]
-            ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
-            af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
-            pu = rx * ex + ry * ey + rz * ez
-            pv = rx * fx + ry * fy + rz * fz
-            ia = max(A0, int(np.floor((pu - ae - u0) / cell)))
-            ib = min(A1, int(np.floor((pu + ae - u0) / cell)))
-            ja = max(B0, int(np.floor((pv - af - u0) / cell)))
-            jb = min(B1, int(np.floor((pv + af - u0) / cell)))
-            # entry / exit parameter per axis: (r -/+ sign h) / n - uc e/n - vc f/n
-            lxa = -1.0e300 if zx else (rx - sx * hx) * ix_
-            lxb = 1.0e300 if zx else (rx + sx * hx) * ix_
-            lya = -1.0e300 if zy else (ry - sy * hy) * iy_
-            lyb = 1.0e300 if zy else (ry + sy * hy) * iy_
-            lza = -1.0e300 if zz else (rz - sz * hz) * iz_
-            lzb = 1.0e300 if zz else (rz + sz * hz) * iz_
-            for a in range(ia, ib + 1):
-                uc = u0 + (a + 0.5) * cell
-                jl, jh = ja, jb
-                if zx:
-                    jl, jh = _zcols(uc, ex, fx, rx, hx, u0, cell, jl, jh)
-                if zy:
-                    jl, jh = _zcols(uc, ey, fy, ry, hy, u0, cell, jl, jh)
-                if zz:
-                    jl, jh = _zcols(uc, ez, fz, rz, hz, u0, cell, jl, jh)
-                xa, xb = lxa - uc * pex, lxb - uc * pex
-                ya, yb = lya - uc * pey, lyb - uc * pey
-                za, zb = lza - uc * pez, lzb - uc * pez
-                ra = a - A0
-                for b in range(jl, jh + 1):
-                    vc = u0 + (b + 0.5) * cell
-                    s0 = max(xa - vc * pfx, max(ya - vc * pfy, za - vc * pfz))
-                    s1 = min(xb - vc * pfx, min(yb - vc * pfy, zb - vc * pfz))
-                    if s0 >= s1:
-                        continue
-                    rb = b - B0
-                    if s1 > b1[ra, rb]:
-                        if id1[ra, rb] != m:
-                            b2[ra, rb] = b1[ra, rb]
-                        b1[ra, rb] = s1
-                        id1[ra, rb] = m
-                    elif s1 > b2[ra, rb] and id1[ra, rb] != m:
-                        b2[ra, rb] = s1
-        eps = 1e-9 * d
-        for m in range(mb):
-            if (vl[m, wi] >> np.uint64(i & 63)) & np.uint64(1) == 0:
-                out[i, m] = 0
+    for i in prange(k):  # the body is a call: parfor lowering of a big body compiles for minutes
+        _cast_one(i, dirs, opp, bxyz, bhalf, skin, hide, skin_mask, light, vl, d, cell, lo, g, h, u0, nc,
+                  gmin, gmax, out)
+
+
+@njit(cache=True)
+def _cast_one(i, dirs, opp, bxyz, bhalf, skin, hide, skin_mask, light, vl, d, cell, lo, g, h, u0, nc, gmin, gmax,
+              out):
+    """Direction i of :func:`cast_directions`: its depth buffer, then ``out[i, :]``."""
+    mb = bxyz.shape[0]
+    ms = skin.shape[0]
+    nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+    ex, ey, ez, fx, fy, fz = _basis(nx, ny, nz)
+    zx, ix_, pex, pfx, sx = _line_setup(nx, ex, fx)
+    zy, iy_, pey, pfy, sy = _line_setup(ny, ey, fy)
+    zz, iz_, pez, pfz, sz = _line_setup(nz, ez, fz)
+    # the window of the plane grid that the part covers
+    gcx, gcy, gcz = 0.5 * (gmin[0] + gmax[0]), 0.5 * (gmin[1] + gmax[1]), 0.5 * (gmin[2] + gmax[2])
+    ghx, ghy, ghz = 0.5 * (gmax[0] - gmin[0]), 0.5 * (gmax[1] - gmin[1]), 0.5 * (gmax[2] - gmin[2])
+    cu = gcx * ex + gcy * ey + gcz * ez
+    cv = gcx * fx + gcy * fy + gcz * fz
+    au = ghx * abs(ex) + ghy * abs(ey) + ghz * abs(ez)
+    av = ghx * abs(fx) + ghy * abs(fy) + ghz * abs(fz)
+    A0 = max(0, int(np.floor((cu - au - u0) / cell)) - 1)
+    A1 = min(nc - 1, int(np.floor((cu + au - u0) / cell)) + 1)
+    B0 = max(0, int(np.floor((cv - av - u0) / cell)) - 1)
+    B1 = min(nc - 1, int(np.floor((cv + av - u0) / cell)) + 1)
+    b1 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
+    b2 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
+    id1 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1, dtype=np.int64)
+    wi = i >> 6
+    o = opp[i]
+    ow = o >> 6
+    ob = np.uint64(o & 63)
+    req = hide[i]
+    for m in range(mb + ms):
+        if m < mb:
+            if (light[m, ow] >> ob) & np.uint64(1) == 0:
                 continue
-            rx, ry, rz = bxyz[m, 0] - lo[0], bxyz[m, 1] - lo[1], bxyz[m, 2] - lo[2]
-            hx, hy, hz = bhalf[m, 0], bhalf[m, 1], bhalf[m, 2]
-            ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
-            af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
-            pu = rx * ex + ry * ey + rz * ez
-            pv = rx * fx + ry * fy + rz * fz
-            ia = max(A0, int(np.floor((pu - ae - u0) / cell)))
-            ib = min(A1, int(np.floor((pu + ae - u0) / cell)))
-            ja = max(B0, int(np.floor((pv - af - u0) / cell)))
-            jb = min(B1, int(np.floor((pv + af - u0) / cell)))
-            lxa = -1.0e300 if zx else (rx - sx * hx) * ix_
-            lxb = 1.0e300 if zx else (rx + sx * hx) * ix_
-            lya = -1.0e300 if zy else (ry - sy * hy) * iy_
-            lyb = 1.0e300 if zy else (ry + sy * hy) * iy_
-            lza = -1.0e300 if zz else (rz - sz * hz) * iz_
-            lzb = 1.0e300 if zz else (rz + sz * hz) * iz_
-            ok = 1
-            hits = 0
-            for a in range(ia, ib + 1):
-                if ok == 0:
-                    break
-                uc = u0 + (a + 0.5) * cell
-                jl, jh = ja, jb
-                if zx:
-                    jl, jh = _zcols(uc, ex, fx, rx, hx, u0, cell, jl, jh)
-                if zy:
-                    jl, jh = _zcols(uc, ey, fy, ry, hy, u0, cell, jl, jh)
-                if zz:
-                    jl, jh = _zcols(uc, ez, fz, rz, hz, u0, cell, jl, jh)
-                xa, xb = lxa - uc * pex, lxb - uc * pex
-                ya, yb = lya - uc * pey, lyb - uc * pey
-                za, zb = lza - uc * pez, lzb - uc * pez
-                ra = a - A0
-                for b in range(jl, jh + 1):
-                    vc = u0 + (b + 0.5) * cell
-                    s0 = max(xa - vc * pfx, max(ya - vc * pfy, za - vc * pfz))
-                    s1 = min(xb - vc * pfx, min(yb - vc * pfy, zb - vc * pfz))
-                    if s0 >= s1:
-                        continue
-                    hits += 1
-                    rb = b - B0
-                    top = b2[ra, rb] if id1[ra, rb] == m else b1[ra, rb]
-                    if top > s0 + eps:
-                        ok = 0
-                        break
-            if hits == 0:
-                # a box thinner than the cell: no centre line crosses it; test the cell under
-                # its centre from its nearest depth
-                a = min(A1, max(A0, int(np.floor((pu - u0) / cell))))
-                b = min(B1, max(B0, int(np.floor((pv - u0) / cell))))
-                s0 = rx * nx + ry * ny + rz * nz - (hx * abs(nx) + hy * abs(ny) + hz * abs(nz))
-                top = b2[a - A0, b - B0] if id1[a - A0, b - B0] == m else b1[a - A0, b - B0]
+            cx, cy, cz = bxyz[m, 0], bxyz[m, 1], bxyz[m, 2]
+            hx, hy, hz = bhalf[m, 0] + g, bhalf[m, 1] + g, bhalf[m, 2] + g
+        else:
+            if (skin_mask[m - mb] & req) == req:
+                continue
+            cx, cy, cz = skin[m - mb, 0], skin[m - mb, 1], skin[m - mb, 2]
+            hx, hy, hz = h, h, h
+        rx, ry, rz = cx - lo[0], cy - lo[1], cz - lo[2]
+        ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
+        af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
+        pu = rx * ex + ry * ey + rz * ez
+        pv = rx * fx + ry * fy + rz * fz
+        ia = max(A0, int(np.floor((pu - ae - u0) / cell)))
+        ib = min(A1, int(np.floor((pu + ae - u0) / cell)))
+        ja = max(B0, int(np.floor((pv - af - u0) / cell)))
+        jb = min(B1, int(np.floor((pv + af - u0) / cell)))
+        # entry / exit parameter per axis: (r -/+ sign h) / n - uc e/n - vc f/n
+        lxa = -1.0e300 if zx else (rx - sx * hx) * ix_
+        lxb = 1.0e300 if zx else (rx + sx * hx) * ix_
+        lya = -1.0e300 if zy else (ry - sy * hy) * iy_
+        lyb = 1.0e300 if zy else (ry + sy * hy) * iy_
+        lza = -1.0e300 if zz else (rz - sz * hz) * iz_
+        lzb = 1.0e300 if zz else (rz + sz * hz) * iz_
+        for a in range(ia, ib + 1):
+            uc = u0 + (a + 0.5) * cell
+            jl, jh = ja, jb
+            if zx:
+                jl, jh = _zcols(uc, ex, fx, rx, hx, u0, cell, jl, jh)
+            if zy:
+                jl, jh = _zcols(uc, ey, fy, ry, hy, u0, cell, jl, jh)
+            if zz:
+                jl, jh = _zcols(uc, ez, fz, rz, hz, u0, cell, jl, jh)
+            xa, xb = lxa - uc * pex, lxb - uc * pex
+            ya, yb = lya - uc * pey, lyb - uc * pey
+            za, zb = lza - uc * pez, lzb - uc * pez
+            ra = a - A0
+            for b in range(jl, jh + 1):
+                vc = u0 + (b + 0.5) * cell
+                s0 = max(xa - vc * pfx, max(ya - vc * pfy, za - vc * pfz))
+                s1 = min(xb - vc * pfx, min(yb - vc * pfy, zb - vc * pfz))
+                if s0 >= s1:
+                    continue
+                rb = b - B0
+                if s1 > b1[ra, rb]:
+                    if id1[ra, rb] != m:
+                        b2[ra, rb] = b1[ra, rb]
+                    b1[ra, rb] = s1
+                    id1[ra, rb] = m
+                elif s1 > b2[ra, rb] and id1[ra, rb] != m:
+                    b2[ra, rb] = s1
+    eps = 1e-9 * d
+    for m in range(mb):
+        if (vl[m, wi] >> np.uint64(i & 63)) & np.uint64(1) == 0:
+            out[i, m] = 0
+            continue
+        rx, ry, rz = bxyz[m, 0] - lo[0], bxyz[m, 1] - lo[1], bxyz[m, 2] - lo[2]
+        hx, hy, hz = bhalf[m, 0], bhalf[m, 1], bhalf[m, 2]
+        ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
+        af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
+        pu = rx * ex + ry * ey + rz * ez
+        pv = rx * fx + ry * fy + rz * fz
+        ia = max(A0, int(np.floor((pu - ae - u0) / cell)))
+        ib = min(A1, int(np.floor((pu + ae - u0) / cell)))
+        ja = max(B0, int(np.floor((pv - af - u0) / cell)))
+        jb = min(B1, int(np.floor((pv + af - u0) / cell)))
+        lxa = -1.0e300 if zx else (rx - sx * hx) * ix_
+        lxb = 1.0e300 if zx else (rx + sx * hx) * ix_
+        lya = -1.0e300 if zy else (ry - sy * hy) * iy_
+        lyb = 1.0e300 if zy else (ry + sy * hy) * iy_
+        lza = -1.0e300 if zz else (rz - sz * hz) * iz_
+        lzb = 1.0e300 if zz else (rz + sz * hz) * iz_
+        ok = 1
+        hits = 0
+        for a in range(ia, ib + 1):
+            if ok == 0:
+                break
+            uc = u0 + (a + 0.5) * cell
+            jl, jh = ja, jb
+            if zx:
+                jl, jh = _zcols(uc, ex, fx, rx, hx, u0, cell, jl, jh)
+            if zy:
+                jl, jh = _zcols(uc, ey, fy, ry, hy, u0, cell, jl, jh)
+            if zz:
+                jl, jh = _zcols(uc, ez, fz, rz, hz, u0, cell, jl, jh)
+            xa, xb = lxa - uc * pex, lxb - uc * pex
+            ya, yb = lya - uc * pey, lyb - uc * pey
+            za, zb = lza - uc * pez, lzb - uc * pez
+            ra = a - A0
+            for b in range(jl, jh + 1):
+                vc = u0 + (b + 0.5) * cell
+                s0 = max(xa - vc * pfx, max(ya - vc * pfy, za - vc * pfz))
+                s1 = min(xb - vc * pfx, min(yb - vc * pfy, zb - vc * pfz))
+                if s0 >= s1:
+                    continue
+                hits += 1
+                rb = b - B0
+                top = b2[ra, rb] if id1[ra, rb] == m else b1[ra, rb]
                 if top > s0 + eps:
                     ok = 0
-            out[i, m] = ok
+                    break
+        if hits == 0:
+            # a box thinner than the cell: no centre line crosses it; test the cell under
+            # its centre from its nearest depth
+            a = min(A1, max(A0, int(np.floor((pu - u0) / cell))))
+            b = min(B1, max(B0, int(np.floor((pv - u0) / cell))))
+            s0 = rx * nx + ry * ny + rz * nz - (hx * abs(nx) + hy * abs(ny) + hz * abs(nz))
+            top = b2[a - A0, b - B0] if id1[a - A0, b - B0] == m else b1[a - A0, b - B0]
+            if top > s0 + eps:
+                ok = 0
+        out[i, m] = ok
 
 
 @njit(cache=True)
@@ -462,7 +475,10 @@ def local_conditions(vg, bxyz, centre, ptr, nb, inside, bad, cap, centres, frame
         for e in range(ptr[b], ptr[b + 1]):
             m = nb[e]
             t = lookup_one(bxyz[m, 0] - cx, bxyz[m, 1] - cy, bxyz[m, 2] - cz, centres, frames, q)
-            if bad[m]:
+            if t < 0:  # w's centre on the ball's centre: the ball cannot be there (conservative)
+                for w in range(W):
+                    out[b, w] = np.uint64(0)
+            elif bad[m]:
                 for w in range(W):
                     out[b, w] &= cap[t, w]
             else:
@@ -470,7 +486,7 @@ def local_conditions(vg, bxyz, centre, ptr, nb, inside, bad, cap, centres, frame
                     out[b, w] &= vg[m, w] | cap[t, w]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _rasterise_max(buf, A0, B0, u0, cell, pu, pv, ae, af, top):
     """Raise the window ``buf`` (grid cells A0.., B0..) to ``top`` over the footprint box."""
     na, nb = buf.shape
@@ -484,7 +500,7 @@ def _rasterise_max(buf, A0, B0, u0, cell, pu, pv, ae, af, top):
                 buf[p - A0, r - B0] = top
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _disc_clear(buf, A0, B0, u0, cell, pu, pv, rr, h0, skip):
     """True when no buffer cell meeting the disc (centre pu, pv, radius rr) is above h0 (cells
     outside the window hold nothing). ``skip[|dp|]``: half-width of the columns around the
@@ -564,7 +580,7 @@ def disc_max(buf, wa, wb, outa, outb):
     _rows_max(H, wb, outb)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _disc_test(buf, up, lo_, A0, B0, u0, cell, pu, pv, rr, h0, skip, stats):
     """_disc_clear with two O(1) pre-tests: ``up`` (the max filter of buf over every cell a
     disc centred in the cell can meet) at or below h0: clear; ``lo_`` (the max filter over the
@@ -585,7 +601,7 @@ def _disc_test(buf, up, lo_, A0, B0, u0, cell, pu, pv, rr, h0, skip, stats):
     return _disc_clear(buf, A0, B0, u0, cell, pu, pv, rr, h0, skip[:0])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _window(cmin, cmax, ex, ey, ez, fx, fy, fz, grow, u0, cell, nc):
     cx, cy, cz = 0.5 * (cmin[0] + cmax[0]), 0.5 * (cmin[1] + cmax[1]), 0.5 * (cmin[2] + cmax[2])
     hx, hy, hz = 0.5 * (cmax[0] - cmin[0]), 0.5 * (cmax[1] - cmin[1]), 0.5 * (cmax[2] - cmin[2])
@@ -633,51 +649,60 @@ def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, hold
         for c in range(3):
             cmin[c] = min(cmin[c], centre[m, c] - lo[c])
             cmax[c] = max(cmax[c], centre[m, c] - lo[c])
-    for i in prange(k):
-        nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
-        wi = i >> 6
-        bit = np.uint64(i & 63)
-        ex, ey, ez, fx, fy, fz = _basis(nx, ny, nz)
-        A0, A1, B0, B1 = _window(cmin, cmax, ex, ey, ez, fx, fy, fz, d, u0, cell, nc)
-        H0, H1, G0, G1 = _window(cmin, cmax, ex, ey, ez, fx, fy, fz, d, u0, cell_h, nch)
-        buf = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
-        bufh = np.full((H1 - H0 + 1, G1 - G0 + 1) if holder_r > 0 else (1, 1), -1.0e300)
-        for m in range(occ.shape[0]):
-            hx, hy, hz = ohalf[m, 0], ohalf[m, 1], ohalf[m, 2]
-            ext = hx * abs(nx) + hy * abs(ny) + hz * abs(nz)
-            ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
-            af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
-            rx, ry, rz = occ[m, 0] - lo[0], occ[m, 1] - lo[1], occ[m, 2] - lo[2]
-            pu = rx * ex + ry * ey + rz * ez
-            pv = rx * fx + ry * fy + rz * fz
-            top = rx * nx + ry * ny + rz * nz + ext
-            _rasterise_max(buf, A0, B0, u0, cell, pu, pv, ae, af, top)
-            if holder_r > 0:
-                _rasterise_max(bufh, H0, G0, u0, cell_h, pu, pv, ae, af, top)
-        up = np.empty_like(buf)
-        low = np.empty_like(buf)
-        disc_max(buf, up_r, low_r, up, low)
-        uph = np.empty_like(bufh)
-        lowh = np.empty_like(bufh)
+    for i in prange(k):  # the body is a call: parfor lowering of a big body compiles for minutes
+        _tool_one(i, dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, holder_r, lo, up_r, low_r,
+                  up_h, low_h, u0, nc, nch, cmin, cmax, out, stats)
+
+
+@njit(cache=True)
+def _tool_one(i, dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, holder_r, lo, up_r, low_r, up_h, low_h,
+              u0, nc, nch, cmin, cmax, out, stats):
+    """Direction i of :func:`tool_kernel`: its shank and holder buffers, then ``out[i, :]``."""
+    mb = centre.shape[0]
+    nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+    wi = i >> 6
+    bit = np.uint64(i & 63)
+    ex, ey, ez, fx, fy, fz = _basis(nx, ny, nz)
+    A0, A1, B0, B1 = _window(cmin, cmax, ex, ey, ez, fx, fy, fz, d, u0, cell, nc)
+    H0, H1, G0, G1 = _window(cmin, cmax, ex, ey, ez, fx, fy, fz, d, u0, cell_h, nch)
+    buf = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
+    bufh = np.full((H1 - H0 + 1, G1 - G0 + 1) if holder_r > 0 else (1, 1), -1.0e300)
+    for m in range(occ.shape[0]):
+        hx, hy, hz = ohalf[m, 0], ohalf[m, 1], ohalf[m, 2]
+        ext = hx * abs(nx) + hy * abs(ny) + hz * abs(nz)
+        ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
+        af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
+        rx, ry, rz = occ[m, 0] - lo[0], occ[m, 1] - lo[1], occ[m, 2] - lo[2]
+        pu = rx * ex + ry * ey + rz * ez
+        pv = rx * fx + ry * fy + rz * fz
+        top = rx * nx + ry * ny + rz * nz + ext
+        _rasterise_max(buf, A0, B0, u0, cell, pu, pv, ae, af, top)
         if holder_r > 0:
-            disc_max(bufh, up_h, low_h, uph, lowh)
-        st = np.zeros(3, dtype=np.int64)
-        for b in range(mb):
-            out[i, b] = 0
-            if (local[b, wi] >> bit) & np.uint64(1) == 0:
-                continue
-            rx, ry, rz = centre[b, 0] - lo[0], centre[b, 1] - lo[1], centre[b, 2] - lo[2]
-            pu = rx * ex + ry * ey + rz * ez
-            pv = rx * fx + ry * fy + rz * fz
-            hc = rx * nx + ry * ny + rz * nz
-            if not _disc_test(buf, up, low, A0, B0, u0, cell, pu, pv, a, hc, low_r, st):
-                continue
-            if holder_r > 0 and not _disc_test(bufh, uph, lowh, H0, G0, u0, cell_h, pu, pv, holder_r,
-                                               hc + stick, low_h, st):
-                continue
-            out[i, b] = 1
-        for c in range(3):
-            stats[i, c] = st[c]
+            _rasterise_max(bufh, H0, G0, u0, cell_h, pu, pv, ae, af, top)
+    up = np.empty_like(buf)
+    low = np.empty_like(buf)
+    disc_max(buf, up_r, low_r, up, low)
+    uph = np.empty_like(bufh)
+    lowh = np.empty_like(bufh)
+    if holder_r > 0:
+        disc_max(bufh, up_h, low_h, uph, lowh)
+    st = np.zeros(3, dtype=np.int64)
+    for b in range(mb):
+        out[i, b] = 0
+        if (local[b, wi] >> bit) & np.uint64(1) == 0:
+            continue
+        rx, ry, rz = centre[b, 0] - lo[0], centre[b, 1] - lo[1], centre[b, 2] - lo[2]
+        pu = rx * ex + ry * ey + rz * ez
+        pv = rx * fx + ry * fy + rz * fz
+        hc = rx * nx + ry * ny + rz * nz
+        if not _disc_test(buf, up, low, A0, B0, u0, cell, pu, pv, a, hc, low_r, st):
+            continue
+        if holder_r > 0 and not _disc_test(bufh, uph, lowh, H0, G0, u0, cell_h, pu, pv, holder_r,
+                                           hc + stick, low_h, st):
+            continue
+        out[i, b] = 1
+    for c in range(3):
+        stats[i, c] = st[c]
 
 
 @njit(cache=True)

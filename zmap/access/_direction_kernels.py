@@ -8,7 +8,7 @@ from numba import njit, prange
 __all__ = ["lookup_kernel", "popcount_rows", "bits_to_bool", "bool_to_bits"]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def lookup_one(nx, ny, nz, centres, frames, q):
     """Tessel index of the direction (nx, ny, nz) (need not be unit).
 
@@ -25,6 +25,8 @@ def lookup_one(nx, ny, nz, centres, frames, q):
         if s > best:
             best = s
             f = i
+    if not best > 0.0:  # the zero vector or NaN: no tessel (and no division by zero below)
+        return -1
     ax, ay, az = frames[f, 0, 0], frames[f, 0, 1], frames[f, 0, 2]
     ux, uy, uz = frames[f, 1, 0], frames[f, 1, 1], frames[f, 1, 2]
     vx, vy, vz = frames[f, 2, 0], frames[f, 2, 1], frames[f, 2, 2]
@@ -81,7 +83,7 @@ def lookup_kernel(n, centres, frames, q, out):
         out[i] = lookup_one(n[i, 0], n[i, 1], n[i, 2], centres, frames, q)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def popcount64(x):
     x = x - ((x >> np.uint64(1)) & np.uint64(0x5555555555555555))
     x = (x & np.uint64(0x3333333333333333)) + ((x >> np.uint64(2)) & np.uint64(0x3333333333333333))
