@@ -412,7 +412,8 @@ def test_ctrl_c_is_answered_within_a_second(tmp_path):
     _, err = p.communicate(timeout=60)
     answered = time.perf_counter() - t
     assert p.returncode == 130, err
-    assert answered < 2.0, answered  # 1 s on a quiet machine; the CI's is shared
+    # 1 s on a quiet machine; 2.3 s seen at load 11: the bound tells prompt from the ~30 s run
+    assert answered < 5.0, answered
     assert not out.exists()
 
 
