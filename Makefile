@@ -16,7 +16,7 @@ demo: $(STAMP)
 	$(PY) -m zmap.demo out
 
 test: $(STAMP)
-	$(PY) -m pytest -n 2 -q
+	$(PY) -m pytest -n 2 --dist loadgroup -q --durations=20
 
 bench: $(STAMP)
 	$(PY) bench/interpolate.py
