@@ -692,8 +692,7 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
             _stage(bar, "facets", _SAMPLE_SHARE)
             gx = x0 + (again // ny) * dx
             gy = y0 + (again % ny) * dy
-            z2, f2, m2, n_fine = _fine_facets(part, vpart, gx, gy, fine, deflection, method, axis,
-                                                  (FINE_BLOCK * dx, FINE_BLOCK * dy))
+            z2, f2, m2, n_fine = _fine_facets(part, vpart, gx, gy, fine, deflection, method, axis)
             zflat[again], fflat[again], mflat[again] = z2, f2, m2
             n_refined = int(again.size)
     _stage(bar, "done", 1.0)
@@ -729,70 +728,51 @@ def _covering_faces(vpart: Part, gx: np.ndarray, gy: np.ndarray, pad: float) -> 
     return np.asarray(out, dtype=np.int64)
 
 
-#: side of a fine-pass block, in grid intervals: the faces are cut to each block of points
-#: that needs the fine mesh and only those pieces are meshed fine
-FINE_BLOCK = 64
-
-
 def _fine_facets(part: Part, vpart: Part, gx: np.ndarray, gy: np.ndarray, fine: float, coarse: float,
-                 method: str, axis: str, block: tuple[float, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+                 method: str, axis: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """:func:`sample_points` at deflection ``fine`` on the faces that may cover the points.
 
-    The points are taken in blocks of ``block`` = (width, height) mm of the view frame,
-    aligned on its origin, so that a tile of a tiled conversion solves each of its points as
-    the whole map does. Per block, only the faces whose bounding box (seen from ``axis``)
-    holds one of its points can give them a height (a face's box is widened by its edge
-    tolerance and two coarse deflections), and only their pieces inside the block's box are
-    meshed at ``fine`` (:func:`cad_io.mesh.mesh_in_box`; a part without an OCC shape meshes
-    those faces whole). The part's own meshes stay as they are. Returns the heights, face
-    indices into ``part.faces``, methods, and the number of faces meshed.
+    Only the faces whose bounding box (seen from ``axis``) holds a point can give it a
+    height, so only they are meshed at ``fine`` (on a part of those faces: the part's own
+    meshes stay as they are); a face's box is widened by its edge tolerance and two coarse
+    deflections. Returns the heights, face indices into ``part.faces``, methods, and the
+    number of faces meshed.
     """
     import dataclasses
 
-    n = gx.size
-    z = np.full(n, np.nan)
-    f = np.full(n, -1, dtype=np.int32)
-    m = np.zeros(n, dtype=np.int8)
-    tol = max([float(getattr(fc, "tolerance", 0.0)) for fc in part.faces] + [0.0])
-    pad = 2.0 * coarse + tol
-    bx, by = float(block[0]), float(block[1])
-    key_x = np.floor(gx / bx).astype(np.int64)
-    key_y = np.floor(gy / by).astype(np.int64)
-    boxes = np.array([fc.bbox for fc in vpart.faces], dtype=np.float64).reshape(-1, 6)
-    zlo, zhi = np.nanmin(boxes[:, 2]) - 1.0 - pad, np.nanmax(boxes[:, 5]) + 1.0 + pad
-    meshed: set[int] = set()
-    for kx, ky in sorted(set(zip(key_x.tolist(), key_y.tolist()))):
-        sel = np.flatnonzero((key_x == kx) & (key_y == ky))
-        keep = _covering_faces(vpart, gx[sel], gy[sel], pad)
-        if keep.size == 0:
-            continue
-        if part.shape is None:
-            meshes = [None] * keep.size  # geomdl faces: cheap (u, v) grids of the whole face
-        else:
-            from .mesh import mesh_in_box
-            from .view import from_view
+    pad = 2.0 * coarse + max([float(getattr(f, "tolerance", 0.0)) for f in part.faces] + [0.0])
+    keep = _covering_faces(vpart, gx, gy, pad)
+    if keep.size == 0:
+        n = gx.size
+        return np.full(n, np.nan), np.full(n, -1, dtype=np.int32), np.zeros(n, dtype=np.int8), 0
+    if keep.size == len(part.faces):
+        z, f, m = sample_points(part, gx, gy, deflection=fine, method=method, axis=axis)
+        return z, f, m, int(keep.size)
+    shape = None
+    if part.shape is not None:
+        from OCP.BRep import BRep_Builder
+        from OCP.TopAbs import TopAbs_FACE
+        from OCP.TopExp import TopExp
+        from OCP.TopoDS import TopoDS, TopoDS_Compound
+        from OCP.TopTools import TopTools_IndexedMapOfShape
 
-            # the block widened by the covering pad and a grid interval, all heights of the part
-            lo = (kx * bx - pad - bx / FINE_BLOCK, ky * by - pad - by / FINE_BLOCK, zlo)
-            hi = ((kx + 1) * bx + pad + bx / FINE_BLOCK, (ky + 1) * by + pad + by / FINE_BLOCK, zhi)
-            corners = from_view(np.array([[x, y, zz] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
-                                          for zz in (lo[2], hi[2])]), axis)
-            meshes = mesh_in_box(part, keep, (*corners.min(axis=0), *corners.max(axis=0)), fine)
-        faces, index = [], []
-        for k, mesh in zip(keep.tolist(), meshes):
-            if part.shape is not None and mesh is None:
-                continue  # nothing of this face inside the box
-            faces.append(dataclasses.replace(part.faces[k], index=len(faces), mesh=mesh))
-            index.append(k)
-        if not faces:
-            continue
-        meshed.update(index)
-        sub = Part(faces=faces, source=part.source, shape=None)
-        zs, fs_, ms = sample_points(sub, gx[sel], gy[sel], deflection=fine, method=method, axis=axis)
-        idx = np.asarray(index, dtype=np.int32)
-        z[sel], m[sel] = zs, ms
-        f[sel] = np.where(fs_ >= 0, idx[np.maximum(fs_, 0)], -1)
-    return z, f, m, len(meshed)
+        fmap = TopTools_IndexedMapOfShape()
+        TopExp.MapShapes_s(part.shape, TopAbs_FACE, fmap)
+        shape = TopoDS_Compound()
+        builder = BRep_Builder()
+        builder.MakeCompound(shape)
+        for k in keep:
+            builder.Add(shape, TopoDS.Face_s(fmap.FindKey(int(k) + 1)))
+        sub_map = TopTools_IndexedMapOfShape()
+        TopExp.MapShapes_s(shape, TopAbs_FACE, sub_map)
+        if sub_map.Extent() != keep.size:  # a face listed twice in the shape: mesh them all
+            z, f, m = sample_points(part, gx, gy, deflection=fine, method=method, axis=axis)
+            return z, f, m, len(part.faces)
+    faces = [dataclasses.replace(part.faces[int(k)], index=i, mesh=None) for i, k in enumerate(keep)]
+    sub = Part(faces=faces, source=part.source, shape=shape)
+    z, f, m = sample_points(sub, gx, gy, deflection=fine, method=method, axis=axis)
+    f = np.where(f >= 0, keep[np.maximum(f, 0)], -1).astype(np.int32)
+    return z, f, m, int(keep.size)
 
 
 #: where the stages of :func:`sample` end on its progress bar (shares of the bar)

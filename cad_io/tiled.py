@@ -159,7 +159,7 @@ def sample_tile(part: Part, fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1
 
         _run_pairs(fs, counts, fill, solve, zflat, fflat, mflat)
         if g.fine is not None:
-            from .sampler import FACET, FINE_BLOCK, _fine_facets
+            from .sampler import FACET, _fine_facets
             from .view import transform_part
 
             again = np.flatnonzero((mflat == FACET) & (fs.face_mode[np.maximum(fflat, 0)] == 1))
@@ -168,7 +168,7 @@ def sample_tile(part: Part, fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1
                 gy = g.y0 + (j0 + again % tny) * g.dy
                 whole = part.get() if isinstance(part, _LazyPart) else part
                 z2, f2, m2, _ = _fine_facets(whole, transform_part(whole, g.axis), gx, gy, g.fine, g.deflection,
-                                             g.method, g.axis, (FINE_BLOCK * g.dx, FINE_BLOCK * g.dy))
+                                             g.method, g.axis)
                 zflat[again], fflat[again], mflat[again] = z2, f2, m2
     return zflat.reshape(tnx, tny), fflat.reshape(tnx, tny), mflat.reshape(tnx, tny)
 
@@ -178,19 +178,23 @@ _WORKER_PART: dict = {}
 
 
 def _worker_part(part_path: str, g: TiledGrid) -> Part:
-    """The part in this worker, read once per process from the file (not meshed).
+    """The part in this worker, read once per process from the file and meshed as the client did.
 
-    Only a tile that keeps facet answers on exact faces needs it: the second pass cuts the
-    faces that may cover them to their block and meshes those pieces fine (the CAD kernel);
-    the pair scan works on the face set the client ships.
+    Only a tile that keeps facet answers on exact faces needs it (the second pass on the
+    fine mesh calls the CAD kernel); the pair scan works on the face set the client ships.
     """
     st = os.stat(part_path)
     key = (os.path.abspath(part_path), st.st_mtime_ns, st.st_size, g)
     hit = _WORKER_PART.get(key)
     if hit is None:
+        from .sampler import _needs_mesh
         from .step import read_step
 
         hit = read_step(part_path)
+        if _needs_mesh(hit, g.deflection):
+            from .mesh import triangulate
+
+            triangulate(hit, g.deflection)
         _WORKER_PART.clear()
         _WORKER_PART[key] = hit
     return hit

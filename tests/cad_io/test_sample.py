@@ -490,10 +490,9 @@ def test_silhouette_margin_only_near_folds(sample_data):
 
 def test_fine_facet_pass_meshes_only_the_faces_that_cover_its_points(sample_data):
     """The fine pass of ``sample`` (points answered by facets on exact faces, solved again at
-    grid / 20) meshes only the pieces, inside each block of points, of the faces whose box
-    holds such a point, on a part of its own: the same exact heights and faces as the whole
-    part meshed fine (facet answers within the fine deflection), the part's meshes and OCC
-    triangulations untouched. (bm2's 1.2 m face meshed whole at 1.5 um: 411 s and 8.4 GB.)"""
+    grid / 20) meshes only the faces whose box holds such a point, on a part of its own:
+    the same heights and faces as the whole part meshed fine, the part's meshes untouched.
+    (On Ventilator at grid 0.53 mm: 3 points, 36 of 305 faces, 7.4 s instead of 12.0 s.)"""
     from cad_io.sampler import _fine_facets, sample_points
     from cad_io.view import transform_part
 
@@ -509,26 +508,11 @@ def test_fine_facet_pass_meshes_only_the_faces_that_cover_its_points(sample_data
         if axis != "+z":  # a row of the side view through the middle of the part
             b = np.array([f.bbox for f in vpart.faces])
             gy = np.full(300, 0.5 * (np.nanmin(b[:, 1]) + np.nanmax(b[:, 4])))
-        z, f, m, n = _fine_facets(part, vpart, gx, gy, 0.2, 2.0, "auto", axis, (4.0, 4.0))
+        z, f, m, n = _fine_facets(part, vpart, gx, gy, 0.2, 2.0, "auto", axis)
         assert 0 < n < len(part.faces)
         assert all(g.mesh is b for g, b in zip(part.faces, before))
         zw, fw, mw = sample_points(whole, gx, gy, deflection=0.2, axis=axis)
         assert np.isfinite(z).sum() > 100
         np.testing.assert_array_equal(np.isnan(z), np.isnan(zw))
-        exact = (m == 1) & (mw == 1)
-        assert exact.sum() > 0.9 * np.isfinite(z).sum()
-        np.testing.assert_allclose(z[exact], zw[exact], atol=1e-9, rtol=0)
-        np.testing.assert_allclose(z, zw, atol=0.2, rtol=0)
-        assert np.array_equal(f[exact], fw[exact])
-    # the part's OCC faces keep their own (coarse) triangulation: the pieces were cut off them
-    from OCP.BRep import BRep_Tool
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp
-    from OCP.TopLoc import TopLoc_Location
-    from OCP.TopoDS import TopoDS
-    from OCP.TopTools import TopTools_IndexedMapOfShape
-
-    fmap = TopTools_IndexedMapOfShape()
-    TopExp.MapShapes_s(part.shape, TopAbs_FACE, fmap)
-    tris = [BRep_Tool.Triangulation_s(TopoDS.Face_s(fmap.FindKey(k + 1)), TopLoc_Location()) for k in range(len(before))]
-    assert all(t.NbTriangles() == len(b.triangles) for t, b in zip(tris, before) if b is not None)
+        np.testing.assert_allclose(z, zw, atol=1e-9, rtol=0)
+        assert np.array_equal(f, fw) and np.array_equal(m, mw)
