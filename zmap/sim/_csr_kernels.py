@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from numba import njit
 
-__all__ = ["pack", "scatter", "unpack"]
+__all__ = ["pack", "scatter"]
 
 
 @njit(cache=True, nogil=True)
@@ -21,20 +21,9 @@ def pack(near, far, cnt, offsets, out_near, out_far):
 
 
 @njit(cache=True, nogil=True)
-def unpack(offsets, near, far, out_near, out_far, out_cnt):
-    """Lists at ``offsets`` into padded rows (the slots past each count are left as they are)."""
-    for r in range(out_cnt.size):
-        a = offsets[r]
-        c = offsets[r + 1] - a
-        out_cnt[r] = c
-        for k in range(c):
-            out_near[r, k] = near[a + k]
-            out_far[r, k] = far[a + k]
-
-
-@njit(cache=True, nogil=True)
 def scatter(rows, offsets, near, far, out_near, out_far, out_cnt):
-    """Lists of the rays ``rows`` (list ``t`` is ray ``rows[t]``) into padded rows of a larger stock."""
+    """Lists of the rays ``rows`` (list ``t`` is ray ``rows[t]``) into padded rows (the slots past
+    each count are left as they are); ``rows = arange(n)`` unpacks a whole stock."""
     for t in range(rows.size):
         r = rows[t]
         a = offsets[t]

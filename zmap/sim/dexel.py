@@ -180,8 +180,8 @@ class DexelWorkpiece:
         n_near = np.zeros((n, K), dtype=np.float32)
         n_far = np.zeros((n, K), dtype=np.float32)
         cnt = np.empty(n, dtype=np.int32)
-        _csr_kernels.unpack(offsets, np.ascontiguousarray(near, dtype=np.float32),
-                            np.ascontiguousarray(far, dtype=np.float32), n_near, n_far, cnt)
+        _csr_kernels.scatter(np.arange(n, dtype=np.int64), offsets, np.ascontiguousarray(near, dtype=np.float32),
+                             np.ascontiguousarray(far, dtype=np.float32), n_near, n_far, cnt)
         return cls(float(x0), float(y0), float(pitch), int(nx), int(ny), n_near, n_far, cnt,
                    int(created), int(deleted))
 
