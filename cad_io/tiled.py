@@ -27,7 +27,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from zmap.tiled.cluster import CONNECT_TIMEOUT, dask_client, peak_rss_mb, share
+from zmap.tiled.cluster import CONNECT_TIMEOUT, cpu_figures, dask_client, peak_rss_mb, share
 
 from .part import Part
 
@@ -363,27 +363,8 @@ def convert_tiled(part: str | os.PathLike, grid: Any, output: str | os.PathLike,
               "workers": n_workers, "seconds": round(seconds, 3), "prepare_seconds": round(prepare, 3),
               "nodes_per_s": round(nodes_now / seconds, 1) if seconds > 0 else 0.0,
               "peak_rss_mb_per_worker": round(max(per_worker.values()), 1) if per_worker else 0.0}
-    report.update(_cpu_figures(results))
+    report.update(cpu_figures(results))
     return store, report
-
-
-def _cpu_figures(results: list[dict]) -> dict:
-    """CPU seconds of the tasks, in all and on the busiest worker process.
-
-    ``cpu_seconds / cpu_seconds_busiest_worker`` is the speed-up the run would show were
-    every worker alone on its core (what the tiles' split allows), whatever else the
-    machine was running.
-    """
-    per: dict[int, float] = {}
-    for r in results:
-        per[r["pid"]] = per.get(r["pid"], 0.0) + r.get("cpu_seconds", 0.0)
-    total = sum(per.values())
-    busiest = max(per.values()) if per else 0.0
-    # the tasks' own threads; the rest of a worker's CPU is Dask's (event loop, heartbeats)
-    threads = sum(r.get("thread_cpu_seconds", 0.0) for r in results)
-    return {"cpu_seconds": round(total, 3), "task_thread_cpu_seconds": round(threads, 3),
-            "cpu_seconds_busiest_worker": round(busiest, 3),
-            "cpu_split_speedup": round(total / busiest, 3) if busiest > 0 else 0.0}
 
 
 def convert_cmd_tiled(part_path: str, grid: float, bounds, method: str, axis: str, deflection, output: str,

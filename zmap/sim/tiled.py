@@ -101,7 +101,6 @@ def _assemble_csr(n_rays: int, parts: list[tuple[np.ndarray, np.ndarray, np.ndar
     return offsets, near, far
 
 
-
 def _assemble(stock: DexelWorkpiece, tile: int, nty: int, results: dict) -> DexelWorkpiece:
     """The whole stock from the tiles' results (per-ray lists of each tile, in its ray order)."""
     from . import _csr_kernels
@@ -299,7 +298,7 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
     """
     from tqdm import tqdm
 
-    from zmap.tiled.cluster import dask_client, share
+    from zmap.tiled.cluster import cpu_figures, dask_client, share
 
     tile = _check_tiles(tiles)
     (ntx, nty), lists = tile_positions(stock, xyz, slot, cutters, tile)
@@ -352,10 +351,6 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
               "positions_cut": int(sum(r["positions"] for r in results.values())),
               "rays_cut": int(sum(r["rays_cut"] for r in results.values())),
               "peak_rss_mb_per_worker": round(max(per_worker.values()), 1) if per_worker else 0.0}
-    cpu: dict[int, float] = {}
-    for r in results.values():
-        cpu[r["pid"]] = cpu.get(r["pid"], 0.0) + r["cpu_seconds"]
-    busiest = max(cpu.values()) if cpu else 0.0
     # where the wall time goes: before the first task starts, after the last one ends, and
     # the share of the span the workers spent inside tasks
     spans = [r["wall_span"] for r in results.values() if "wall_span" in r]
@@ -365,8 +360,5 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
         report.update({"first_task_after_s": round(first - wall_start, 3),
                        "results_after_last_task_s": round(wall_end - last, 3),
                        "workers_busy_share": round(busy / max(n_workers, 1) / max(last - first, 1e-9), 3)})
-    # the task's own thread: the rest of a worker's CPU is Dask's (event loop, heartbeats, profiler)
-    report["task_thread_cpu_seconds"] = round(sum(r.get("thread_cpu_seconds", 0.0) for r in results.values()), 3)
-    report.update({"cpu_seconds": round(sum(cpu.values()), 3), "cpu_seconds_busiest_worker": round(busiest, 3),
-                   "cpu_split_speedup": round(sum(cpu.values()) / busiest, 3) if busiest > 0 else 0.0})
+    report.update(cpu_figures(list(results.values())))
     return final, structure, report

@@ -9,7 +9,7 @@ from typing import Any, Iterator
 
 from ..errors import ZMapError
 
-__all__ = ["CONNECT_TIMEOUT", "dask_client", "peak_rss_mb"]
+__all__ = ["CONNECT_TIMEOUT", "cpu_figures", "dask_client", "peak_rss_mb"]
 
 #: seconds to wait for a scheduler given by address before giving up (with the command's own
 #: start, within the issue's bound of 10 s)
@@ -43,6 +43,26 @@ def peak_rss_mb() -> float:
     import resource
 
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def cpu_figures(results: list[dict]) -> dict:
+    """CPU seconds of tile tasks (``pid``, ``cpu_seconds``, ``thread_cpu_seconds`` each), in all
+    and on the busiest worker process.
+
+    ``cpu_seconds / cpu_seconds_busiest_worker`` is the speed-up the run would show were
+    every worker alone on its core (what the tiles' split allows), whatever else the
+    machine was running. ``task_thread_cpu_seconds`` is the tasks' own threads; the rest of
+    a worker's CPU is Dask's (event loop, heartbeats).
+    """
+    per: dict[int, float] = {}
+    for r in results:
+        per[r["pid"]] = per.get(r["pid"], 0.0) + r.get("cpu_seconds", 0.0)
+    total = sum(per.values())
+    busiest = max(per.values()) if per else 0.0
+    threads = sum(r.get("thread_cpu_seconds", 0.0) for r in results)
+    return {"cpu_seconds": round(total, 3), "task_thread_cpu_seconds": round(threads, 3),
+            "cpu_seconds_busiest_worker": round(busiest, 3),
+            "cpu_split_speedup": round(total / busiest, 3) if busiest > 0 else 0.0}
 
 
 def _probe(address: str, timeout: float) -> None:
