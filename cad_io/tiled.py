@@ -53,6 +53,8 @@ class TiledGrid:
     method: str
     window: tuple
     fine: float | None = None
+    #: per face, how the fine facet pass meshes it (:func:`cad_io.sampler.fine_blocks`)
+    fine_blocks: tuple = ()
 
 
 def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, axis: str = "+z",
@@ -113,8 +115,13 @@ def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, a
         x0 = _centred(bounds[0], bounds[2], dx, nx)
         y0 = _centred(bounds[1], bounds[3], dy, ny)
     window = (x0 - dx, y0 - dy, x0 + (nx - 1) * dx + dx, y0 + (ny - 1) * dy + dy)
-    return TiledGrid(x0, y0, dx, dy, nx, ny, deflection, axis, method, window,
-                     fine if fine is not None and fine < deflection else None)
+    fine = fine if fine is not None and fine < deflection else None
+    blocks = ()
+    if fine is not None:
+        from .sampler import fine_blocks
+
+        blocks = tuple(fine_blocks(part, transform_part(part, axis), fine, dx, dy).tolist())
+    return TiledGrid(x0, y0, dx, dy, nx, ny, deflection, axis, method, window, fine, blocks)
 
 
 def _face_set(part: Part, g: TiledGrid):
@@ -168,7 +175,8 @@ def sample_tile(part: Part, fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1
                 gy = g.y0 + (j0 + again % tny) * g.dy
                 whole = part.get() if isinstance(part, _LazyPart) else part
                 z2, f2, m2, _ = _fine_facets(whole, transform_part(whole, g.axis), gx, gy, g.fine, g.deflection,
-                                             g.method, g.axis)
+                                             g.method, g.axis, np.asarray(g.fine_blocks, dtype=np.int64),
+                                             (g.dx, g.dy))
                 zflat[again], fflat[again], mflat[again] = z2, f2, m2
     return zflat.reshape(tnx, tny), fflat.reshape(tnx, tny), mflat.reshape(tnx, tny)
 
@@ -178,23 +186,19 @@ _WORKER_PART: dict = {}
 
 
 def _worker_part(part_path: str, g: TiledGrid) -> Part:
-    """The part in this worker, read once per process from the file and meshed as the client did.
+    """The part in this worker, read once per process from the file (not meshed).
 
-    Only a tile that keeps facet answers on exact faces needs it (the second pass on the
-    fine mesh calls the CAD kernel); the pair scan works on the face set the client ships.
+    Only a tile that keeps facet answers on exact faces needs it: the second pass meshes the
+    faces that may cover them fine, each on a copy or cut to its block, as the grid's
+    ``fine_blocks`` say (the CAD kernel); the pair scan works on the face set the client ships.
     """
     st = os.stat(part_path)
     key = (os.path.abspath(part_path), st.st_mtime_ns, st.st_size, g)
     hit = _WORKER_PART.get(key)
     if hit is None:
-        from .sampler import _needs_mesh
         from .step import read_step
 
         hit = read_step(part_path)
-        if _needs_mesh(hit, g.deflection):
-            from .mesh import triangulate
-
-            triangulate(hit, g.deflection)
         _WORKER_PART.clear()
         _WORKER_PART[key] = hit
     return hit
