@@ -18,7 +18,8 @@ Prints one JSON object: ``nodes``, ``tiles``, ``workers``, ``seconds`` (tile tas
 over the runs), ``nodes_per_s``, ``peak_rss_mb_per_worker`` (largest over all runs),
 ``store_gb_on_disk``, ``map_gb_in_memory`` (what the whole map would need),
 ``machine_memory_gb``, ``points_checked``, ``points_equal``, ``points_max_abs_dz``,
-``tiles_checked``, ``tiles_equal``, the load averages.
+``tiles_checked``, ``tiles_equal`` (random tiles and the ``--check-fine-tiles`` tiles with the
+most facet answers on exact faces, where the fine pass meshed faces), the load averages.
 
 Usage: ``python bench/scale_big.py [--grid 0.03] [--tile 4096] [--out /tmp/zmap-big/bm2.zarr]``
 (about 35 min of two free cores on a 2-core laptop; ``--keep`` leaves the store).
@@ -64,7 +65,7 @@ def convert(part: Path, grid: float, tile: int, out: Path, workers: int, memory_
     return {"store": store, "runs": runs}
 
 
-def check(part_path: Path, store, grid: float, points: int, tiles: int, seed: int = 7) -> dict:
+def check(part_path: Path, store, grid: float, points: int, tiles: int, fine_tiles: int = 2, seed: int = 7) -> dict:
     import cad_io
     from cad_io.sampler import sample_points
     from cad_io.tiled import _face_set, plan_grid, sample_tile
@@ -89,10 +90,24 @@ def check(part_path: Path, store, grid: float, points: int, tiles: int, seed: in
                     "points_empty_disagree": int((~same_empty).sum()),
                     "points_equal": int((same_empty & (~both | (ref == got))).sum()),
                     "points_max_abs_dz": float(np.abs(ref[both] - got[both]).max()) if both.any() else 0.0})
-    if tiles:
+    if tiles or fine_tiles:
         fs = _face_set(part, g)
         have = [t for t in store.tiles()]
         pick = [have[k] for k in rng.choice(len(have), size=min(tiles, len(have)), replace=False)]
+        # and the tiles with the most facet answers on exact faces: there the fine pass meshed
+        # faces (whole, or cut to blocks), the part of the conversion most likely to differ
+        facets = []
+        for t in have:
+            si, sj = store.tile_slices(*t)
+            how = store.read(si.start, si.stop, sj.start, sj.stop, layer="method")
+            face = store.read(si.start, si.stop, sj.start, sj.stop, layer="face")
+            facets.append(int(((how == 2) & (fs.face_mode[np.maximum(face, 0)] == 1)).sum()))
+        order = np.argsort(facets)[::-1]
+        fine_pick = [have[k] for k in order[:fine_tiles] if facets[k] > 0 and have[k] not in pick]
+        out["facet_points_on_exact_faces"] = int(sum(facets))
+        out["tiles_with_such_points"] = int(sum(c > 0 for c in facets))
+        out["fine_tiles_checked"] = len(fine_pick)
+        pick += fine_pick
         same = 0
         t0 = time.perf_counter()
         nodes = 0
@@ -116,6 +131,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("/tmp/zmap-big/bm2.zarr"))
     ap.add_argument("--check-points", type=int, default=20000)
     ap.add_argument("--check-tiles", type=int, default=2)
+    ap.add_argument("--check-fine-tiles", type=int, default=2,
+                    help="also check this many of the tiles with the most facet answers on exact faces")
     ap.add_argument("--memory-limit", default=None,
                     help="restart a worker above this RSS (e.g. 3GB) instead of letting the machine run out")
     ap.add_argument("--keep", action="store_true", help="leave the store (default: removed after the check)")
@@ -132,7 +149,7 @@ def main() -> None:
            "store_gb_on_disk": round(store.disk_bytes() / 1e9, 2),
            "map_gb_in_memory": round(store.nbytes / 1e9, 2), "machine_memory_gb": round(_machine_memory_gb(), 1),
            "load_avg_1min": [r.get("load_avg_1min_at_start") for r in runs]}
-    out.update(check(a.part, store, a.grid, a.check_points, a.check_tiles))
+    out.update(check(a.part, store, a.grid, a.check_points, a.check_tiles, a.check_fine_tiles))
     print(json.dumps(out))
     if not a.keep:
         shutil.rmtree(a.out, ignore_errors=True)

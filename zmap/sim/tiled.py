@@ -119,8 +119,13 @@ def _assemble(stock: DexelWorkpiece, tile: int, nty: int, results: dict) -> Dexe
 
 def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, xyz: np.ndarray, slot: np.ndarray,
               gpos: np.ndarray, table: tuple, history: str, x0: float, y0: float, pitch: float, gi0: int, gj0: int,
-              tnx: int, tny: int, chunk: int = 4096) -> dict:
-    """One Dask task: cut the tile's positions into its rays, recording its own history."""
+              tnx: int, tny: int, chunk: int = 4096, handoff: str | None = None) -> dict:
+    """One Dask task: cut the tile's positions into its rays, recording its own history.
+
+    With ``handoff`` (a folder the client sees, :class:`zmap.tiled.handoff.Handoff`) the
+    tile's stock and history are written there and the result holds their reference
+    (``arrays``) instead of the arrays.
+    """
     from zmap.tiled.cluster import peak_rss_mb
 
     from . import _dexel_kernels as _k
@@ -161,22 +166,36 @@ def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, xyz: np.ndarra
         rec.finalize()
         structure = getattr(rec, history)
     off, fnear, ffar = wp.to_csr()
-    return {"off": off, "near": fnear, "far": ffar, "created": int(stats[_k.ST_CREATED]),
-            "deleted": int(stats[_k.ST_DELETED]), "structure": structure, "positions": int(len(xyz)),
+    out: dict = {"off": off, "near": fnear, "far": ffar, "structure": structure}
+    if handoff is not None:
+        from zmap.tiled.handoff import save_arrays
+
+        arrays = {"off": off, "near": fnear, "far": ffar}
+        if structure is not None:
+            arrays.update({"s_" + k: v for k, v in structure.to_arrays().items()})
+        out = {"arrays": save_arrays(handoff, f"tile_{gi0}_{gj0}", arrays)}
+    return {**out, "created": int(stats[_k.ST_CREATED]),
+            "deleted": int(stats[_k.ST_DELETED]), "positions": int(len(xyz)),
             "rays_cut": int(stats[_k.ST_RAYS_CUT]), "seconds": time.perf_counter() - t0,
             "wall_span": (wall0, time.time()),
             "cpu_seconds": time.process_time() - c0, "thread_cpu_seconds": time.thread_time() - th0,
             "pid": os.getpid(), "peak_rss_mb": peak_rss_mb()}
 
 
-def _sim_tile_of(shared: tuple, pos: np.ndarray, table: tuple, history: str, x0: float, y0: float, pitch: float,
-                 gi0: int, gj0: int, tnx: int, tny: int, ny: int) -> dict:
+def _sim_tile_of(shared: tuple | dict, pos: np.ndarray, table: tuple, history: str, x0: float, y0: float,
+                 pitch: float, gi0: int, gj0: int, tnx: int, tny: int, ny: int, handoff: str | None = None) -> dict:
     """One Dask task: tile (gi0, gj0, tnx, tny) of the whole stock and program sent once per worker.
 
     ``shared`` is ``(xyz, slot, offsets, near, far)`` of the whole run, the stock as compact
-    per-ray lists (:func:`zmap.tiled.cluster.share`); the task takes its rays and its
-    positions ``pos`` from it.
+    per-ray lists (:func:`zmap.tiled.cluster.share`), or the reference of those arrays
+    written to the ``handoff`` folder (mapped here, read-only); the task takes its rays and
+    its positions ``pos`` from it.
     """
+    if isinstance(shared, dict):
+        from zmap.tiled.handoff import load_arrays
+
+        a = load_arrays(shared, writeable=False)
+        shared = (a["xyz"], a["slot"], a["off"], a["near"], a["far"])
     xyz, slot, off, near, far = shared
     idx = (np.arange(gi0, gi0 + tnx, dtype=np.int64)[:, None] * ny
            + np.arange(gj0, gj0 + tny, dtype=np.int64)[None, :]).ravel()
@@ -186,7 +205,20 @@ def _sim_tile_of(shared: tuple, pos: np.ndarray, table: tuple, history: str, x0:
     src = np.repeat(off[idx], cnt) + (np.arange(int(sub[-1])) - np.repeat(sub[:-1], cnt))
     wp = DexelWorkpiece.from_csr(x0, y0, pitch, tnx, tny, sub, near[src], far[src])
     return _sim_tile(wp.near, wp.far, wp.cnt, np.ascontiguousarray(xyz[pos]), np.ascontiguousarray(slot[pos]), pos,
-                     table, history, x0, y0, pitch, gi0, gj0, tnx, tny)
+                     table, history, x0, y0, pitch, gi0, gj0, tnx, tny, handoff=handoff)
+
+
+def _unpack(r: dict, history: str, tnx: int, tny: int) -> dict:
+    """A tile's result with its arrays in place: mapped from the handoff folder if written there."""
+    if "arrays" not in r:
+        return r
+    from zmap.tiled.handoff import load_arrays
+
+    a = load_arrays(r.pop("arrays"))
+    r.update(off=a["off"], near=a["near"], far=a["far"], structure=None)
+    if history != "none":
+        r["structure"] = _STRUCTS[history].from_arrays(tnx * tny, {k[2:]: v for k, v in a.items() if k.startswith("s_")})
+    return r
 
 
 class TiledHistory:
@@ -299,6 +331,7 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
     from tqdm import tqdm
 
     from zmap.tiled.cluster import cpu_figures, dask_client, share
+    from zmap.tiled.handoff import Handoff, save_arrays
 
     tile = _check_tiles(tiles)
     (ntx, nty), lists = tile_positions(stock, xyz, slot, cutters, tile)
@@ -315,28 +348,42 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
         # the busiest tiles first (positions x rays, about the work), so the short ones fill the end
         weight = [len(lists[k]) * min(tile, stock.nx - k // nty * tile) * min(tile, stock.ny - k % nty * tile)
                   for k in range(ntx * nty)]
-        # the program and the stock go to every worker once, straight from here (not through
-        # the scheduler with each task); a task gets only its positions' indices
-        shared = share(cl, (xyz, slot, *stock.to_csr()))
-        for k in sorted(range(ntx * nty), key=lambda k: -weight[k]):
-            ti, tj = divmod(k, nty)
-            gi0, gj0 = ti * tile, tj * tile
-            tnx, tny = min(tile, stock.nx - gi0), min(tile, stock.ny - gj0)
-            fut = cl.submit(_sim_tile_of, shared, lists[k], table, history, stock.x0, stock.y0, stock.pitch,
-                            gi0, gj0, tnx, tny, stock.ny, pure=False)
-            futures[fut] = k
-        from dask.distributed import as_completed
-
+        # workers on this machine get the program and stock, and give their tiles back,
+        # through files (no pickling, no TCP copies); elsewhere the program and the stock go
+        # to every worker once, straight from here (not through the scheduler with each task)
+        handoff = Handoff.open(cl)
+        folder = handoff.path if handoff is not None else None
         try:
-            with tqdm(total=len(futures), unit="tile", desc="tiles", disable=not progress, leave=False) as bar:
-                for fut in as_completed(list(futures)):
-                    results[futures[fut]] = fut.result()
-                    bar.update(1)
-                    if _on_result is not None:
-                        _on_result(cl, len(results))
-        except BaseException:
-            cl.cancel(list(futures))
-            raise
+            off0, near0, far0 = stock.to_csr()
+            if handoff is not None:
+                shared = save_arrays(folder, "shared", {"xyz": xyz, "slot": slot, "off": off0, "near": near0,
+                                                        "far": far0})
+            else:
+                shared = share(cl, (xyz, slot, off0, near0, far0))
+            for k in sorted(range(ntx * nty), key=lambda k: -weight[k]):
+                ti, tj = divmod(k, nty)
+                gi0, gj0 = ti * tile, tj * tile
+                tnx, tny = min(tile, stock.nx - gi0), min(tile, stock.ny - gj0)
+                fut = cl.submit(_sim_tile_of, shared, lists[k], table, history, stock.x0, stock.y0, stock.pitch,
+                                gi0, gj0, tnx, tny, stock.ny, folder, pure=False)
+                futures[fut] = k
+            from dask.distributed import as_completed
+
+            try:
+                with tqdm(total=len(futures), unit="tile", desc="tiles", disable=not progress, leave=False) as bar:
+                    for fut in as_completed(list(futures)):
+                        k = futures[fut]
+                        tnx, tny = _tile_rays(stock.nx, stock.ny, tile, *divmod(k, nty))[2:4]
+                        results[k] = _unpack(fut.result(), history, tnx, tny)
+                        bar.update(1)
+                        if _on_result is not None:
+                            _on_result(cl, len(results))
+            except BaseException:
+                cl.cancel(list(futures))
+                raise
+        finally:
+            if handoff is not None:
+                handoff.close()  # what the results map stays readable until they are dropped
     seconds = time.perf_counter() - t0
     wall_end = time.time()
     final = _assemble(stock, tile, nty, results)

@@ -59,6 +59,55 @@ def test_tiled_run_equals_single_process_run(job, single, dask_client, history):
     _assert_same_run(single[history], run, history)
 
 
+@pytest.mark.parametrize("through_files", [True, False])
+def test_tiles_come_back_through_files_on_this_machine_and_through_dask_elsewhere(job, single, dask_client,
+                                                                                 monkeypatch, through_files):
+    """Workers that see the client's files hand the program, stock and tiles over as .npy files
+    (the folder is gone after the run, the mapped results stay readable); workers that do not
+    (monkeypatched: as on another host) get and return them through Dask. Both are exact."""
+    import zmap.tiled.handoff as H
+
+    made = []
+    real_open = H.Handoff.open.__func__
+
+    def spy(cls, client):
+        h = real_open(cls, client) if through_files else None
+        made.append(h)
+        return h
+
+    monkeypatch.setattr(H.Handoff, "open", classmethod(spy))
+    prog, bounds, tools, tool = job
+    run = simulate(prog, bounds, tools=tools, tool=tool, pitch=PITCH, history="treap", tiles=40,
+                   scheduler=dask_client.scheduler.address)
+    assert len(made) == 1 and (made[0] is not None) == through_files
+    if through_files:
+        assert not os.path.exists(made[0].path)
+    _assert_same_run(single["treap"], run, "treap")
+
+
+def test_handoff_is_refused_when_a_worker_does_not_see_the_folder(tmp_path):
+    import zmap.tiled.handoff as H
+
+    class Client:
+        def __init__(self, answer):
+            self.answer = answer
+
+        def run(self, fn, path, token):
+            return {"w1": fn(path, token), "w2": self.answer(path, token)}
+
+    h = H.Handoff.open(Client(H._sees))
+    assert h is not None and os.path.isdir(h.path)
+    big, small = np.arange(100_000, dtype=np.float64), np.arange(3, dtype=np.int32)
+    ref = H.save_arrays(h.path, "t", {"big": big, "small": small, "empty": np.zeros(0)})
+    assert set(ref["files"]) == {"big"} and set(ref["inline"]) == {"small", "empty"}
+    back = H.load_arrays(ref)
+    assert np.array_equal(back["big"], big) and back["big"].flags.writeable and type(back["big"]) is np.ndarray
+    assert not H.load_arrays(ref, writeable=False)["big"].flags.writeable
+    h.close()
+    assert not os.path.exists(h.path) and np.array_equal(back["big"], big)  # mapped data outlive the folder
+    assert H.Handoff.open(Client(lambda path, token: False)) is None  # e.g. a worker on another host
+
+
 def test_tiled_history_saves_and_loads(job, single, dask_client, tmp_path):
     prog, bounds, tools, tool = job
     run = simulate(prog, bounds, tools=tools, tool=tool, pitch=PITCH, history="treap", tiles=64,
