@@ -140,13 +140,15 @@ def mesh_faces_alone(part: Part, faces: Sequence[int], deflection: float) -> lis
     A face meshed alone has the same triangles whichever other faces are wanted (BRepMesh on
     a compound of faces discretises their shared edges once, for all of them), and the
     part's own OCC triangulation is left as it is (a fine mesh made on the part's faces
-    would stay attached to them for as long as the part lives).
+    would stay attached to them for as long as the part lives). A face without a surface
+    (tessellated only) keeps its current mesh.
 
     Returns
     -------
     list of FaceMesh or None
         One per entry of ``faces``: None where the face gets no triangles.
     """
+    from OCP.BRep import BRep_Tool
     from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.TopAbs import TopAbs_FACE
@@ -161,6 +163,10 @@ def mesh_faces_alone(part: Part, faces: Sequence[int], deflection: float) -> lis
     out = []
     for k in faces:
         f = TopoDS.Face_s(fmap.FindKey(int(k) + 1))
+        if BRep_Tool.Surface_s(f) is None:
+            # a tessellated-only face: its stored triangles are all there is (a copy drops them)
+            out.append(part.faces[int(k)].mesh)
+            continue
         copy = TopoDS.Face_s(BRepBuilderAPI_Copy(f).Shape())
         BRepMesh_IncrementalMesh(copy, _OCC_SHARE * deflection, False, ANGULAR_DEFLECTION, True)
         out.append(_occ_face_mesh(part.faces[int(k)], [copy], f, deflection))

@@ -760,8 +760,8 @@ def fine_blocks(part: Part, vpart: Part, fine: float, dx: float, dy: float) -> n
         return out  # geomdl faces are meshed on cheap (u, v) grids
     for k, (face, vface) in enumerate(zip(part.faces, vpart.faces)):
         mesh = face.mesh
-        if mesh is None or not len(mesh.triangles):
-            continue
+        if mesh is None or not len(mesh.triangles) or face.surface is None:
+            continue  # (a face without a surface keeps its stored triangles)
         est = len(mesh.triangles) * max(float(mesh.deflection) / fine, 1.0)
         if est <= FINE_PIECE_TRIANGLES:
             continue

@@ -12,8 +12,8 @@ from cad_io.step import read_step
 cq = pytest.importorskip("cadquery")
 
 
-def _node_error(face) -> np.ndarray:
-    m = face.mesh
+def _node_error(face, mesh=None) -> np.ndarray:
+    m = face.mesh if mesh is None else mesh
     return np.linalg.norm(evaluate(face.surface, m.uv[:, 0], m.uv[:, 1])[:, 0] - m.nodes,
                           axis=1)
 
@@ -97,6 +97,28 @@ def test_tessellated_only_faces(sample_data):
     b = np.array(part.bbox)
     for f in part.faces:
         assert np.all(f.mesh.nodes >= b[:3] - 1e-6) and np.all(f.mesh.nodes <= b[3:] + 1e-6)
+
+
+def test_faces_meshed_alone_leave_the_part_as_it_is(sample_data):
+    """``mesh_faces_alone`` meshes copies: the part's meshes and OCC triangulations stay,
+    each face's mesh is the same whichever other faces are asked for, and a tessellated-only
+    face keeps its stored triangles (a copy would drop them)."""
+    from cad_io.mesh import mesh_faces_alone
+
+    part = read_step(sample_data / "step" / "featuretype.STEP")
+    triangulate(part, 0.5)
+    before = [(len(f.mesh.triangles), f.mesh) for f in part.faces]
+    one = mesh_faces_alone(part, [3], 0.05)[0]
+    several = mesh_faces_alone(part, [7, 3, 11], 0.05)
+    assert np.array_equal(one.nodes, several[1].nodes) and np.array_equal(one.triangles, several[1].triangles)
+    assert len(one.triangles) > before[3][0] and one.uv is not None and _node_error(part.faces[3], one).max() < 1e-6
+    assert all(f.mesh is m for f, (_, m) in zip(part.faces, before))
+    triangulate(part, 0.5)  # the OCC faces kept their 0.5 mm triangulation: the same meshes again
+    assert [len(f.mesh.triangles) for f in part.faces] == [n for n, _ in before]
+    tess = read_step(sample_data / "step" / "nist_ftc_08_asme1_ap242-2.stp")
+    triangulate(tess, 0.1)
+    got = mesh_faces_alone(tess, range(len(tess.faces)), 0.01)
+    assert all(g is f.mesh for g, f in zip(got, tess.faces))
 
 
 def test_real_part_uv_within_file_tolerance(sample_data):
