@@ -11,8 +11,8 @@ from numba import njit, prange
 
 from ._direction_kernels import lookup_one
 
-__all__ = ["accumulate", "paint_exterior", "skin_masks", "cast_directions", "ball_neighbours", "local_conditions",
-           "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
+__all__ = ["accumulate", "paint_exterior", "skin_masks", "patch_slab", "piece_accumulate", "cast_directions",
+           "ball_neighbours", "local_conditions", "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
 
@@ -221,20 +221,109 @@ def _zcols(uc, e, f, r, h, u0, cell, jlo, jhi):
     return lo, hi
 
 
+@njit(cache=True)
+def piece_accumulate(piece, pts, nrm, centres, frames, q, hl, exact, dirs, light, psum, nsum, pmin, pmax):
+    """Fold samples into pieces (one face's samples in one voxel): L' (OR of each sample's
+    exact hemisphere, or of H_L of its tessel), point and normal sums, samples' box."""
+    W = light.shape[1]
+    k = dirs.shape[0]
+    for s in range(piece.shape[0]):
+        p = piece[s]
+        nx, ny, nz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
+        if exact:
+            for w in range(W):
+                acc = np.uint64(0)
+                for i in range(w * 64, min(k, w * 64 + 64)):
+                    if dirs[i, 0] * nx + dirs[i, 1] * ny + dirs[i, 2] * nz > 0.0:
+                        acc |= np.uint64(1) << np.uint64(i - w * 64)
+                light[p, w] |= acc
+        else:
+            t = lookup_one(nx, ny, nz, centres, frames, q)
+            if t >= 0:
+                for w in range(W):
+                    light[p, w] |= hl[t, w]
+        for c in range(3):
+            psum[p, c] += pts[s, c]
+            nsum[p, c] += nrm[s, c]
+            pmin[p, c] = min(pmin[p, c], pts[s, c])
+            pmax[p, c] = max(pmax[p, c], pts[s, c])
+
+
+@njit(cache=True)
+def patch_slab(vox, pts, nrm, point, normal, step, slab, grow):
+    """Bounds of each boundary voxel's surface patch from its samples.
+
+    ``slab[b]``: half-thickness of the patch about the plane through ``point[b]`` with normal
+    ``normal[b]``: the samples' largest distance from it, plus 2 d' (``step``) times the
+    largest sine s_b between a sample's normal and ``normal[b]`` (the patch runs on up to d'
+    past its outer samples, turning at most as much again), so that every patch point x has
+    ``(x - point[b]) . normal[b] >= -slab[b]``. ``grow[b, c]``: how far the patch can reach
+    along axis c past its samples' box, ``d' min(1, t_c + s_b)``, t_c the largest
+    ``sqrt(1 - n_c^2)`` of its samples' normals (a move of d' along the surface changes
+    coordinate c by at most d' times that): 1e-6 d' across a flat face square to an axis.
+    Where b has no mean normal: slab inf, grow d'.
+    """
+    mb = point.shape[0]
+    dev = np.zeros(mb)
+    sn = np.zeros(mb)
+    tang = np.zeros((mb, 3))
+    for s in range(vox.shape[0]):
+        b = vox[s]
+        mx, my, mz = normal[b, 0], normal[b, 1], normal[b, 2]
+        t = abs((pts[s, 0] - point[b, 0]) * mx + (pts[s, 1] - point[b, 1]) * my + (pts[s, 2] - point[b, 2]) * mz)
+        if t > dev[b]:
+            dev[b] = t
+        ux, uy, uz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
+        cx = uy * mz - uz * my
+        cy = uz * mx - ux * mz
+        cz = ux * my - uy * mx
+        c = np.sqrt(cx * cx + cy * cy + cz * cz)
+        if c > sn[b]:
+            sn[b] = c
+        # sqrt(1 - n_c^2) from the other two components: exactly 0 on an axis
+        tx = np.sqrt(uy * uy + uz * uz)
+        ty = np.sqrt(ux * ux + uz * uz)
+        tz = np.sqrt(ux * ux + uy * uy)
+        tang[b, 0] = max(tang[b, 0], tx)
+        tang[b, 1] = max(tang[b, 1], ty)
+        tang[b, 2] = max(tang[b, 2], tz)
+    for b in range(mb):
+        if normal[b, 0] == 0.0 and normal[b, 1] == 0.0 and normal[b, 2] == 0.0:
+            slab[b] = np.inf
+            for c in range(3):
+                grow[b, c] = step
+        else:
+            slab[b] = dev[b] + 2.0 * step * sn[b]
+            for c in range(3):
+                # never flat: the casting's lines must cross a query's box, not graze it
+                grow[b, c] = max(step * min(1.0, tang[b, c] + sn[b]), 1e-6 * step)
+
+
 @njit(cache=True, parallel=True)
-def cast_directions(dirs, opp, bxyz, bhalf, skin, hide, skin_mask, light, vl, d, cell, radius, lo, out):
+def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin, hide, skin_mask, light, vl, ppt,
+                    pnrm, slab, d, cell, radius, lo, out):
     """Cylinder casting of paper 002 §4.5 for every direction at once, one depth buffer each.
 
     For direction n, the lines parallel to n through the cell centres of a plane grid of
     pitch ``cell`` stand for the cylinder's rays. Blockers are the interior skin voxels
     (cubes) and the boundary voxels w with -n in L'(w) (their surface boxes). Per line the
-    buffer keeps the largest exit parameter of a blocker box (and the second largest with the
-    blocker's number, to skip v itself). Voxel v keeps n when no line through its box meets
-    a blocker box beyond v's entry. The boundary blockers' boxes are grown by half a cell
-    diagonal, so that a true ray into a thin one still shows on the centre line of its cell;
-    a box of v thinner than a cell that no centre line crosses is tested on the cell under its
-    centre from its nearest depth. ``out[i, b]`` = 1 where direction i stays in V'_g(b); ``opp[i]`` is the
-    index of -dirs[i].
+    buffer keeps the largest exit parameter of a blocker box. Voxel v keeps n when no line
+    through its box meets a blocker box beyond the line's start: v's entry into the box, or
+    later where the patch's slab (``ppt``, ``pnrm``, ``slab``: every point x of v's surface
+    patch has ``(x - ppt[v]) . pnrm[v] >= -slab[v]``) shows that no patch point on the line lies
+    lower (only where n . pnrm[v] > 0; a blocker behind the patch, such as the interior cube
+    under a flat face or the box of the next voxel across a convex edge, cannot stop a ray
+    leaving the patch). The boundary blockers' boxes are grown by half a cell diagonal, so that
+    a true ray into a thin one still shows on the centre line of its cell; a box of v thinner
+    than a cell that no centre line crosses is tested on the cell under its centre from its
+    nearest depth. As a query (the cylinder's cross-section) v has its own box (``qxyz``,
+    ``qhalf``). ``out[i, b]`` = 1 where direction i stays in V'_g(b); ``opp[i]`` is the index
+    of -dirs[i].
+
+    Where some v is both a query and a blocker of direction i (n in V'_l(v) and -n in L'(v):
+    only with the paper's tessel sets, never with exact hemispheres) the buffer also keeps the
+    second largest exit with the largest one's blocker number, to skip v itself; otherwise it
+    keeps the largest alone.
 
     A skin cube whose neighbours on n's side (``hide[i]``, a mask over ``skin_mask``) are all
     interior is left out of direction i: every line leaving it goes on into the interior and
@@ -242,12 +331,14 @@ def cast_directions(dirs, opp, bxyz, bhalf, skin, hide, skin_mask, light, vl, d,
     value changes. Per cell the exit and entry parameters are linear in the cell's centre
     along a row (one add per axis), and the buffer covers only the part's footprint.
 
-    bxyz, bhalf : (mb, 3) centres and half extents of the boundary voxels' surface boxes;
+    bxyz, bhalf : (mb, 3) centres and half extents of the boundary voxels' boxes as blockers;
+    qxyz, qhalf : (mb, 3) the same as queries;
     skin : (ms, 3) interior skin voxel centres (cubes of edge d);
     radius : half the diagonal of the part's box; lo : (3,) centre of the part's box.
     """
     k = dirs.shape[0]
-    mb = bxyz.shape[0]
+    nb = bxyz.shape[0]
+    mb = qxyz.shape[0]
     ms = skin.shape[0]
     g = 0.5 * np.sqrt(2.0) * cell
     h = 0.5 * d
@@ -256,143 +347,177 @@ def cast_directions(dirs, opp, bxyz, bhalf, skin, hide, skin_mask, light, vl, d,
     # the box holding every blocker and every voxel box (grown), relative to lo
     gmin = np.full(3, 1.0e300)
     gmax = np.full(3, -1.0e300)
-    for m in range(mb + ms):
+    for m in range(nb + mb + ms):
         for c in range(3):
-            if m < mb:
+            if m < nb:
                 x0 = bxyz[m, c] - bhalf[m, c] - g
                 x1 = bxyz[m, c] + bhalf[m, c] + g
+            elif m < nb + mb:
+                x0 = qxyz[m - nb, c] - qhalf[m - nb, c]
+                x1 = qxyz[m - nb, c] + qhalf[m - nb, c]
             else:
-                x0 = skin[m - mb, c] - h
-                x1 = skin[m - mb, c] + h
+                x0 = skin[m - nb - mb, c] - h
+                x1 = skin[m - nb - mb, c] + h
             gmin[c] = min(gmin[c], x0 - lo[c])
             gmax[c] = max(gmax[c], x1 - lo[c])
     for i in prange(k):  # the body is a call: parfor lowering of a big body compiles for minutes
-        _cast_one(i, dirs, opp, bxyz, bhalf, skin, hide, skin_mask, light, vl, d, cell, lo, g, h, u0, nc,
-                  gmin, gmax, out)
+        _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin, hide, skin_mask, light, vl, ppt,
+                  pnrm, slab, d, cell, lo, g, h, u0, nc, gmin, gmax, out)
 
 
 @njit(cache=True)
-def _cast_one(i, dirs, opp, bxyz, bhalf, skin, hide, skin_mask, light, vl, d, cell, lo, g, h, u0, nc, gmin, gmax,
-              out):
-    """Direction i of :func:`cast_directions`: its depth buffer, then ``out[i, :]``."""
-    mb = bxyz.shape[0]
-    ms = skin.shape[0]
-    nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+def _geometry(nx, ny, nz):
+    """Per direction: the plane basis e, f and, per axis c, (1/n_c, e_c/n_c, f_c/n_c, sign n_c,
+    1 where the line runs parallel to axis c's planes) as one tuple of floats."""
     ex, ey, ez, fx, fy, fz = _basis(nx, ny, nz)
     zx, ix_, pex, pfx, sx = _line_setup(nx, ex, fx)
     zy, iy_, pey, pfy, sy = _line_setup(ny, ey, fy)
     zz, iz_, pez, pfz, sz = _line_setup(nz, ez, fz)
-    # the window of the plane grid that the part covers
-    gcx, gcy, gcz = 0.5 * (gmin[0] + gmax[0]), 0.5 * (gmin[1] + gmax[1]), 0.5 * (gmin[2] + gmax[2])
-    ghx, ghy, ghz = 0.5 * (gmax[0] - gmin[0]), 0.5 * (gmax[1] - gmin[1]), 0.5 * (gmax[2] - gmin[2])
-    cu = gcx * ex + gcy * ey + gcz * ez
-    cv = gcx * fx + gcy * fy + gcz * fz
-    au = ghx * abs(ex) + ghy * abs(ey) + ghz * abs(ez)
-    av = ghx * abs(fx) + ghy * abs(fy) + ghz * abs(fz)
-    A0 = max(0, int(np.floor((cu - au - u0) / cell)) - 1)
-    A1 = min(nc - 1, int(np.floor((cu + au - u0) / cell)) + 1)
-    B0 = max(0, int(np.floor((cv - av - u0) / cell)) - 1)
-    B1 = min(nc - 1, int(np.floor((cv + av - u0) / cell)) + 1)
-    b1 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
-    b2 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
-    id1 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1, dtype=np.int64)
+    return (ex, ey, ez, fx, fy, fz, ix_, iy_, iz_, pex, pey, pez, pfx, pfy, pfz, sx, sy, sz,
+            1.0 if zx else 0.0, 1.0 if zy else 0.0, 1.0 if zz else 0.0)
+
+
+@njit(cache=True)
+def _span(rx, ry, rz, hx, hy, hz, geo, u0, cell, A0, A1, B0, B1):
+    """The grid cells (ia..ib, ja..jb) under a box (centre r relative to the grid's origin,
+    half extents h) and its per-axis entry / exit parameters on the line through the
+    grid's origin: (r -/+ sign h) / n (-/+inf on an axis the line runs parallel to)."""
+    ex, ey, ez, fx, fy, fz = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
+    ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
+    af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
+    pu = rx * ex + ry * ey + rz * ez
+    pv = rx * fx + ry * fy + rz * fz
+    ia = max(A0, int(np.floor((pu - ae - u0) / cell)))
+    ib = min(A1, int(np.floor((pu + ae - u0) / cell)))
+    ja = max(B0, int(np.floor((pv - af - u0) / cell)))
+    jb = min(B1, int(np.floor((pv + af - u0) / cell)))
+    lxa = -1.0e300 if geo[18] else (rx - geo[15] * hx) * geo[6]
+    lxb = 1.0e300 if geo[18] else (rx + geo[15] * hx) * geo[6]
+    lya = -1.0e300 if geo[19] else (ry - geo[16] * hy) * geo[7]
+    lyb = 1.0e300 if geo[19] else (ry + geo[16] * hy) * geo[7]
+    lza = -1.0e300 if geo[20] else (rz - geo[17] * hz) * geo[8]
+    lzb = 1.0e300 if geo[20] else (rz + geo[17] * hz) * geo[8]
+    return pu, pv, ae, af, ia, ib, ja, jb, lxa, lxb, lya, lyb, lza, lzb
+
+
+@njit(cache=True)
+def _row(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb, geo, u0, cell):
+    """Row uc of a box's cells: its column range (cut to the slab of an axis the line runs
+    parallel to) and the per-axis entry / exit parameters at column centre 0."""
+    jl, jh = ja, jb
+    if geo[18]:
+        jl, jh = _zcols(uc, geo[0], geo[3], rx, hx, u0, cell, jl, jh)
+    if geo[19]:
+        jl, jh = _zcols(uc, geo[1], geo[4], ry, hy, u0, cell, jl, jh)
+    if geo[20]:
+        jl, jh = _zcols(uc, geo[2], geo[5], rz, hz, u0, cell, jl, jh)
+    return (jl, jh, lxa - uc * geo[9], lxb - uc * geo[9], lya - uc * geo[10], lyb - uc * geo[10],
+            lza - uc * geo[11], lzb - uc * geo[11])
+
+
+@njit(cache=True)
+def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin, hide, skin_mask, light, vl, ppt, pnrm,
+              slab, d, cell, lo, g, h, u0, nc, gmin, gmax, out):
+    """Direction i of :func:`cast_directions`: its depth buffer, then ``out[i, :]``."""
+    nb = bxyz.shape[0]
+    mb = qxyz.shape[0]
+    ms = skin.shape[0]
+    nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+    geo = _geometry(nx, ny, nz)
+    ex, ey, ez, fx, fy, fz = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
+    pfx, pfy, pfz = geo[12], geo[13], geo[14]
+    A0, A1, B0, B1 = _window(gmin, gmax, ex, ey, ez, fx, fy, fz, 0.0, u0, cell, nc)
     wi = i >> 6
+    bi = np.uint64(i & 63)
     o = opp[i]
     ow = o >> 6
     ob = np.uint64(o & 63)
+    # the top-two bookkeeping is needed only where a query of i is also a blocker of i
+    two = False
+    for m in range(mb):
+        if (vl[m, wi] >> bi) & (light[m, ow] >> ob) & np.uint64(1):
+            two = True
+            break
+    b1 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
+    b2 = np.full((A1 - A0 + 1, B1 - B0 + 1) if two else (1, 1), -1.0e300)
+    id1 = np.full((A1 - A0 + 1, B1 - B0 + 1) if two else (1, 1), -1, dtype=np.int64)
     req = hide[i]
-    for m in range(mb + ms):
-        if m < mb:
-            if (light[m, ow] >> ob) & np.uint64(1) == 0:
+    for m in range(nb + ms):
+        # the back plane of a blocker piece: its exit on a line is no later than where the
+        # line passes g behind the piece's slab, s = k0 - uc ku - vc kv (none: k0 = inf)
+        k0, ku, kv = 1.0e300, 0.0, 0.0
+        if m < nb:
+            if (blight[m, ow] >> ob) & np.uint64(1) == 0:
                 continue
             cx, cy, cz = bxyz[m, 0], bxyz[m, 1], bxyz[m, 2]
             hx, hy, hz = bhalf[m, 0] + g, bhalf[m, 1] + g, bhalf[m, 2] + g
+            mx, my, mz = bplane[m, 3], bplane[m, 4], bplane[m, 5]
+            nm = nx * mx + ny * my + nz * mz
+            if nm < -1e-9 and bplane[m, 6] < 1.0e300:
+                k0 = ((bplane[m, 0] - lo[0]) * mx + (bplane[m, 1] - lo[1]) * my + (bplane[m, 2] - lo[2]) * mz
+                      - bplane[m, 6] - g) / nm
+                ku = (ex * mx + ey * my + ez * mz) / nm
+                kv = (fx * mx + fy * my + fz * mz) / nm
+            who = bvox[m]
         else:
-            if (skin_mask[m - mb] & req) == req:
+            if (skin_mask[m - nb] & req) == req:
                 continue
-            cx, cy, cz = skin[m - mb, 0], skin[m - mb, 1], skin[m - mb, 2]
+            cx, cy, cz = skin[m - nb, 0], skin[m - nb, 1], skin[m - nb, 2]
             hx, hy, hz = h, h, h
+            who = -2
         rx, ry, rz = cx - lo[0], cy - lo[1], cz - lo[2]
-        ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
-        af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
-        pu = rx * ex + ry * ey + rz * ez
-        pv = rx * fx + ry * fy + rz * fz
-        ia = max(A0, int(np.floor((pu - ae - u0) / cell)))
-        ib = min(A1, int(np.floor((pu + ae - u0) / cell)))
-        ja = max(B0, int(np.floor((pv - af - u0) / cell)))
-        jb = min(B1, int(np.floor((pv + af - u0) / cell)))
-        # entry / exit parameter per axis: (r -/+ sign h) / n - uc e/n - vc f/n
-        lxa = -1.0e300 if zx else (rx - sx * hx) * ix_
-        lxb = 1.0e300 if zx else (rx + sx * hx) * ix_
-        lya = -1.0e300 if zy else (ry - sy * hy) * iy_
-        lyb = 1.0e300 if zy else (ry + sy * hy) * iy_
-        lza = -1.0e300 if zz else (rz - sz * hz) * iz_
-        lzb = 1.0e300 if zz else (rz + sz * hz) * iz_
+        pu, pv, ae, af, ia, ib, ja, jb, lxa, lxb, lya, lyb, lza, lzb = _span(rx, ry, rz, hx, hy, hz, geo, u0, cell,
+                                                                            A0, A1, B0, B1)
         for a in range(ia, ib + 1):
             uc = u0 + (a + 0.5) * cell
-            jl, jh = ja, jb
-            if zx:
-                jl, jh = _zcols(uc, ex, fx, rx, hx, u0, cell, jl, jh)
-            if zy:
-                jl, jh = _zcols(uc, ey, fy, ry, hy, u0, cell, jl, jh)
-            if zz:
-                jl, jh = _zcols(uc, ez, fz, rz, hz, u0, cell, jl, jh)
-            xa, xb = lxa - uc * pex, lxb - uc * pex
-            ya, yb = lya - uc * pey, lyb - uc * pey
-            za, zb = lza - uc * pez, lzb - uc * pez
+            jl, jh, xa, xb, ya, yb, za, zb = _row(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb,
+                                                  geo, u0, cell)
             ra = a - A0
+            kr = k0 - uc * ku
             for b in range(jl, jh + 1):
                 vc = u0 + (b + 0.5) * cell
                 s0 = max(xa - vc * pfx, max(ya - vc * pfy, za - vc * pfz))
-                s1 = min(xb - vc * pfx, min(yb - vc * pfy, zb - vc * pfz))
+                s1 = min(xb - vc * pfx, min(yb - vc * pfy, min(zb - vc * pfz, kr - vc * kv)))
                 if s0 >= s1:
                     continue
                 rb = b - B0
-                if s1 > b1[ra, rb]:
-                    if id1[ra, rb] != m:
+                if not two:
+                    if s1 > b1[ra, rb]:
+                        b1[ra, rb] = s1
+                elif s1 > b1[ra, rb]:
+                    if id1[ra, rb] != who:
                         b2[ra, rb] = b1[ra, rb]
                     b1[ra, rb] = s1
-                    id1[ra, rb] = m
-                elif s1 > b2[ra, rb] and id1[ra, rb] != m:
+                    id1[ra, rb] = who
+                elif s1 > b2[ra, rb] and id1[ra, rb] != who:
                     b2[ra, rb] = s1
     eps = 1e-9 * d
     for m in range(mb):
-        if (vl[m, wi] >> np.uint64(i & 63)) & np.uint64(1) == 0:
+        if (vl[m, wi] >> bi) & np.uint64(1) == 0:
             out[i, m] = 0
             continue
-        rx, ry, rz = bxyz[m, 0] - lo[0], bxyz[m, 1] - lo[1], bxyz[m, 2] - lo[2]
-        hx, hy, hz = bhalf[m, 0], bhalf[m, 1], bhalf[m, 2]
-        ae = hx * abs(ex) + hy * abs(ey) + hz * abs(ez)
-        af = hx * abs(fx) + hy * abs(fy) + hz * abs(fz)
-        pu = rx * ex + ry * ey + rz * ez
-        pv = rx * fx + ry * fy + rz * fz
-        ia = max(A0, int(np.floor((pu - ae - u0) / cell)))
-        ib = min(A1, int(np.floor((pu + ae - u0) / cell)))
-        ja = max(B0, int(np.floor((pv - af - u0) / cell)))
-        jb = min(B1, int(np.floor((pv + af - u0) / cell)))
-        lxa = -1.0e300 if zx else (rx - sx * hx) * ix_
-        lxb = 1.0e300 if zx else (rx + sx * hx) * ix_
-        lya = -1.0e300 if zy else (ry - sy * hy) * iy_
-        lyb = 1.0e300 if zy else (ry + sy * hy) * iy_
-        lza = -1.0e300 if zz else (rz - sz * hz) * iz_
-        lzb = 1.0e300 if zz else (rz + sz * hz) * iz_
+        rx, ry, rz = qxyz[m, 0] - lo[0], qxyz[m, 1] - lo[1], qxyz[m, 2] - lo[2]
+        hx, hy, hz = qhalf[m, 0], qhalf[m, 1], qhalf[m, 2]
+        pu, pv, ae, af, ia, ib, ja, jb, lxa, lxb, lya, lyb, lza, lzb = _span(rx, ry, rz, hx, hy, hz, geo, u0, cell,
+                                                                            A0, A1, B0, B1)
+        # the patch's slab: on the line (uc, vc) no patch point lies below c0 - uc cu - vc cv
+        mx, my, mz = pnrm[m, 0], pnrm[m, 1], pnrm[m, 2]
+        nm = nx * mx + ny * my + nz * mz
+        c0, cu, cv = -1.0e300, 0.0, 0.0
+        if nm > 1e-9 and slab[m] < 1.0e300:
+            c0 = ((ppt[m, 0] - lo[0]) * mx + (ppt[m, 1] - lo[1]) * my + (ppt[m, 2] - lo[2]) * mz - slab[m]) / nm
+            cu = (ex * mx + ey * my + ez * mz) / nm
+            cv = (fx * mx + fy * my + fz * mz) / nm
         ok = 1
         hits = 0
         for a in range(ia, ib + 1):
             if ok == 0:
                 break
             uc = u0 + (a + 0.5) * cell
-            jl, jh = ja, jb
-            if zx:
-                jl, jh = _zcols(uc, ex, fx, rx, hx, u0, cell, jl, jh)
-            if zy:
-                jl, jh = _zcols(uc, ey, fy, ry, hy, u0, cell, jl, jh)
-            if zz:
-                jl, jh = _zcols(uc, ez, fz, rz, hz, u0, cell, jl, jh)
-            xa, xb = lxa - uc * pex, lxb - uc * pex
-            ya, yb = lya - uc * pey, lyb - uc * pey
-            za, zb = lza - uc * pez, lzb - uc * pez
+            jl, jh, xa, xb, ya, yb, za, zb = _row(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb,
+                                                  geo, u0, cell)
             ra = a - A0
+            cr = c0 - uc * cu
             for b in range(jl, jh + 1):
                 vc = u0 + (b + 0.5) * cell
                 s0 = max(xa - vc * pfx, max(ya - vc * pfy, za - vc * pfz))
@@ -400,18 +525,20 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, skin, hide, skin_mask, light, vl, d, ce
                 if s0 >= s1:
                     continue
                 hits += 1
+                s0 = max(s0, cr - vc * cv)
                 rb = b - B0
-                top = b2[ra, rb] if id1[ra, rb] == m else b1[ra, rb]
+                top = b2[ra, rb] if two and id1[ra, rb] == m else b1[ra, rb]
                 if top > s0 + eps:
                     ok = 0
                     break
         if hits == 0:
             # a box thinner than the cell: no centre line crosses it; test the cell under
-            # its centre from its nearest depth
+            # its centre from its nearest depth (and the slab's lowest over the box)
             a = min(A1, max(A0, int(np.floor((pu - u0) / cell))))
             b = min(B1, max(B0, int(np.floor((pv - u0) / cell))))
             s0 = rx * nx + ry * ny + rz * nz - (hx * abs(nx) + hy * abs(ny) + hz * abs(nz))
-            top = b2[a - A0, b - B0] if id1[a - A0, b - B0] == m else b1[a - A0, b - B0]
+            s0 = max(s0, c0 - (u0 + (a + 0.5) * cell) * cu - (u0 + (b + 0.5) * cell) * cv)
+            top = b2[a - A0, b - B0] if two and id1[a - A0, b - B0] == m else b1[a - A0, b - B0]
             if top > s0 + eps:
                 ok = 0
         out[i, m] = ok

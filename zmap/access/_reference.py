@@ -3,9 +3,11 @@
 :func:`global_visibility_reference` restates the cylinder casting of
 :func:`zmap.access.voxelmap.global_visibility` pair by pair: for each boundary voxel v and
 each direction n of V'_l(v), for each line of the plane grid that crosses v's surface box,
-every blocker box (interior skin cube, or boundary box w != v with -n in L'(w), grown by
-half a cell diagonal) is clipped
-against the line in numpy; v loses n when one reaches beyond v's entry. No depth buffer,
+every blocker box (interior skin cube, or boundary blocker of :meth:`VoxelMap.blockers`
+not of v with -n in its L', grown by half a cell diagonal, its exit no later than g
+behind its slab) is clipped against the line in numpy; v loses n when one reaches beyond
+the line's start (v's entry into its tight box, or the lowest point of v's patch slab on
+the line). No depth buffer,
 no top-two bookkeeping: the kernel must give the same bits.
 
 :func:`tool_clearance_reference` restates the shank and holder tests of
@@ -49,44 +51,68 @@ def _clip(base, n, c, h):
 def global_visibility_reference(vm, *, rays: int = 2) -> np.ndarray:
     """V'_g (mb, words) computed plainly; small maps only (O(k mb^2))."""
     ds = vm.directions
-    bc, bh = vm.boxes()
+    bc, bh, bvox, blight, bplane = vm.blockers()
+    qc, qh_ = vm.boxes(tight=True)
     skin = vm.skin()
-    allc = np.concatenate([bc, skin]) if len(skin) else bc
+    allc = np.concatenate([qc, skin]) if len(skin) else qc
     lo_, hi_ = allc.min(axis=0), allc.max(axis=0)
     mid = 0.5 * (lo_ + hi_)
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d
     cell = vm.d / rays
     u0 = -(radius + 2 * vm.d)
     nc = int(np.ceil(2.0 * (radius + 2 * vm.d) / cell)) + 1
-    light = to_bool(vm.light, ds.k)
+    light = to_bool(blight, ds.k)
     vl = to_bool(vm.vl, ds.k)
+    g = 0.5 * np.sqrt(2.0) * cell
     opp = ds.lookup(-ds.normals)
     sc = skin - mid
     sh = np.full((len(skin), 3), 0.5 * vm.d)
     rel = bc - mid
     out = np.zeros((vm.n_boundary, ds.k), bool)
+    slab = vm.slabs()
     for i in range(ds.k):
         n = ds.normals[i]
         e, f = _basis(n)
         blk = np.flatnonzero(light[:, opp[i]])
         for b in np.flatnonzero(vl[:, i]):
-            others = blk[blk != b]
+            others = blk[bvox[blk] != b]
             cs = np.concatenate([rel[others], sc])
-            hs = np.concatenate([bh[others] + 0.5 * np.sqrt(2.0) * cell, sh])
-            pu, pv = rel[b] @ e, rel[b] @ f
-            ae, af = bh[b] @ np.abs(e), bh[b] @ np.abs(f)
+            hs = np.concatenate([bh[others] + g, sh])
+            # a piece's exit comes no later than g behind its slab (where it faces the line)
+            wm = bplane[others, 3:6]
+            wn = wm @ n
+            back = (wn < -1e-9) & (bplane[others, 6] < 1e300)
+            wk = np.where(back, ((bplane[others, :3] - mid) * wm).sum(axis=1) - bplane[others, 6] - g, 0.0)
+
+            def clip(base, cs=cs, hs=hs, wm=wm, wn=wn, back=back, wk=wk):
+                t0, t1 = _clip(base, n, cs, hs)
+                lim = np.where(back, (wk - wm @ base) / np.where(back, wn, -1.0), np.inf)
+                t1[:len(lim)] = np.minimum(t1[:len(lim)], lim)
+                return t0, t1
+
+            qh, qr = qh_[b], qc[b] - mid  # v's surface box
+            pu, pv = qr @ e, qr @ f
+            ae, af = qh @ np.abs(e), qh @ np.abs(f)
+            # the patch's slab: on a line base + s n no patch point lies below start(base)
+            m_ = vm.normal[b]
+            nm = float(n @ m_)
+            use = nm > 1e-9 and slab[b] < 1e300
+
+            def start(base, m_=m_, nm=nm, use=use, b=b):
+                return ((vm.point[b] - mid) @ m_ - slab[b] - base @ m_) / nm if use else -np.inf
+
             ia, ib = max(0, int(np.floor((pu - ae - u0) / cell))), min(nc - 1, int(np.floor((pu + ae - u0) / cell)))
             ja, jb = max(0, int(np.floor((pv - af - u0) / cell))), min(nc - 1, int(np.floor((pv + af - u0) / cell)))
             free, hits = True, 0
             for a in range(ia, ib + 1):
                 for c in range(ja, jb + 1):
                     base = (u0 + (a + 0.5) * cell) * e + (u0 + (c + 0.5) * cell) * f
-                    s0, s1 = _clip(base, n, rel[b][None], bh[b][None])
+                    s0, s1 = _clip(base, n, qr[None], qh[None])
                     if s0[0] >= s1[0]:
                         continue
                     hits += 1
-                    t0, t1 = _clip(base, n, cs, hs)
-                    if np.any((t0 < t1) & (t1 > s0[0] + 1e-9 * vm.d)):
+                    t0, t1 = clip(base)
+                    if np.any((t0 < t1) & (t1 > max(s0[0], start(base)) + 1e-9 * vm.d)):
                         free = False
             if hits == 0:
                 # the kernel's fallback: the cell under the box's centre, from its nearest depth;
@@ -94,8 +120,9 @@ def global_visibility_reference(vm, *, rays: int = 2) -> np.ndarray:
                 a = min(nc - 1, max(0, int(np.floor((pu - u0) / cell))))
                 c = min(nc - 1, max(0, int(np.floor((pv - u0) / cell))))
                 base = (u0 + (a + 0.5) * cell) * e + (u0 + (c + 0.5) * cell) * f
-                s0 = rel[b] @ n - bh[b] @ np.abs(n)
-                t0, t1 = _clip(base, n, cs, hs)
+                s0 = qr @ n - qh @ np.abs(n)
+                s0 = max(s0, start(base))  # and the slab's start on that line
+                t0, t1 = clip(base)
                 if np.any((t0 < t1) & (t1 > s0 + 1e-9 * vm.d)):
                     free = False
             out[b, i] = free
