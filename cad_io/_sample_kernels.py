@@ -116,7 +116,7 @@ def _scan_grid_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, p, gidx, 
     inv = 1.0 / area
     mg = tri_margin[t]
     l0, l1, l2_ = _bary_limits(ax, ay, bx, by, cx, cy, area, mg)
-    i0, i1, j0, j1 = _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, mg)
+    i0, i1, j0, j1 = _widened_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, l0, l1, l2_)
     n = 0
     for i in range(i0, i1 + 1):
         px = x0 + i * dx
@@ -681,10 +681,14 @@ def _scan_tri(nodes, tris, tri_margin, t, px, py, bx0, by0, bh, nbx, nby, bin_pt
     inv = 1.0 / area
     mg = tri_margin[t]
     l0, l1, l2_ = _bary_limits(ax, ay, bx, by, cx, cy, area, mg)
-    i0 = max(0, int(math.floor((min(ax, min(bx, cx)) - mg - bx0) / bh)))
-    i1 = min(nbx - 1, int(math.floor((max(ax, max(bx, cx)) + mg - bx0) / bh)))
-    j0 = max(0, int(math.floor((min(ay, min(by, cy)) - mg - by0) / bh)))
-    j1 = min(nby - 1, int(math.floor((max(ay, max(by, cy)) + mg - by0) / bh)))
+    # the bins under the whole widened triangle: its acute corners reach beyond the box +
+    # margin, and a point there must pair whatever the bins of the call (an answer may not
+    # depend on the other points asked with it: tiles of a tiled conversion meet the map)
+    xlo, xhi, ylo, yhi = _widened_box(ax, ay, bx, by, cx, cy, l0, l1, l2_)
+    i0 = max(0, int(math.floor((xlo - bx0) / bh)))
+    i1 = min(nbx - 1, int(math.floor((xhi - bx0) / bh)))
+    j0 = max(0, int(math.floor((ylo - by0) / bh)))
+    j1 = min(nby - 1, int(math.floor((yhi - by0) / bh)))
     for i in range(i0, i1 + 1):
         for j in range(j0, j1 + 1):
             q = i * nby + j
@@ -702,6 +706,33 @@ def _scan_tri(nodes, tris, tri_margin, t, px, py, bx0, by0, bh, nbx, nby, bin_pt
                         w[p + n, 1] = w2
                     n += 1
     return n
+
+
+@njit(cache=True)
+def _widened_box(ax, ay, bx, by, cx, cy, l0, l1, l2):
+    """xy box of the triangle widened to the barycentric limits ``(l0, l1, l2)`` (its corners
+    are where two weights sit on their limits), with a 1e-9 mm rounding slack."""
+    pax = (1.0 - l1 - l2) * ax + l1 * bx + l2 * cx
+    pay = (1.0 - l1 - l2) * ay + l1 * by + l2 * cy
+    pbx = l0 * ax + (1.0 - l0 - l2) * bx + l2 * cx
+    pby = l0 * ay + (1.0 - l0 - l2) * by + l2 * cy
+    pcx = l0 * ax + l1 * bx + (1.0 - l0 - l1) * cx
+    pcy = l0 * ay + l1 * by + (1.0 - l0 - l1) * cy
+    s = 1e-9
+    return (min(pax, min(pbx, pcx)) - s, max(pax, max(pbx, pcx)) + s,
+            min(pay, min(pby, pcy)) - s, max(pay, max(pby, pcy)) + s)
+
+
+@njit(cache=True)
+def _widened_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, l0, l1, l2):
+    """Grid index window ``(i0, i1, j0, j1)`` under the triangle widened to the barycentric
+    limits (:func:`_widened_box`; a box + margin misses the acute corners' points)."""
+    xmin, xmax, ymin, ymax = _widened_box(ax, ay, bx, by, cx, cy, l0, l1, l2)
+    i0 = max(0, int(math.ceil((xmin - x0) / dx - 1e-9)))
+    i1 = min(nx - 1, int(math.floor((xmax - x0) / dx + 1e-9)))
+    j0 = max(0, int(math.ceil((ymin - y0) / dy - 1e-9)))
+    j1 = min(ny - 1, int(math.floor((ymax - y0) / dy + 1e-9)))
+    return i0, i1, j0, j1
 
 
 @njit(cache=True)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ._sample_kernels import _bary_limits, _tri_window, _tri_xy
+from ._sample_kernels import _bary_limits, _tri_xy, _widened_window
 
 __all__ = ["count_pairs_tile", "fill_pairs_tile"]
 
@@ -28,7 +28,7 @@ def _scan_tile_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, ti0, ti1,
     inv = 1.0 / area
     mg = tri_margin[t]
     l0, l1, l2_ = _bary_limits(ax, ay, bx, by, cx, cy, area, mg)
-    i0, i1, j0, j1 = _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, mg)
+    i0, i1, j0, j1 = _widened_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, l0, l1, l2_)
     i0 = max(i0, ti0)
     i1 = min(i1, ti1 - 1)
     j0 = max(j0, tj0)

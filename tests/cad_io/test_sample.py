@@ -550,32 +550,32 @@ def test_fine_pass_cuts_a_face_too_large_to_mesh_whole_into_blocks(sample_data, 
     import cad_io.sampler as S
     from cad_io.view import transform_part
 
-    path = sample_data / "step" / "bug27693_cornetta-step.stp"
-    part = read_step(path, mesh_deflection=2.0)
+    part = read_step(sample_data / "step" / "bug27693_cornetta-step.stp", mesh_deflection=2.0)
     before = [f.mesh for f in part.faces]
     vpart = transform_part(part, "+z")
     monkeypatch.setattr(S, "FINE_PIECE_TRIANGLES", 50)
-    blocks = S.fine_blocks(part, vpart, 0.2, 0.5, 0.5)
+    blocks = S.fine_blocks(part, vpart, 0.2, 2.0, 2.0)
     big = np.flatnonzero(blocks)
     assert big.size >= 3 and np.all(blocks[big] % S.FINE_BLOCK == 0)
     sides = blocks[big] // S.FINE_BLOCK
     assert np.all(sides & (sides - 1) == 0)  # 64 times a power of two
     rng = np.random.default_rng(11)
-    x0, y0, _, x1, y1, _ = part.bbox
-    gx = np.round(rng.uniform(x0, x1, 400) / 0.5) * 0.5  # grid nodes of a 0.5 mm map
-    gy = np.round(rng.uniform(y0, y1, 400) / 0.5) * 0.5
-    z, f, m, n = S._fine_facets(part, vpart, gx, gy, 0.2, 2.0, "auto", "+z", blocks, (0.5, 0.5))
+    # nodes of a 2 mm map over the middle of the part, in four blocks (aligned on the origin)
+    gx = 2.0 * np.round(rng.uniform(-60.0, 60.0, 300) / 2.0)
+    gy = 2.0 * np.round(rng.uniform(-60.0, 60.0, 300) / 2.0)
+    z, f, m, n = S._fine_facets(part, vpart, gx, gy, 0.2, 2.0, "auto", "+z", blocks, (2.0, 2.0))
     assert n > 0 and all(g.mesh is b for g, b in zip(part.faces, before))
     _assert_occ_triangulations_are(part, before)
-    zw, fw, mw = S.sample_points(read_step(path), gx, gy, deflection=0.2)
-    np.testing.assert_array_equal(np.isnan(z), np.isnan(zw))
-    exact = (m == 1) & (mw == 1)
-    assert exact.sum() > 0.9 * np.isfinite(z).sum() > 200
-    np.testing.assert_allclose(z[exact], zw[exact], atol=1e-9, rtol=0)
-    np.testing.assert_allclose(z, zw, atol=0.2, rtol=0)
     # the same points split in two calls (two tiles) give the same answers to the last bit
     half = gx < np.median(gx)
     for sel in (half, ~half):
-        z2, f2, m2, _ = S._fine_facets(part, vpart, gx[sel], gy[sel], 0.2, 2.0, "auto", "+z", blocks, (0.5, 0.5))
+        z2, f2, m2, _ = S._fine_facets(part, vpart, gx[sel], gy[sel], 0.2, 2.0, "auto", "+z", blocks, (2.0, 2.0))
         assert np.array_equal(z2, z[sel], equal_nan=True)
         assert np.array_equal(f2, f[sel]) and np.array_equal(m2, m[sel])
+    # the whole part meshed fine (this meshes the part itself: last)
+    zw, fw, mw = S.sample_points(part, gx, gy, deflection=0.2)
+    np.testing.assert_array_equal(np.isnan(z), np.isnan(zw))
+    exact = (m == 1) & (mw == 1)
+    assert exact.sum() > 0.9 * np.isfinite(z).sum() > 150
+    np.testing.assert_allclose(z[exact], zw[exact], atol=1e-9, rtol=0)
+    np.testing.assert_allclose(z, zw, atol=0.2, rtol=0)
