@@ -46,6 +46,7 @@ def main() -> None:
     ap.add_argument("--points", type=int, default=60)
     ap.add_argument("--tool-points", type=int, default=6)
     ap.add_argument("--seed", type=int, default=0, help="seed of the agreement sample points")
+    ap.add_argument("--rays", type=int, default=2, help="casting lines per voxel edge")
     args = ap.parse_args()
 
     from cad_io.access import agreement, analyse
@@ -54,18 +55,19 @@ def main() -> None:
 
     tool = Tool(6.0, stickout=25.0, holder_diameter=20.0, holder_length=40.0)
     warm = read_step(ROOT / "data" / "boss.step")
-    analyse(warm, d=2.0, q=args.q, tool=tool)  # compile the kernels
+    analyse(warm, d=2.0, q=args.q, tool=tool, rays=args.rays)  # compile the kernels
 
     t = time.perf_counter()
     part = read_step(args.part)
     read_s = time.perf_counter() - t
-    res = analyse(part, d=args.voxel, q=args.q, tool=tool)
+    res = analyse(part, d=args.voxel, q=args.q, tool=tool, rays=args.rays)
     from zmap.access.voxelmap import _LAST_TOOL_STATS
     vm = res.vm
     pairs = vm.n_boundary * vm.directions.k
     ag = agreement(part, res, n_points=args.points, seed=args.seed, explain=True)
     out = {
-        "part": Path(args.part).name, "seed": args.seed, "d": args.voxel, "q": args.q, "k": vm.directions.k,
+        "part": Path(args.part).name, "seed": args.seed, "d": args.voxel, "q": args.q, "rays": args.rays,
+        "k": vm.directions.k,
         "tool": "ball 6 mm, holder 20 x 40 mm at 25 mm stick-out",
         "voxels": vm.n_voxels, "boundary_voxels": vm.n_boundary, "interior_voxels": vm.n_interior,
         "samples": vm.n_samples, "read_seconds": round(read_s, 2),

@@ -199,9 +199,10 @@ def voxelize(part: Part, d: float, *, step: float | None = None, q: int = 4, exa
 
 
 def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float | None = None,
-            cone: float | None = None, exact: bool = True, progress=None) -> AccessResult:
+            cone: float | None = None, exact: bool = True, rays: int = 2, progress=None) -> AccessResult:
     """The whole pipeline: voxel map, V'_g, A', 3-axis verdict and set-ups, with timings.
 
+    ``rays``: lines per voxel edge of the cylinder casting (:func:`global_visibility`).
     ``progress(message)`` is called at each stage (the CLI prints it).
     """
     say = progress or (lambda msg: None)
@@ -223,7 +224,7 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     sec["voxelize"] = time.perf_counter() - t
     t = time.perf_counter()
     say(f"{vm.n_boundary:,} boundary, {vm.n_interior:,} interior voxels; cylinder casting")
-    vg = global_visibility(vm)
+    vg = global_visibility(vm, rays=rays)
     sec["visibility"] = time.perf_counter() - t
     t = time.perf_counter()
     say("accessibility for the tool")

@@ -313,10 +313,14 @@ def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, s
     patch has ``(x - ppt[v]) . pnrm[v] >= -slab[v]``) shows that no patch point on the line lies
     lower (only where n . pnrm[v] > 0; a blocker behind the patch, such as the interior cube
     under a flat face or the box of the next voxel across a convex edge, cannot stop a ray
-    leaving the patch). The boundary blockers' boxes are grown by half a cell diagonal, so that
-    a true ray into a thin one still shows on the centre line of its cell; a box of v thinner
-    than a cell that no centre line crosses is tested on the cell under its centre from its
-    nearest depth. As a query (the cylinder's cross-section) v has its own box (``qxyz``,
+    leaving the patch). The boundary blockers (``bxyz``, ``bhalf``: one box per voxel crossed
+    by one face, one per face where several meet; ``bvox`` their voxels, ``blight`` their L',
+    ``bplane`` their mean point, normal and slab) grow along axis c by (cell / 2)(|e_c| +
+    |f_c|), as far as a ray in a cell can be from its centre line, so that a true ray into a
+    thin one still shows on the centre line of its cell; where a blocker faces the line its
+    exit is cut where the line has passed that far behind its slab. A box of v thinner than a
+    cell that no centre line crosses is tested on the cell under its centre from its nearest
+    depth. As a query (the cylinder's cross-section) v has its own box (``qxyz``,
     ``qhalf``). ``out[i, b]`` = 1 where direction i stays in V'_g(b); ``opp[i]`` is the index
     of -dirs[i].
 
@@ -441,23 +445,31 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin
     b1 = np.full((A1 - A0 + 1, B1 - B0 + 1), -1.0e300)
     b2 = np.full((A1 - A0 + 1, B1 - B0 + 1) if two else (1, 1), -1.0e300)
     id1 = np.full((A1 - A0 + 1, B1 - B0 + 1) if two else (1, 1), -1, dtype=np.int64)
+    # a ray anywhere in a cell is within (cell / 2)(|e_c| + |f_c|) of its centre line along
+    # axis c: the blocker boxes grow by that (at most g), so the centre line meets them
+    gx = 0.5 * cell * (abs(ex) + abs(fx))
+    gy = 0.5 * cell * (abs(ey) + abs(fy))
+    gz = 0.5 * cell * (abs(ez) + abs(fz))
     req = hide[i]
     for m in range(nb + ms):
         # the back plane of a blocker piece: its exit on a line is no later than where the
-        # line passes g behind the piece's slab, s = k0 - uc ku - vc kv (none: k0 = inf)
+        # line passes behind the piece's slab by as much as a ray of the cell can be off the
+        # centre line along the piece's normal, s = k0 - uc ku - vc kv (none: k0 = inf)
         k0, ku, kv = 1.0e300, 0.0, 0.0
         if m < nb:
             if (blight[m, ow] >> ob) & np.uint64(1) == 0:
                 continue
             cx, cy, cz = bxyz[m, 0], bxyz[m, 1], bxyz[m, 2]
-            hx, hy, hz = bhalf[m, 0] + g, bhalf[m, 1] + g, bhalf[m, 2] + g
+            hx, hy, hz = bhalf[m, 0] + gx, bhalf[m, 1] + gy, bhalf[m, 2] + gz
             mx, my, mz = bplane[m, 3], bplane[m, 4], bplane[m, 5]
             nm = nx * mx + ny * my + nz * mz
             if nm < -1e-9 and bplane[m, 6] < 1.0e300:
+                em = ex * mx + ey * my + ez * mz
+                fm = fx * mx + fy * my + fz * mz
                 k0 = ((bplane[m, 0] - lo[0]) * mx + (bplane[m, 1] - lo[1]) * my + (bplane[m, 2] - lo[2]) * mz
-                      - bplane[m, 6] - g) / nm
-                ku = (ex * mx + ey * my + ez * mz) / nm
-                kv = (fx * mx + fy * my + fz * mz) / nm
+                      - bplane[m, 6] - 0.5 * cell * (abs(em) + abs(fm))) / nm
+                ku = em / nm
+                kv = fm / nm
             who = bvox[m]
         else:
             if (skin_mask[m - nb] & req) == req:

@@ -4,8 +4,8 @@
 :func:`zmap.access.voxelmap.global_visibility` pair by pair: for each boundary voxel v and
 each direction n of V'_l(v), for each line of the plane grid that crosses v's surface box,
 every blocker box (interior skin cube, or boundary blocker of :meth:`VoxelMap.blockers`
-not of v with -n in its L', grown by half a cell diagonal, its exit no later than g
-behind its slab) is clipped against the line in numpy; v loses n when one reaches beyond
+not of v with -n in its L', grown per axis c by (cell / 2)(|e_c| + |f_c|), its exit no
+later than that far behind its slab along its normal) is clipped against the line in numpy; v loses n when one reaches beyond
 the line's start (v's entry into its tight box, or the lowest point of v's patch slab on
 the line). No depth buffer,
 no top-two bookkeeping: the kernel must give the same bits.
@@ -63,7 +63,6 @@ def global_visibility_reference(vm, *, rays: int = 2) -> np.ndarray:
     nc = int(np.ceil(2.0 * (radius + 2 * vm.d) / cell)) + 1
     light = to_bool(blight, ds.k)
     vl = to_bool(vm.vl, ds.k)
-    g = 0.5 * np.sqrt(2.0) * cell
     opp = ds.lookup(-ds.normals)
     sc = skin - mid
     sh = np.full((len(skin), 3), 0.5 * vm.d)
@@ -77,12 +76,14 @@ def global_visibility_reference(vm, *, rays: int = 2) -> np.ndarray:
         for b in np.flatnonzero(vl[:, i]):
             others = blk[bvox[blk] != b]
             cs = np.concatenate([rel[others], sc])
-            hs = np.concatenate([bh[others] + g, sh])
-            # a piece's exit comes no later than g behind its slab (where it faces the line)
+            gc = 0.5 * cell * (np.abs(e) + np.abs(f))  # a ray's offset from its cell's line, per axis
+            hs = np.concatenate([bh[others] + gc, sh])
+            # a piece's exit comes no later than a ray's offset behind its slab (facing the line)
             wm = bplane[others, 3:6]
             wn = wm @ n
             back = (wn < -1e-9) & (bplane[others, 6] < 1e300)
-            wk = np.where(back, ((bplane[others, :3] - mid) * wm).sum(axis=1) - bplane[others, 6] - g, 0.0)
+            wk = np.where(back, ((bplane[others, :3] - mid) * wm).sum(axis=1) - bplane[others, 6]
+                          - 0.5 * cell * (np.abs(wm @ e) + np.abs(wm @ f)), 0.0)
 
             def clip(base, cs=cs, hs=hs, wm=wm, wn=wn, back=back, wk=wk):
                 t0, t1 = _clip(base, n, cs, hs)
