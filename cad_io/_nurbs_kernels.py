@@ -52,7 +52,9 @@ def _stack_f64(typingctx, n):
     return types.CPointer(types.float64)(n), codegen
 
 
-@njit(cache=True, inline="always")
+# _nrt=False: no reference counting on the calls from the Newton loops
+# (cad_io._sample_kernels)
+@njit(cache=True, _nrt=False)
 def find_span(knots, off, n, p, u):
     """Knot span index of ``u`` (A2.1); ``n`` = number of control points - 1.
 
@@ -81,7 +83,7 @@ def find_span(knots, off, n, p, u):
     return mid
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)
 def basis_ders(knots, off, span, u, p, nd, ders, ndu, a, left, right):
     """Non-zero basis functions and their derivatives up to ``nd`` (A2.3).
 

@@ -15,9 +15,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import carray, njit, prange
+from numba import njit, prange
 
-from ._nurbs_kernels import _M, _gauss_newton, _stack_f64, find_span
+from ._nurbs_kernels import _gauss_newton, _stack_f64, find_span
 
 __all__ = ["count_pairs", "count_pairs_xy", "eval_d1", "fill_pairs", "fill_pairs_xy", "mesh_distance", "point_in_bands",
            "point_in_loops", "project_candidates",
@@ -27,8 +27,14 @@ __all__ = ["count_pairs", "count_pairs_xy", "eval_d1", "fill_pairs", "fill_pairs
 #: as vertical (they cover no grid point)
 _FLAT_EPS = 1e-12
 
+# Helpers are plain @njit calls (inlining them at numba IR level, ``inline="always"``, made
+# the cold compile of this module 3x longer). The ones on the per-pair path that allocate
+# nothing run with ``_nrt=False``: no reference counting of their array arguments, which
+# otherwise costs two atomic operations per array per call (+25% on the Newton loop, which
+# calls eval_d1 with seven arrays).
 
-@njit(cache=True, inline="always")
+
+@njit(cache=True)
 def _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, margin):
     xmin = min(ax, min(bx, cx)) - margin
     xmax = max(ax, max(bx, cx)) + margin
@@ -41,7 +47,7 @@ def _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, margin):
     return i0, i1, j0, j1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _bary_limits(ax, ay, bx, by, cx, cy, area, margin):
     """Lower bounds of the barycentric weights (w0, w1, w2) that admit points up to
     ``margin`` (xy, mm) outside the triangle: w_k >= -margin * |opposite edge| / |area|.
@@ -86,7 +92,7 @@ def fill_pairs(nodes, tris, tri_margin, t0, offsets, x0, y0, dx, dy, nx, ny, gid
         _scan_grid_tri(nodes, tris, tri_margin, t0 + tt, x0, y0, dx, dy, nx, ny, offsets[tt], gidx, tri, w, True)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)
 def _tri_xy(nodes, tris, t):
     """xy of triangle ``t``'s corners and twice its signed xy area; the area is 0 where the
     triangle is vertical or degenerate in xy (below ``_FLAT_EPS`` of its squared longest
@@ -107,7 +113,7 @@ def _tri_xy(nodes, tris, t):
     return ax, ay, bx, by, cx, cy, area
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _scan_grid_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, p, gidx, tri, w, fill):
     """Count (``fill`` False) or write from ``p`` (``fill`` True) the grid points in triangle ``t``."""
     ax, ay, bx, by, cx, cy, area = _tri_xy(nodes, tris, t)
@@ -163,7 +169,7 @@ def point_in_loops(u, v, loop_uv, loop_off, first, last, eps):
     return inside
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps):
     """:func:`point_in_loops` on a face's loop edges bucketed in ``nband`` bands of v.
 
@@ -197,7 +203,7 @@ def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps)
     return inside
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)
 def _edge_test(u, v, ua, va, ub, vb, eps2):
     """One loop edge against (u, v): 2 if the point is within sqrt(eps2) of the edge, 1 if
     the edge crosses the ray from the point towards +u (even-odd rule), else 0."""
@@ -218,7 +224,7 @@ def _edge_test(u, v, ua, va, ub, vb, eps2):
     return 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)
 def _basis_d1(knots, off, span, u, p, N, D, left, right):
     """Non-zero basis functions ``N[j]`` = N_{span-p+j, p}(u) and their first derivatives
     ``D[j]`` (The NURBS Book A2.2, with the derivative taken from the degree p-1 values
@@ -248,7 +254,7 @@ def _basis_d1(knots, off, span, u, p, N, D, left, right):
         N[j] = saved
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)
 def eval_d1(deg, ncp, koff, poff, knots, cpw, k, u, v, out):
     """Point and first derivatives of face ``k`` at (``u``, ``v``): ``out[0]`` = S,
     ``out[1]`` = S_u, ``out[2]`` = S_v (u, v clamped to the domain).
@@ -271,12 +277,12 @@ def eval_d1(deg, ncp, koff, poff, knots, cpw, k, u, v, out):
     v1 = knots[kv + nv]
     u = min(max(u, u0), u1)
     v = min(max(v, v0), v1)
-    Nu = carray(_stack_f64(16), (_M,))
-    Du = carray(_stack_f64(16), (_M,))
-    Nv = carray(_stack_f64(16), (_M,))
-    Dv = carray(_stack_f64(16), (_M,))
-    left = carray(_stack_f64(16), (_M,))
-    right = carray(_stack_f64(16), (_M,))
+    Nu = _stack_f64(16)
+    Du = _stack_f64(16)
+    Nv = _stack_f64(16)
+    Dv = _stack_f64(16)
+    left = _stack_f64(16)
+    right = _stack_f64(16)
     su = find_span(knots, ku, nu - 1, p, u)
     sv = find_span(knots, kv, nv - 1, q, v)
     _basis_d1(knots, ku, su, u, p, Nu, Du, left, right)
@@ -352,7 +358,7 @@ def eval_d1(deg, ncp, koff, poff, knots, cpw, k, u, v, out):
 _STEP_TOL2 = 1e-9 ** 2
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, tol, max_iter, out):
     """Damped Newton for x(u, v) = xg, y(u, v) = yg on face ``k`` from (u, v).
 
@@ -423,7 +429,7 @@ def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, t
 _WALL_NZ = 0.25
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)
 def _tri_nz(nodes, a, b, c):
     """|n_z| of triangle (a, b, c): 1 flat, 0 vertical (0 for a degenerate triangle)."""
     ux = nodes[b, 0] - nodes[a, 0]
@@ -439,7 +445,7 @@ def _tri_nz(nodes, a, b, c):
     return abs(nz) / nn if nn > 0.0 else 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)
 def _wall_triangle(nodes, a, b, c):
     """True where triangle (a, b, c) is steeper than ~75 degrees (|n_z| < ``_WALL_NZ``).
 
@@ -457,7 +463,7 @@ def _wall_triangle(nodes, a, b, c):
     return _tri_nz(nodes, a, b, c) < _WALL_NZ
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)
 def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
                mode, tol, max_iter, z, status, out):
@@ -671,7 +677,7 @@ def fill_pairs_xy(nodes, tris, tri_margin, t0, offsets, px, py, bx0, by0, bh, nb
                   offsets[tt], gidx, tri, w, True)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _scan_tri(nodes, tris, tri_margin, t, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, p, gidx, tri, w, fill):
     """Count (``fill`` False) or write from ``p`` (``fill`` True) the points inside triangle ``t``."""
     ax, ay, bx, by, cx, cy, area = _tri_xy(nodes, tris, t)
@@ -781,7 +787,7 @@ def project_candidates(pts, cand_pt, cand_face, cand_uv, deg, ncp, koff, poff, k
             inside[c] = True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _point_triangle_d2(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     """Squared distance from p to triangle abc (closest-point regions, Ericson 5.1.5)."""
     abx = bx - ax
