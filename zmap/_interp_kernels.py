@@ -24,7 +24,7 @@ BOUNDARY_ONE_SIDED = 1  # one-sided tangents, as inside the map next to a missin
 _EDGE_SLACK = 1e-9
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _circle_tangent_slope(ax: float, az: float, bx: float, bz: float) -> float:
     """Slope at the origin of the circle through (0,0), (ax,az), (bx,bz).
 
@@ -46,7 +46,7 @@ def _circle_tangent_slope(ax: float, az: float, bx: float, bz: float) -> float:
     return -cx / cz
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _centred_circle_slope(p: float, q: float, h: float) -> float:
     """Slope at the middle point of the circle through (-h, z-p), (0, z), (h, z+q).
 
@@ -112,7 +112,7 @@ def _slope(z, i, j, di, dj, h, nx, ny, tangent, boundary):
     return 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _bounded_end_slope(circle, secant, parab):
     """The circle's tangent at an end point, unless it leaves the band [0, 3] x the secant.
 
@@ -128,7 +128,7 @@ def _bounded_end_slope(circle, secant, parab):
     return parab
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _bezier1d(a, b, s, t, h, u):
     """Non-parametric cubic Bezier (Eq. 5-6): v0=a, v1=a+s*h/3, v2=b-t*h/3, v3=b."""
     v1 = a + s * h / 3.0
@@ -137,13 +137,19 @@ def _bezier1d(a, b, s, t, h, u):
     return w * w * w * a + 3.0 * w * w * u * v1 + 3.0 * w * u * u * v2 + u * u * u * b
 
 
-@njit(cache=True, inline="always")
-def _locate(x, y, x0, y0, dx, dy, c, s, ox, oy, nx, ny):
-    """Cell (i, j) and local (u, v) of a world point; i = -1 when outside the domain."""
+@njit(cache=True)
+def _to_local(x, y, c, s, ox, oy):
+    """A world point in a map's frame (rotated by the angle of cosine ``c``, sine ``s``
+    about the origin ``(ox, oy)``), as ``ZMap.to_local``."""
     px = x - ox
     py = y - oy
-    lx = c * px + s * py
-    ly = -s * px + c * py
+    return c * px + s * py, -s * px + c * py
+
+
+@njit(cache=True)
+def _locate(x, y, x0, y0, dx, dy, c, s, ox, oy, nx, ny):
+    """Cell (i, j) and local (u, v) of a world point; i = -1 when outside the domain."""
+    lx, ly = _to_local(x, y, c, s, ox, oy)
     fi = (lx - x0) / dx
     fj = (ly - y0) / dy
     if not (fi >= -_EDGE_SLACK and fi <= nx - 1 + _EDGE_SLACK and fj >= -_EDGE_SLACK and fj <= ny - 1 + _EDGE_SLACK):

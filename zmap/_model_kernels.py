@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ._interp_kernels import _EDGE_SLACK, _bezier_cell, _locate
+from ._interp_kernels import _EDGE_SLACK, _bezier_cell, _locate, _to_local
 
 __all__ = ["model_heights", "bezier_at"]
 
@@ -32,19 +32,14 @@ def deepest_cz(x, y, cell, cell_ptr, cell_cz, cz_par, cz_shape):
     depth = -1.0
     for q in range(cell_ptr[cell], cell_ptr[cell + 1]):
         m = cell_cz[q]
-        x0 = cz_par[m, 0]
-        y0 = cz_par[m, 1]
+        # cz_par[m] = (x0, y0, dx, dy, cos, sin, ox, oy)
+        lx, ly = _to_local(x, y, cz_par[m, 4], cz_par[m, 5], cz_par[m, 6], cz_par[m, 7])
+        lo_x = cz_par[m, 0]
+        lo_y = cz_par[m, 1]
         dx = cz_par[m, 2]
         dy = cz_par[m, 3]
-        c = cz_par[m, 4]
-        s = cz_par[m, 5]
-        px = x - cz_par[m, 6]
-        py = y - cz_par[m, 7]
-        lx = c * px + s * py
-        ly = -s * px + c * py
-        ex = min(lx - x0, x0 + (cz_shape[m, 0] - 1) * dx - lx)
-        ey = min(ly - y0, y0 + (cz_shape[m, 1] - 1) * dy - ly)
-        d = min(ex, ey)
+        d = min(min(lx - lo_x, lo_x + (cz_shape[m, 0] - 1) * dx - lx),
+                min(ly - lo_y, lo_y + (cz_shape[m, 1] - 1) * dy - ly))
         if d >= -_EDGE_SLACK * min(dx, dy) and d > depth:
             depth = d
             best = m

@@ -20,12 +20,12 @@ __all__ = ["refine_line", "refine_kernel", "full_kernel", "measure_kernel", "rem
            "region_has_nan", "changed_regions", "rays_to_regions", "assemble", "cover_counts", "changed_boxes"]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _orient(ax, ay, bx, by, cx, cy):
     return (bx - cx) * (ay - cy) - (by - cy) * (ax - cx)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _incircle(ax, ay, bx, by, cx, cy, px, py):
     dx = ax - px
     dy = ay - py

@@ -212,7 +212,9 @@ def treap_display(node_off, root_off, root_hi, tz, ts, tk, k, out, stack_n, stac
                 break
 
 
-@njit(cache=True, inline="always")
+# a plain call (inlining it made the cold compile slow); _nrt=False: no reference counting
+# of its four arrays on each step of the traversals
+@njit(cache=True, _nrt=False)
 def _descend(tz, mask, first, node, lo, hi, sp, stack_n, stack_lo, stack_hi):
     """One step down an in-order treap traversal from ``node`` [lo, hi], whose children
     start at ``first`` (``mask`` != 0).
