@@ -24,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .._interp_kernels import _locate
+from .._interp_kernels import _locate, _to_local
 from .._model_kernels import bezier_at, deepest_cz
 from ..refine import _ez_kernels as _ezk
 from ..sim._tool_kernels import _envelope
@@ -85,7 +85,7 @@ def supported(model) -> bool:
 def pack_model(model) -> tuple:
     """The arrays :func:`height_at` reads, for a PrecisionModel or a ZMap (see :func:`supported`)."""
     from ..grid import ZMap
-    from ..model import PrecisionModel
+    from ..model import _BOUNDARY_DUMMY, _TANGENT_CIRCLE, PrecisionModel
 
     if isinstance(model, ZMap):
         model = PrecisionModel(model)
@@ -122,7 +122,11 @@ def pack_model(model) -> tuple:
         pl.append(t)
     if not plist:  # a typed list needs its item type: one patch-shaped item, never indexed
         pl.append(main)
-    return head + (has_main, main, np.ascontiguousarray(cells, dtype=np.int64), pl)
+    # the Bezier options as run-time ints: constants written in height_at would be typed as
+    # literals, and bezier_at with its callees compiled again for them (a cold compile of
+    # seconds) instead of sharing model_heights' signature
+    bez = (int(_TANGENT_CIRCLE), int(_BOUNDARY_DUMMY))
+    return head + (has_main, main, np.ascontiguousarray(cells, dtype=np.int64), pl, bez)
 
 
 @njit(cache=True)
@@ -145,7 +149,8 @@ def _ez_at(E, x, y):
 @njit(cache=True)
 def height_at(M, x, y):
     """The model's height at world xy (NaN: no surface), as ``PrecisionModel.height``."""
-    bz, bp, cz_z, cz_off, cz_shape, cz_par, cell_ptr, cell_cz, ez_cell, has_main, E, pcells, PL = M
+    bz, bp, cz_z, cz_off, cz_shape, cz_par, cell_ptr, cell_cz, ez_cell, has_main, E, pcells, PL, bez = M
+    tangent, boundary = bez
     nx, ny = bz.shape
     i, j, u, v = _locate(x, y, bp[0], bp[1], bp[2], bp[3], bp[4], bp[5], bp[6], bp[7], nx, ny)
     if i < 0:
@@ -156,10 +161,10 @@ def height_at(M, x, y):
     if best >= 0:
         zz = cz_z[cz_off[best]:cz_off[best + 1]].reshape((cz_shape[best, 0], cz_shape[best, 1]))
         h = bezier_at(zz, cz_par[best, 0], cz_par[best, 1], cz_par[best, 2], cz_par[best, 3], cz_par[best, 4],
-                      cz_par[best, 5], cz_par[best, 6], cz_par[best, 7], x, y, 0, 0)
+                      cz_par[best, 5], cz_par[best, 6], cz_par[best, 7], x, y, tangent, boundary)
         if h == h:
             return h
-    hb = bezier_at(bz, bp[0], bp[1], bp[2], bp[3], bp[4], bp[5], bp[6], bp[7], x, y, 0, 0)
+    hb = bezier_at(bz, bp[0], bp[1], bp[2], bp[3], bp[4], bp[5], bp[6], bp[7], x, y, tangent, boundary)
     if not ez_cell[cell]:
         return hb
     he = np.nan
@@ -167,10 +172,7 @@ def height_at(M, x, y):
         he = _ez_at(E, x, y)
     if pcells.shape[0]:
         # the patched cell, by the local coordinates as CellPatches.evaluate finds it
-        px = x - bp[6]
-        py = y - bp[7]
-        lx = bp[4] * px + bp[5] * py
-        ly = -bp[5] * px + bp[4] * py
+        lx, ly = _to_local(x, y, bp[4], bp[5], bp[6], bp[7])
         pi = int(math.floor((lx - bp[0]) / bp[2]))
         pj = int(math.floor((ly - bp[1]) / bp[3]))
         if pi == nx - 1:

@@ -83,6 +83,24 @@ def test_zmap_model_is_its_bezier():
     np.testing.assert_array_equal(_kernel_heights(z, x, y), bezier(z, x, y))
 
 
+def test_kernel_bezier_options_are_not_compile_time_constants():
+    # height_at hands bezier_at the Bezier options as run-time ints (from pack_model):
+    # constants would be typed as literals, and numba would compile bezier_at and its
+    # callees once more for them (seconds of a cold compile) instead of sharing the
+    # signature PrecisionModel.height compiles
+    from numba import types
+
+    from zmap import _model_kernels as MK
+
+    z = ZMap.from_function(lambda x, y: x * y, (0, 0, 3, 3), 0.5)
+    M = ME.pack_model(z)
+    assert M[-1] == (0, 0) and all(type(v) is int for v in M[-1])
+    x = np.array([1.2, 2.7])
+    np.testing.assert_array_equal(_kernel_heights(z, x, x), PrecisionModel(z).height(x, x))
+    sigs = MK.bezier_at.signatures
+    assert sigs and not any(isinstance(a, types.Literal) for sig in sigs for a in sig), sigs
+
+
 def _wall_model(seed):
     rng = np.random.default_rng(seed)
     cx, cy, rr = rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(1.5, 3.0)
