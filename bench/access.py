@@ -13,7 +13,8 @@ building the scene); ``pairs_per_s_pipeline``: the same pairs per second of the 
 holder tests decided by the dilated buffers as clear, as blocked, and by a disc scan.
 ``agree_share``: share of (point, direction) pairs where the map's V'_g agrees with OCC thin
 rays (``cad_io.access.reference_visibility``) on ``--points`` random surface points x all k
-directions; ``voxel_only_far``: pairs the map calls free that OCC finds blocked more than a
+directions (the same answer for the same pair; nothing is counted as agreeing for being near
+a silhouette); ``voxel_only_far``: pairs the map calls free that OCC finds blocked more than a
 voxel diagonal away (non-conservative answers), ``voxel_only_near`` within it;
 ``disagree_near_silhouette``: disagreements where OCC gives the other answer for the same
 direction from a point one voxel diagonal away (a silhouette within one voxel);
@@ -21,8 +22,10 @@ direction from a point one voxel diagonal away (a silhouette within one voxel);
 (BRepExtrema on the tool's axis; ``--tool-points`` points). ``peak_mb``: peak resident memory
 of the process (ru_maxrss). ``map_mb``: the voxel map's arrays.
 
-Usage: ``python bench/access.py [PART] [--voxel 0.5] [--q 4] [--points 60] [--tool-points 6] [--seed 0]``;
-prints one JSON object.
+``rays``: casting lines per voxel edge (``--rays``, 2 as in ``analyse``).
+
+Usage: ``python bench/access.py [PART] [--voxel 0.5] [--q 4] [--points 60] [--tool-points 6] [--seed 0]
+[--rays 2]``; prints one JSON object.
 """
 
 from __future__ import annotations

@@ -545,11 +545,12 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin
                     break
         if hits == 0:
             # a box thinner than the cell: no centre line crosses it; test the cell under
-            # its centre from its nearest depth (and the slab's lowest over the box)
+            # its centre from its nearest depth, or the slab's lowest start over the box's
+            # footprint (the line is not where the patch is)
             a = min(A1, max(A0, int(np.floor((pu - u0) / cell))))
             b = min(B1, max(B0, int(np.floor((pv - u0) / cell))))
             s0 = rx * nx + ry * ny + rz * nz - (hx * abs(nx) + hy * abs(ny) + hz * abs(nz))
-            s0 = max(s0, c0 - (u0 + (a + 0.5) * cell) * cu - (u0 + (b + 0.5) * cell) * cv)
+            s0 = max(s0, c0 - pu * cu - pv * cv - ae * abs(cu) - af * abs(cv))
             top = b2[a - A0, b - B0] if two and id1[a - A0, b - B0] == m else b1[a - A0, b - B0]
             if top > s0 + eps:
                 ok = 0

@@ -50,9 +50,11 @@ def _clip(base, n, c, h):
 
 def global_visibility_reference(vm, *, rays: int = 2) -> np.ndarray:
     """V'_g (mb, words) computed plainly; small maps only (O(k mb^2))."""
+    from .voxelmap import _query_boxes
+
     ds = vm.directions
     bc, bh, bvox, blight, bplane = vm.blockers()
-    qc, qh_ = vm.boxes(tight=True)
+    qc, qh_ = _query_boxes(vm)
     skin = vm.skin()
     allc = np.concatenate([qc, skin]) if len(skin) else qc
     lo_, hi_ = allc.min(axis=0), allc.max(axis=0)
@@ -91,7 +93,7 @@ def global_visibility_reference(vm, *, rays: int = 2) -> np.ndarray:
                 t1[:len(lim)] = np.minimum(t1[:len(lim)], lim)
                 return t0, t1
 
-            qh, qr = qh_[b], qc[b] - mid  # v's surface box
+            qh, qr = qh_[b], qc[b] - mid  # v's box as a query
             pu, pv = qr @ e, qr @ f
             ae, af = qh @ np.abs(e), qh @ np.abs(f)
             # the patch's slab: on a line base + s n no patch point lies below start(base)
@@ -116,13 +118,15 @@ def global_visibility_reference(vm, *, rays: int = 2) -> np.ndarray:
                     if np.any((t0 < t1) & (t1 > max(s0[0], start(base)) + 1e-9 * vm.d)):
                         free = False
             if hits == 0:
-                # the kernel's fallback: the cell under the box's centre, from its nearest depth;
-                # blockers counted there are those crossing that cell's centre line
+                # the kernel's fallback: the cell under the box's centre, from its nearest depth
+                # or the slab's lowest start over the box's footprint
                 a = min(nc - 1, max(0, int(np.floor((pu - u0) / cell))))
                 c = min(nc - 1, max(0, int(np.floor((pv - u0) / cell))))
                 base = (u0 + (a + 0.5) * cell) * e + (u0 + (c + 0.5) * cell) * f
                 s0 = qr @ n - qh @ np.abs(n)
-                s0 = max(s0, start(base))  # and the slab's start on that line
+                if use:
+                    cu, cv = (e @ m_) / nm, (f @ m_) / nm
+                    s0 = max(s0, start(pu * e + pv * f) - ae * abs(cu) - af * abs(cv))
                 t0, t1 = clip(base)
                 if np.any((t0 < t1) & (t1 > s0 + 1e-9 * vm.d)):
                     free = False

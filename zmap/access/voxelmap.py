@@ -602,6 +602,16 @@ def _hide_masks(normals: np.ndarray, tiny: float = 1e-9) -> np.ndarray:
     return out
 
 
+def _query_boxes(vm: VoxelMap) -> tuple[np.ndarray, np.ndarray]:
+    """Centres and half extents (mb, 3) of the casting's cylinders: the tight boxes grown to at
+    least d' on each axis (a flat box seen at a grazing angle holds no line), within the voxel."""
+    c, h = vm.boxes(tight=True)
+    t = np.maximum(0.5 * vm.sampling_step - h, 0.0)
+    vlo = vm.origin + vm.d * vm.ijk
+    lo, hi = np.maximum(c - h - t, vlo), np.minimum(c + h + t, vlo + vm.d)
+    return np.ascontiguousarray(0.5 * (lo + hi)), np.ascontiguousarray(0.5 * (hi - lo))
+
+
 def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True) -> np.ndarray:
     """``V'_g`` of every boundary voxel by cylinder casting (paper 002 §4.5).
 
@@ -613,8 +623,9 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True) -> np.n
     stop a ray that leaves the patch, and the paper's cylinder from the whole voxel counted
     them (on featuretype.STEP 388 of its 474 disagreements with the OCC rays were such).
     The lines are those of a plane grid of pitch ``d / rays`` (one depth buffer per
-    direction); the blockers are the tight boxes (``vm.tight_lo``, ``vm.tight_hi``), v's
-    cylinder comes from its surface box (``vm.boxes()``). ``cull``
+    direction); the blockers are those of :meth:`VoxelMap.blockers` (tight boxes, one per
+    face where several meet), v's cylinder comes from its tight box made at least d' thick
+    within the voxel (a flat box seen at a grazing angle would hold no line). ``cull``
     (default) leaves out, per direction, the skin cubes whose neighbours on its side are all
     interior (the same bits, less work; ``False`` is for tests).
 
@@ -628,7 +639,7 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True) -> np.n
 
     ds = vm.directions
     bx, bh, bvox, blight, bplane = (np.ascontiguousarray(a) for a in vm.blockers())
-    qx, qh = (np.ascontiguousarray(a) for a in vm.boxes(tight=True))
+    qx, qh = _query_boxes(vm)
     sijk = vm.skin_ijk()
     skin = np.ascontiguousarray(vm.origin + vm.d * (sijk + 0.5))
     smask = np.zeros(len(sijk), dtype=np.int64)
