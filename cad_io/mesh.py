@@ -14,7 +14,7 @@ import numpy as np
 
 from cad_io.part import Face, FaceMesh, Part
 
-__all__ = ["ANGULAR_DEFLECTION", "mesh_faces_alone", "mesh_in_box", "triangulate"]
+__all__ = ["ANGULAR_DEFLECTION", "mesh_faces_alone", "triangulate"]
 
 #: Angular deflection (radians) passed to BRepMesh beside the linear one.
 ANGULAR_DEFLECTION = 0.35
@@ -170,60 +170,6 @@ def mesh_faces_alone(part: Part, faces: Sequence[int], deflection: float) -> lis
         copy = TopoDS.Face_s(BRepBuilderAPI_Copy(f).Shape())
         BRepMesh_IncrementalMesh(copy, _OCC_SHARE * deflection, False, ANGULAR_DEFLECTION, True)
         out.append(_occ_face_mesh(part.faces[int(k)], [copy], f, deflection))
-    return out
-
-
-def mesh_in_box(part: Part, faces: Sequence[int], box: Sequence[float], deflection: float) -> list:
-    """Meshes at ``deflection`` of the pieces of ``part``'s faces ``faces`` inside ``box``.
-
-    A fine mesh of a whole large face costs far more than the few points that need it: bm2's
-    1.2 m B-spline face at 1.5 um took 411 s and 8.4 GB in BRepMesh. So each face is cut to
-    the axis-aligned ``box`` (xmin, ymin, zmin, xmax, ymax, zmax, model frame, mm) with
-    OCC's Boolean common and only that piece is meshed (the face's own triangulation is left
-    as it is). A face that the Boolean cannot cut is meshed whole, on a copy.
-
-    Returns
-    -------
-    list of FaceMesh or None
-        One per entry of ``faces``: None where the face has nothing inside the box.
-    """
-    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
-    from OCP.BRepMesh import BRepMesh_IncrementalMesh
-    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
-    from OCP.gp import gp_Pnt
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp, TopExp_Explorer
-    from OCP.TopoDS import TopoDS
-    from OCP.TopTools import TopTools_IndexedMapOfShape
-
-    if part.shape is None:
-        raise ValueError(f"part {part.source!r} has no OCC shape to cut")
-    fmap = TopTools_IndexedMapOfShape()
-    TopExp.MapShapes_s(part.shape, TopAbs_FACE, fmap)
-    solid = BRepPrimAPI_MakeBox(gp_Pnt(*box[:3]), gp_Pnt(*box[3:])).Shape()
-    out = []
-    for k in faces:
-        f = TopoDS.Face_s(fmap.FindKey(int(k) + 1))
-        cut = None
-        try:
-            common = BRepAlgoAPI_Common(f, solid)
-            if common.IsDone() and not common.HasErrors():
-                cut = common.Shape()
-        except Exception:  # noqa: BLE001 (OCC's Standard_Failure: mesh the whole face instead)
-            cut = None
-        if cut is None:
-            cut = BRepBuilderAPI_Copy(f).Shape()
-        pieces = []
-        ex = TopExp_Explorer(cut, TopAbs_FACE)
-        while ex.More():
-            pieces.append(TopoDS.Face_s(ex.Current()))
-            ex.Next()
-        if not pieces:
-            out.append(None)
-            continue
-        BRepMesh_IncrementalMesh(cut, _OCC_SHARE * deflection, False, ANGULAR_DEFLECTION, True)
-        out.append(_occ_face_mesh(part.faces[int(k)], pieces, f, deflection))
     return out
 
 

@@ -692,8 +692,8 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
             _stage(bar, "facets", _SAMPLE_SHARE)
             gx = x0 + (again // ny) * dx
             gy = y0 + (again % ny) * dy
-            blocks = fine_blocks(part, vpart, fine, dx, dy)
-            z2, f2, m2, n_fine = _fine_facets(part, vpart, gx, gy, fine, deflection, method, axis, blocks, (dx, dy))
+            z2, f2, m2, n_fine = _fine_facets(part, vpart, gx, gy, fine, deflection, method, axis,
+                                              fine_cast(part, fine))
             zflat[again], fflat[again], mflat[again] = z2, f2, m2
             n_refined = int(again.size)
     _stage(bar, "done", 1.0)
@@ -729,52 +729,36 @@ def _covering_faces(vpart: Part, gx: np.ndarray, gy: np.ndarray, pad: float) -> 
     return np.asarray(out, dtype=np.int64)
 
 
-#: the fine facet pass meshes a face whole when its fine mesh is estimated at no more than
-#: this many triangles, and cuts a larger face into blocks of the grid, each piece estimated
-#: at no more. BRepMesh needs about 2.3 KB a triangle while it works: bm2's 1 m face at
-#: 5 um, 195,100 triangles, took 13.5 s and 455 MB; the whole face at 1.5 um, 8.4 GB.
-FINE_PIECE_TRIANGLES = 200_000
-#: smallest side of a fine-pass block in grid intervals; every side is this times a power of
-#: two and blocks are aligned on the view frame's origin, so a block of one side lies in one
-#: block of every larger side
-FINE_BLOCK = 64
+#: the fine facet pass meshes a face (alone, on a copy) when its fine mesh is estimated at no
+#: more than this many triangles; the points of a larger face are answered by OCC's exact
+#: ray cast on that face instead. BRepMesh needs about 2.3 KB a triangle while it works and
+#: its count on large B-spline faces is not predictable: bm2's 1 m face 3 at 5 um gave
+#: 195,100 triangles (13.5 s, 455 MB), the whole part at 1.5 um 8.4 GB, and a 245 mm piece
+#: of its face 2 cut out with a Boolean, 1.43 M triangles (313 s, 15 GB)
+FINE_FACE_TRIANGLES = 200_000
 #: triangles of whole-face fine meshes kept on a part between calls of the fine pass
-_FINE_CACHE_TRIANGLES = 4 * FINE_PIECE_TRIANGLES
+_FINE_CACHE_TRIANGLES = 2 * FINE_FACE_TRIANGLES
 _FINE_CACHE_ATTR = "_fine_mesh_cache"
+_CASTER_ATTR = "_fine_ray_casters"
 
 
-def fine_blocks(part: Part, vpart: Part, fine: float, dx: float, dy: float) -> np.ndarray:
-    """Per face of ``part``, how the fine facet pass meshes it: 0 whole, else the side (grid
-    intervals) of the blocks it is cut into.
+def fine_cast(part: Part, fine: float) -> np.ndarray:
+    """Per face of ``part``: True where the fine facet pass ray-casts the face instead of
+    meshing it at ``fine``.
 
     A face's fine triangle count is estimated from its current mesh, scaled by the ratio of
-    deflections (BRepMesh's count grows as 1/deflection on curved faces: bm2's face 2 has
-    4,512 triangles at 0.5 mm and 77,079 at 0.03). A face estimated above
-    :data:`FINE_PIECE_TRIANGLES` gets the largest block side (:data:`FINE_BLOCK` times a
-    power of two) whose share of the face's view-frame extents stays within that count.
-    The answer depends only on the face, its mesh and the grid, so a tile of a tiled
-    conversion meshes each of its points' faces as the whole map does.
+    deflections (BRepMesh's count grows about as 1/deflection on curved faces: bm2's face 2
+    has 4,512 triangles at 0.5 mm and 77,079 at 0.03). The answer depends only on the face
+    and its mesh, so a tile of a tiled conversion treats each face as the whole map does.
     """
-    out = np.zeros(len(part.faces), dtype=np.int64)
+    out = np.zeros(len(part.faces), dtype=np.bool_)
     if part.shape is None:
         return out  # geomdl faces are meshed on cheap (u, v) grids
-    for k, (face, vface) in enumerate(zip(part.faces, vpart.faces)):
+    for k, face in enumerate(part.faces):
         mesh = face.mesh
         if mesh is None or not len(mesh.triangles) or face.surface is None:
             continue  # (a face without a surface keeps its stored triangles)
-        est = len(mesh.triangles) * max(float(mesh.deflection) / fine, 1.0)
-        if est <= FINE_PIECE_TRIANGLES:
-            continue
-        b = np.asarray(vface.bbox, dtype=np.float64)
-        wx, wy = (b[3] - b[0], b[4] - b[1]) if np.all(np.isfinite(b)) else (np.inf, np.inf)
-        side = FINE_BLOCK
-        while True:
-            nxt = 2 * side
-            share = min(1.0, nxt * dx / max(wx, 1e-300)) * min(1.0, nxt * dy / max(wy, 1e-300))
-            if est * share > FINE_PIECE_TRIANGLES:
-                break
-            side = nxt
-        out[k] = side
+        out[k] = len(mesh.triangles) * max(float(mesh.deflection) / fine, 1.0) > FINE_FACE_TRIANGLES
     return out
 
 
@@ -793,29 +777,45 @@ def _whole_fine_meshes(part: Part, faces: np.ndarray, fine: float) -> list:
         meshes[k] = mesh
     out = [meshes[int(k)] for k in faces]
     held = sum(len(m.triangles) for m in meshes.values() if m is not None)
+    used = set(faces.tolist())
     for k in list(meshes):  # the oldest first, but never one this call uses
         if held <= _FINE_CACHE_TRIANGLES:
             break
-        if k not in set(faces.tolist()) and meshes[k] is not None:
+        if k not in used and meshes[k] is not None:
             held -= len(meshes[k].triangles)
             del meshes[k]
     return out
 
 
+def _face_caster(part: Part, k: int, axis: str):
+    """OCC ray caster (:class:`cad_io.raycast.RayCaster`) of face ``k`` alone, kept on the part."""
+    from .raycast import RayCaster
+
+    casters = part.__dict__.setdefault(_CASTER_ATTR, {})
+    hit = casters.get((k, axis))
+    if hit is None:
+        from OCP.TopAbs import TopAbs_FACE
+        from OCP.TopExp import TopExp
+        from OCP.TopTools import TopTools_IndexedMapOfShape
+
+        fmap = TopTools_IndexedMapOfShape()
+        TopExp.MapShapes_s(part.shape, TopAbs_FACE, fmap)
+        hit = casters[(k, axis)] = RayCaster(fmap.FindKey(k + 1), axis=axis)
+    return hit
+
+
 def _fine_facets(part: Part, vpart: Part, gx: np.ndarray, gy: np.ndarray, fine: float, coarse: float,
-                 method: str, axis: str, blocks: np.ndarray, spacing: tuple[float, float]
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+                 method: str, axis: str, cast: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """:func:`sample_points` at deflection ``fine`` on the faces that may cover the points.
 
     Only the faces whose bounding box (seen from ``axis``) holds a point can give it a height
-    (a face's box is widened by its edge tolerance and two coarse deflections). Each is meshed
-    at ``fine`` as ``blocks`` (:func:`fine_blocks`) says: whole, on a copy (kept on the part
-    for later calls), or, for a face too large for that, only its piece inside the block of
-    ``blocks[k] * spacing`` mm (view frame, aligned on its origin) that holds the points
-    (:func:`cad_io.mesh.mesh_in_box`). A point is thus always solved on the same meshes,
-    whichever other points a call holds. The part's own meshes and OCC triangulations stay
-    as they are. Returns the heights, face indices into ``part.faces``, methods, and the
-    number of faces meshed.
+    (a face's box is widened by its edge tolerance and two coarse deflections). Each is
+    meshed at ``fine`` alone on a copy (kept on the part for later calls), except the faces
+    ``cast`` (:func:`fine_cast`) whose fine mesh would be too large: their points get OCC's
+    exact ray cast on the face (method 1, exact, as a Jacobian answer). The answer at a point
+    does not depend on the other points of a call, and the part's own meshes and OCC
+    triangulations stay as they are. Returns the heights, face indices into ``part.faces``,
+    methods, and the number of faces meshed or cast.
     """
     import dataclasses
 
@@ -827,66 +827,23 @@ def _fine_facets(part: Part, vpart: Part, gx: np.ndarray, gy: np.ndarray, fine: 
     keep = _covering_faces(vpart, gx, gy, pad)
     if keep.size == 0:
         return z, f, m, 0
-    blocks = np.asarray(blocks, dtype=np.int64)
-    if part.shape is None:
-        blocks = np.zeros_like(blocks)
-    whole = keep[blocks[keep] == 0]
-    whole_meshes = dict(zip(whole.tolist(), _whole_fine_meshes(part, whole, fine))) if part.shape is not None \
-        else {k: None for k in whole.tolist()}
-    cut = keep[blocks[keep] > 0]
-    # points grouped by the block of the smallest side among the cut faces: within a group
-    # every cut face has one block (sides are nested powers of two)
-    # (keys of larger blocks come from the smallest blocks' integer keys, so that rounding
-    # never puts a point in different blocks in different calls)
-    base_x = np.floor(gx / (FINE_BLOCK * spacing[0])).astype(np.int64)
-    base_y = np.floor(gy / (FINE_BLOCK * spacing[1])).astype(np.int64)
-    if cut.size:
-        ratio = int(blocks[cut].min()) // FINE_BLOCK
-        key_x, key_y = base_x // ratio, base_y // ratio
-        groups = sorted(set(zip(key_x.tolist(), key_y.tolist())))
-    else:
-        key_x, key_y, groups = None, None, [None]
-    meshed: set[int] = set()
-    for g in groups:
-        sel = np.arange(n) if g is None else np.flatnonzero((key_x == g[0]) & (key_y == g[1]))
-        here = keep if g is None else _covering_faces(vpart, gx[sel], gy[sel], pad)
-        pieces = {k: whole_meshes[k] for k in here.tolist() if k in whole_meshes}
-        for k in here[blocks[here] > 0].tolist():
-            s = int(blocks[k])
-            bx, by = s * spacing[0], s * spacing[1]
-            kx = int(base_x[sel[0]] // (s // FINE_BLOCK))
-            ky = int(base_y[sel[0]] // (s // FINE_BLOCK))
-            pieces[k] = _block_piece(part, k, (kx * bx, ky * by, (kx + 1) * bx, (ky + 1) * by), pad + max(spacing),
-                                     fine, axis, vpart)
-        faces, index = [], []
-        for k in sorted(pieces):
-            if part.shape is not None and pieces[k] is None:
-                continue  # nothing of this face inside the block
-            faces.append(dataclasses.replace(part.faces[k], index=len(faces), mesh=pieces[k]))
-            index.append(k)
-        if not faces:
-            continue
-        meshed.update(index)
+    cast = np.asarray(cast, dtype=np.bool_) & (part.shape is not None)
+    whole, big = keep[~cast[keep]], keep[cast[keep]]
+    if whole.size:
+        meshes = _whole_fine_meshes(part, whole, fine) if part.shape is not None else [None] * whole.size
+        faces = [dataclasses.replace(part.faces[int(k)], index=i, mesh=mesh) for i, (k, mesh) in enumerate(zip(whole, meshes))]
         sub = Part(faces=faces, source=part.source, shape=None)
-        zs, fs_, ms = sample_points(sub, gx[sel], gy[sel], deflection=fine, method=method, axis=axis)
-        idx = np.asarray(index, dtype=np.int32)
-        z[sel], m[sel] = zs, ms
-        f[sel] = np.where(fs_ >= 0, idx[np.maximum(fs_, 0)], -1)
-    return z, f, m, len(meshed)
-
-
-def _block_piece(part: Part, k: int, block: tuple[float, float, float, float], pad: float, fine: float,
-                 axis: str, vpart: Part):
-    """The fine mesh of face ``k``'s piece inside the view-frame ``block`` (x0, y0, x1, y1)
-    widened by ``pad`` mm, over all heights of the part; None where nothing is inside."""
-    from .mesh import mesh_in_box
-    from .view import from_view
-
-    boxes = np.array([fc.bbox for fc in vpart.faces], dtype=np.float64).reshape(-1, 6)
-    zlo, zhi = np.nanmin(boxes[:, 2]) - 1.0 - pad, np.nanmax(boxes[:, 5]) + 1.0 + pad
-    corners = from_view(np.array([[x, y, zz] for x in (block[0] - pad, block[2] + pad)
-                                  for y in (block[1] - pad, block[3] + pad) for zz in (zlo, zhi)]), axis)
-    return mesh_in_box(part, [k], (*corners.min(axis=0), *corners.max(axis=0)), fine)[0]
+        z, fs_, m = sample_points(sub, gx, gy, deflection=fine, method=method, axis=axis)
+        f = np.where(fs_ >= 0, whole[np.maximum(fs_, 0)], -1).astype(np.int32)
+    for k in big.tolist():
+        b = np.asarray(vpart.faces[k].bbox, dtype=np.float64)
+        sel = np.flatnonzero((gx >= b[0] - pad) & (gx <= b[3] + pad) & (gy >= b[1] - pad) & (gy <= b[4] + pad))
+        if not sel.size:
+            continue
+        zr, _ = _face_caster(part, k, axis)(gx[sel], gy[sel])
+        top = np.isfinite(zr) & ~(zr <= z[sel])  # NaN in z: the ray's hit is the top
+        z[sel[top]], f[sel[top]], m[sel[top]] = zr[top], k, JACOBIAN
+    return z, f, m, int(keep.size)
 
 
 #: where the stages of :func:`sample` end on its progress bar (shares of the bar)

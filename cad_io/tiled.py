@@ -53,8 +53,8 @@ class TiledGrid:
     method: str
     window: tuple
     fine: float | None = None
-    #: per face, how the fine facet pass meshes it (:func:`cad_io.sampler.fine_blocks`)
-    fine_blocks: tuple = ()
+    #: per face, whether the fine facet pass ray-casts it (:func:`cad_io.sampler.fine_cast`)
+    fine_cast: tuple = ()
 
 
 def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, axis: str = "+z",
@@ -116,12 +116,12 @@ def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, a
         y0 = _centred(bounds[1], bounds[3], dy, ny)
     window = (x0 - dx, y0 - dy, x0 + (nx - 1) * dx + dx, y0 + (ny - 1) * dy + dy)
     fine = fine if fine is not None and fine < deflection else None
-    blocks = ()
+    cast = ()
     if fine is not None:
-        from .sampler import fine_blocks
+        from .sampler import fine_cast
 
-        blocks = tuple(fine_blocks(part, transform_part(part, axis), fine, dx, dy).tolist())
-    return TiledGrid(x0, y0, dx, dy, nx, ny, deflection, axis, method, window, fine, blocks)
+        cast = tuple(fine_cast(part, fine).tolist())
+    return TiledGrid(x0, y0, dx, dy, nx, ny, deflection, axis, method, window, fine, cast)
 
 
 def _face_set(part: Part, g: TiledGrid):
@@ -175,8 +175,7 @@ def sample_tile(part: Part, fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1
                 gy = g.y0 + (j0 + again % tny) * g.dy
                 whole = part.get() if isinstance(part, _LazyPart) else part
                 z2, f2, m2, _ = _fine_facets(whole, transform_part(whole, g.axis), gx, gy, g.fine, g.deflection,
-                                             g.method, g.axis, np.asarray(g.fine_blocks, dtype=np.int64),
-                                             (g.dx, g.dy))
+                                             g.method, g.axis, np.asarray(g.fine_cast, dtype=np.bool_))
                 zflat[again], fflat[again], mflat[again] = z2, f2, m2
     return zflat.reshape(tnx, tny), fflat.reshape(tnx, tny), mflat.reshape(tnx, tny)
 
@@ -189,8 +188,8 @@ def _worker_part(part_path: str, g: TiledGrid) -> Part:
     """The part in this worker, read once per process from the file (not meshed).
 
     Only a tile that keeps facet answers on exact faces needs it: the second pass meshes the
-    faces that may cover them fine, each on a copy or cut to its block, as the grid's
-    ``fine_blocks`` say (the CAD kernel); the pair scan works on the face set the client ships.
+    faces that may cover them fine, each on a copy, or ray-casts them, as the grid's
+    ``fine_cast`` says (the CAD kernel); the pair scan works on the face set the client ships.
     """
     st = os.stat(part_path)
     key = (os.path.abspath(part_path), st.st_mtime_ns, st.st_size, g)
