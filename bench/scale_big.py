@@ -18,8 +18,9 @@ Prints one JSON object: ``nodes``, ``tiles``, ``workers``, ``seconds`` (tile tas
 over the runs), ``nodes_per_s``, ``peak_rss_mb_per_worker`` (largest over all runs),
 ``store_gb_on_disk``, ``map_gb_in_memory`` (what the whole map would need),
 ``machine_memory_gb``, ``points_checked``, ``points_equal``, ``points_max_abs_dz``,
-``tiles_checked``, ``tiles_equal`` (random tiles and the ``--check-fine-tiles`` tiles with the
-most facet answers on exact faces, where the fine pass meshed faces), the load averages.
+``tiles_checked``, ``tiles_equal`` (random tiles and the ``--check-fine-tiles`` tiles whose
+fine facet pass solved the most points, ``fine_pass_tiles`` and ``fine_pass_points`` in all),
+the load averages.
 
 Usage: ``python bench/scale_big.py [--grid 0.03] [--tile 4096] [--out /tmp/zmap-big/bm2.zarr]``
 (about 35 min of two free cores on a 2-core laptop; ``--keep`` leaves the store).
@@ -65,7 +66,8 @@ def convert(part: Path, grid: float, tile: int, out: Path, workers: int, memory_
     return {"store": store, "runs": runs}
 
 
-def check(part_path: Path, store, grid: float, points: int, tiles: int, fine_tiles: int = 2, seed: int = 7) -> dict:
+def check(part_path: Path, store, grid: float, points: int, tiles: int, fine_tiles: int = 2, runs: list = (),
+          seed: int = 7) -> dict:
     import cad_io
     from cad_io.sampler import sample_points
     from cad_io.tiled import _face_set, plan_grid, sample_tile
@@ -93,19 +95,14 @@ def check(part_path: Path, store, grid: float, points: int, tiles: int, fine_til
     if tiles or fine_tiles:
         fs = _face_set(part, g)
         have = [t for t in store.tiles()]
-        pick = [have[k] for k in rng.choice(len(have), size=min(tiles, len(have)), replace=False)]
-        # and the tiles with the most facet answers on exact faces: there the fine pass meshed
-        # faces (whole, or cut to blocks), the part of the conversion most likely to differ
-        facets = []
-        for t in have:
-            si, sj = store.tile_slices(*t)
-            how = store.read(si.start, si.stop, sj.start, sj.stop, layer="method")
-            face = store.read(si.start, si.stop, sj.start, sj.stop, layer="face")
-            facets.append(int(((how == 2) & (fs.face_mode[np.maximum(face, 0)] == 1)).sum()))
-        order = np.argsort(facets)[::-1]
-        fine_pick = [have[k] for k in order[:fine_tiles] if facets[k] > 0 and have[k] not in pick]
-        out["facet_points_on_exact_faces"] = int(sum(facets))
-        out["tiles_with_such_points"] = int(sum(c > 0 for c in facets))
+        pick = [tuple(have[k]) for k in rng.choice(len(have), size=min(tiles, len(have)), replace=False)]
+        # and the tiles whose fine pass solved the most points (facet answers on exact faces
+        # solved again on fine meshes or by ray casts), as the conversion's runs reported them
+        fine = sorted({(int(a), int(b), int(c)) for r in runs for a, b, c in r.get("fine_pass_tiles", [])},
+                      key=lambda t: -t[2])
+        fine_pick = [t[:2] for t in fine if tuple(t[:2]) not in pick][:fine_tiles]
+        out["fine_pass_points"] = int(sum(t[2] for t in fine))
+        out["fine_pass_tiles"] = len(fine)
         out["fine_tiles_checked"] = len(fine_pick)
         pick += fine_pick
         same = 0
@@ -113,9 +110,12 @@ def check(part_path: Path, store, grid: float, points: int, tiles: int, fine_til
         nodes = 0
         for ti, tj in pick:
             si, sj = store.tile_slices(ti, tj)
-            z, _f, _m = sample_tile(part, fs, g, si.start, si.stop, sj.start, sj.stop)
+            z, f, m = sample_tile(part, fs, g, si.start, si.stop, sj.start, sj.stop)
             nodes += z.size
-            same += bool(np.array_equal(z, store.read(si.start, si.stop, sj.start, sj.stop), equal_nan=True))
+            box = (si.start, si.stop, sj.start, sj.stop)
+            same += bool(np.array_equal(z, store.read(*box), equal_nan=True)
+                         and np.array_equal(f, store.read(*box, layer="face"))
+                         and np.array_equal(m, store.read(*box, layer="method")))
         secs = time.perf_counter() - t0
         out.update({"tiles_checked": len(pick), "tiles_equal": same,
                     "one_process_nodes_per_s_on_checked_tiles": round(nodes / secs, 1)})
@@ -132,7 +132,7 @@ def main() -> None:
     ap.add_argument("--check-points", type=int, default=20000)
     ap.add_argument("--check-tiles", type=int, default=2)
     ap.add_argument("--check-fine-tiles", type=int, default=2,
-                    help="also check this many of the tiles with the most facet answers on exact faces")
+                    help="also check this many of the tiles whose fine facet pass solved the most points")
     ap.add_argument("--memory-limit", default=None,
                     help="restart a worker above this RSS (e.g. 3GB) instead of letting the machine run out")
     ap.add_argument("--keep", action="store_true", help="leave the store (default: removed after the check)")
@@ -149,7 +149,7 @@ def main() -> None:
            "store_gb_on_disk": round(store.disk_bytes() / 1e9, 2),
            "map_gb_in_memory": round(store.nbytes / 1e9, 2), "machine_memory_gb": round(_machine_memory_gb(), 1),
            "load_avg_1min": [r.get("load_avg_1min_at_start") for r in runs]}
-    out.update(check(a.part, store, a.grid, a.check_points, a.check_tiles, a.check_fine_tiles))
+    out.update(check(a.part, store, a.grid, a.check_points, a.check_tiles, a.check_fine_tiles, runs))
     print(json.dumps(out))
     if not a.keep:
         shutil.rmtree(a.out, ignore_errors=True)

@@ -730,12 +730,13 @@ def _covering_faces(vpart: Part, gx: np.ndarray, gy: np.ndarray, pad: float) -> 
 
 
 #: the fine facet pass meshes a face (alone, on a copy) when its fine mesh is estimated at no
-#: more than this many triangles; the points of a larger face are answered by OCC's exact
-#: ray cast on that face instead. BRepMesh needs about 2.3 KB a triangle while it works and
+#: more than this many triangles (about 300 MB of BRepMesh's working memory); the points of a
+#: larger face get OCC's exact ray cast on that face instead. BRepMesh needs about 2.3 KB a
+#: triangle while it works (bm2's face 10 at 1.5 um: 180,372 triangles, 580 MB) and
 #: its count on large B-spline faces is not predictable: bm2's 1 m face 3 at 5 um gave
 #: 195,100 triangles (13.5 s, 455 MB), the whole part at 1.5 um 8.4 GB, and a 245 mm piece
 #: of its face 2 cut out with a Boolean, 1.43 M triangles (313 s, 15 GB)
-FINE_FACE_TRIANGLES = 200_000
+FINE_FACE_TRIANGLES = 100_000
 #: triangles of whole-face fine meshes kept on a part between calls of the fine pass
 _FINE_CACHE_TRIANGLES = 2 * FINE_FACE_TRIANGLES
 _FINE_CACHE_ATTR = "_fine_mesh_cache"

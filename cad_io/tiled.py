@@ -131,7 +131,8 @@ def _face_set(part: Part, g: TiledGrid):
     return face_set(transform_part(part, g.axis), g.deflection, g.window)
 
 
-def sample_tile(part: Part, fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1: int) -> tuple[np.ndarray, ...]:
+def sample_tile(part: Part, fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1: int,
+                stats: dict | None = None) -> tuple[np.ndarray, ...]:
     """Heights, face and method layers of nodes ``[i0:i1, j0:j1]`` of the grid ``g``.
 
     ``fs`` is the part's face set at ``g.deflection`` (:func:`_face_set`). Equal to the same
@@ -170,6 +171,8 @@ def sample_tile(part: Part, fs: Any, g: TiledGrid, i0: int, i1: int, j0: int, j1
             from .view import transform_part
 
             again = np.flatnonzero((mflat == FACET) & (fs.face_mode[np.maximum(fflat, 0)] == 1))
+            if stats is not None:
+                stats["fine_points"] = int(again.size)
             if again.size:
                 gx = g.x0 + (i0 + again // tny) * g.dx  # as sample(): x0 + (global index // ny) * dx
                 gy = g.y0 + (j0 + again % tny) * g.dy
@@ -237,9 +240,10 @@ def _tile_task(part_path: str, g: TiledGrid, store: Any, ti: int, tj: int, threa
     c0 = time.process_time()
     th0 = time.thread_time()
     si, sj = store.tile_slices(ti, tj)
-    z, face, how = sample_tile(_LazyPart(part_path, g), fs, g, si.start, si.stop, sj.start, sj.stop)
+    stats: dict = {"fine_points": 0}
+    z, face, how = sample_tile(_LazyPart(part_path, g), fs, g, si.start, si.stop, sj.start, sj.stop, stats)
     store.write_tile(ti, tj, z, {"face": face, "method": how})
-    return {"tile": (ti, tj), "nodes": int(z.size), "seconds": time.perf_counter() - t0,
+    return {"tile": (ti, tj), "nodes": int(z.size), "seconds": time.perf_counter() - t0, **stats,
             "cpu_seconds": time.process_time() - c0, "thread_cpu_seconds": time.thread_time() - th0,
             "filled": int(np.isfinite(z).sum()), "jacobian": int((how == 1).sum()), "facet": int((how == 2).sum()),
             "pid": os.getpid(), "peak_rss_mb": peak_rss_mb()}
@@ -365,7 +369,10 @@ def convert_tiled(part: str | os.PathLike, grid: Any, output: str | os.PathLike,
     report = {"nodes": g.nx * g.ny, "tiles": store.n_tiles, "tiles_skipped": skipped, "tiles_done_now": len(results),
               "workers": n_workers, "seconds": round(seconds, 3), "prepare_seconds": round(prepare, 3),
               "nodes_per_s": round(nodes_now / seconds, 1) if seconds > 0 else 0.0,
-              "peak_rss_mb_per_worker": round(max(per_worker.values()), 1) if per_worker else 0.0}
+              "peak_rss_mb_per_worker": round(max(per_worker.values()), 1) if per_worker else 0.0,
+              # tiles whose facet answers on exact faces went through the fine pass, most first
+              "fine_pass_tiles": [[*r["tile"], r["fine_points"]] for r in
+                                  sorted(results, key=lambda r: -r.get("fine_points", 0)) if r.get("fine_points")]}
     report.update(cpu_figures(results))
     return store, report
 
