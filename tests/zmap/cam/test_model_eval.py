@@ -97,8 +97,10 @@ def test_kernel_bezier_options_are_not_compile_time_constants():
     assert M[-1] == (0, 0) and all(type(v) is int for v in M[-1])
     x = np.array([1.2, 2.7])
     np.testing.assert_array_equal(_kernel_heights(z, x, x), PrecisionModel(z).height(x, x))
+    # bezier_at's own signatures show only where height_at was compiled in this process (a
+    # cold cache, as CI's fresh clone has); from a warm cache its code comes inside height_at's
     sigs = MK.bezier_at.signatures
-    assert sigs and not any(isinstance(a, types.Literal) for sig in sigs for a in sig), sigs
+    assert not any(isinstance(a, types.Literal) for sig in sigs for a in sig), sigs
 
 
 def _wall_model(seed):
