@@ -193,8 +193,8 @@ class VoxelMap:
     tight_lo, tight_hi : ndarray of shape (mb, 3), float64
         The same grown per axis only as far as the surface can run past its samples (d'
         times the largest sine of its normals to the axis: 1e-6 d' across a flat face square
-        to the axis): the cylinders' cross-sections and, where one face crosses the voxel, the
-        blockers of the casting.
+        to the axis): where one face crosses the voxel, the blockers of the casting, and grown
+        to at least d' within the voxel, the casting's cylinders.
     pieces : Pieces
         Where several faces cross a voxel, the casting's blockers: one per face.
     slab : ndarray of shape (mb,), float64
