@@ -18,6 +18,16 @@ EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
 
 
 @njit(cache=True)
+def _hemisphere_word(dirs, k, w, nx, ny, nz):
+    """Word ``w`` of the bitset of the directions strictly above the plane of normal n."""
+    acc = np.uint64(0)
+    for i in range(w * 64, min(k, w * 64 + 64)):
+        if dirs[i, 0] * nx + dirs[i, 1] * ny + dirs[i, 2] * nz > 0.0:
+            acc |= np.uint64(1) << np.uint64(i - w * 64)
+    return acc
+
+
+@njit(cache=True)
 def accumulate(vox, pts, nrm, kmax, face, weight, centres, frames, q, hv, hl, exact, dirs,
                vl, light, curv, surf, crease, cos_crease, psum, nsum, area, nsamp, first, pmin, pmax):
     """Fold each sample into its boundary voxel: V' &= H_V(t), L' |= H_L(t), curvature, surface.
@@ -32,10 +42,7 @@ def accumulate(vox, pts, nrm, kmax, face, weight, centres, frames, q, hv, hl, ex
         nx, ny, nz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
         if exact:
             for w in range(W):
-                acc = np.uint64(0)
-                for i in range(w * 64, min(k, w * 64 + 64)):
-                    if dirs[i, 0] * nx + dirs[i, 1] * ny + dirs[i, 2] * nz > 0.0:
-                        acc |= np.uint64(1) << np.uint64(i - w * 64)
+                acc = _hemisphere_word(dirs, k, w, nx, ny, nz)
                 vl[b, w] &= acc
                 light[b, w] |= acc
         else:
@@ -232,11 +239,7 @@ def piece_accumulate(piece, pts, nrm, centres, frames, q, hl, exact, dirs, light
         nx, ny, nz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
         if exact:
             for w in range(W):
-                acc = np.uint64(0)
-                for i in range(w * 64, min(k, w * 64 + 64)):
-                    if dirs[i, 0] * nx + dirs[i, 1] * ny + dirs[i, 2] * nz > 0.0:
-                        acc |= np.uint64(1) << np.uint64(i - w * 64)
-                light[p, w] |= acc
+                light[p, w] |= _hemisphere_word(dirs, k, w, nx, ny, nz)
         else:
             t = lookup_one(nx, ny, nz, centres, frames, q)
             if t >= 0:
