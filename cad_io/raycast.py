@@ -70,7 +70,7 @@ class RayCaster:
         self._tris = np.concatenate(tris) if tris else np.zeros((0, 3, 3))
         self._tri_face = np.concatenate(tri_face) if tri_face else np.zeros(0, dtype=np.int64)
         box = Bnd_Box()
-        BRepBndLib.Add_s(shape, box)
+        BRepBndLib.Add_s(shape, box, False)  # the geometry, not a mesh: the same rays however the shape is meshed
         xmin, ymin, zmin, xmax, ymax, zmax = box.Get()
         corners = np.array([[a, b, c] for a in (xmin, xmax) for b in (ymin, ymax) for c in (zmin, zmax)]) @ self.R.T
         self._top = float(corners[:, 2].max()) + 1.0

@@ -47,3 +47,24 @@ def test_axes_on_the_half_cylinder(axis, expect):
            "+x": (0.0, 5.0), "-x": (0.0, -5.0)}[axis]
     z, _ = caster(np.array([pts[0]]), np.array([pts[1]]))
     assert z[0] == pytest.approx(expect, abs=1e-9)
+
+
+def test_the_rays_do_not_depend_on_the_shape_being_meshed():
+    """The rays start above the shape's geometric box, not its mesh's: a caster of the same
+    faces gives the same heights to the last bit in a process that meshed the part and in one
+    that did not (a tiled conversion's workers and its checker)."""
+    from cad_io.mesh import triangulate
+    from cad_io.step import read_step
+
+    part = read_step(DATA / "step" / "bug27693_cornetta-step.stp")
+    x0, y0, _, x1, y1, _ = part.bbox
+    rng = np.random.default_rng(2)
+    x, y = rng.uniform(x0, x1, 400), rng.uniform(y0, y1, 400)
+    bare = RayCaster(part.shape)
+    z0, f0 = bare(x, y)
+    triangulate(part, 2.0)  # a coarse mesh: its box pokes out of the geometry's
+    meshed = RayCaster(part.shape)
+    z1, f1 = meshed(x, y)
+    assert meshed._top == bare._top
+    assert np.isfinite(z0).sum() > 200
+    assert np.array_equal(z0, z1, equal_nan=True) and np.array_equal(f0, f1)
