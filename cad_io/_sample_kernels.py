@@ -35,19 +35,6 @@ _FLAT_EPS = 1e-12
 
 
 @njit(cache=True)
-def _tri_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, margin):
-    xmin = min(ax, min(bx, cx)) - margin
-    xmax = max(ax, max(bx, cx)) + margin
-    ymin = min(ay, min(by, cy)) - margin
-    ymax = max(ay, max(by, cy)) + margin
-    i0 = max(0, int(math.ceil((xmin - x0) / dx - 1e-9)))
-    i1 = min(nx - 1, int(math.floor((xmax - x0) / dx + 1e-9)))
-    j0 = max(0, int(math.ceil((ymin - y0) / dy - 1e-9)))
-    j1 = min(ny - 1, int(math.floor((ymax - y0) / dy + 1e-9)))
-    return i0, i1, j0, j1
-
-
-@njit(cache=True)
 def _bary_limits(ax, ay, bx, by, cx, cy, area, margin):
     """Lower bounds of the barycentric weights (w0, w1, w2) that admit points up to
     ``margin`` (xy, mm) outside the triangle: w_k >= -margin * |opposite edge| / |area|.
