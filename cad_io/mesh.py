@@ -86,51 +86,38 @@ def _occ_meshes(part: Part, deflection: float) -> None:
                                  True)
     for face in part.faces:
         f = TopoDS.Face_s(fmap.FindKey(face.index + 1))
-        face.mesh = _occ_face_mesh(face, [f], f, deflection)
+        face.mesh = _occ_face_mesh(face, f, f, deflection)
 
 
-def _occ_face_mesh(face: Face, pieces: list, whole: Any, deflection: float) -> FaceMesh | None:
-    """The :class:`FaceMesh` of ``face`` from the triangulations of the OCC faces ``pieces``
-    (the face itself, or pieces cut out of ``whole``, its OCC face, whose surface and
-    parameters they share); None where no piece has triangles."""
+def _occ_face_mesh(face: Face, f: Any, whole: Any, deflection: float) -> FaceMesh | None:
+    """The :class:`FaceMesh` of ``face`` from the triangulation of the OCC face ``f``: the
+    part's own face ``whole`` or a copy of it (same surface and parameters); None where
+    ``f`` has no triangles."""
     from OCP.BRep import BRep_Tool
     from OCP.BRepTools import BRepTools
     from OCP.TopAbs import TopAbs_REVERSED
     from OCP.TopLoc import TopLoc_Location
 
-    all_nodes, all_tris, all_uv = [], [], []
-    base = 0
-    for f in pieces:
-        loc = TopLoc_Location()
-        tri = BRep_Tool.Triangulation_s(f, loc)
-        if tri is None or tri.NbTriangles() == 0:
-            continue
-        nodes = np.array([tri.Node(i).Coord() for i in range(1, tri.NbNodes() + 1)])
-        if not loc.IsIdentity():
-            t = loc.Transformation()
-            m = np.array([[t.Value(r, c) for c in range(1, 5)] for r in range(1, 4)])
-            nodes = nodes @ m[:, :3].T + m[:, 3]
-        triangles = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)],
-                             dtype=np.int32) - 1
-        if f.Orientation() == TopAbs_REVERSED:
-            triangles = triangles[:, [0, 2, 1]]
-        uv0 = None
-        if face.surface is not None and tri.HasUVNodes():
-            uv0 = np.array([tri.UVNode(i).Coord() for i in range(1, tri.NbNodes() + 1)])
-            if face.topo is not None and not face.topo.IsSame(whole):
-                # converted face: map the original parameters onto the NURBS ones
-                uv0 = _rescale(uv0, BRepTools.UVBounds_s(whole), BRepTools.UVBounds_s(face.topo))
-        all_nodes.append(nodes)
-        all_tris.append(triangles + base)
-        all_uv.append(uv0)
-        base += len(nodes)
-    if not all_nodes:
+    loc = TopLoc_Location()
+    tri = BRep_Tool.Triangulation_s(f, loc)
+    if tri is None or tri.NbTriangles() == 0:
         return None
-    nodes = np.concatenate(all_nodes) if len(all_nodes) > 1 else all_nodes[0]
-    triangles = np.concatenate(all_tris) if len(all_tris) > 1 else all_tris[0]
+    nodes = np.array([tri.Node(i).Coord() for i in range(1, tri.NbNodes() + 1)])
+    if not loc.IsIdentity():
+        t = loc.Transformation()
+        m = np.array([[t.Value(r, c) for c in range(1, 5)] for r in range(1, 4)])
+        nodes = nodes @ m[:, :3].T + m[:, 3]
+    triangles = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)],
+                         dtype=np.int32) - 1
+    if f.Orientation() == TopAbs_REVERSED:
+        triangles = triangles[:, [0, 2, 1]]
     uv = None
-    if all(u is not None for u in all_uv):
-        uv = _fit_uv(face, nodes, np.concatenate(all_uv) if len(all_uv) > 1 else all_uv[0])
+    if face.surface is not None and tri.HasUVNodes():
+        uv0 = np.array([tri.UVNode(i).Coord() for i in range(1, tri.NbNodes() + 1)])
+        if face.topo is not None and not face.topo.IsSame(whole):
+            # converted face: map the original parameters onto the NURBS ones
+            uv0 = _rescale(uv0, BRepTools.UVBounds_s(whole), BRepTools.UVBounds_s(face.topo))
+        uv = _fit_uv(face, nodes, uv0)
     return FaceMesh(nodes=nodes, triangles=np.ascontiguousarray(triangles), uv=uv, deflection=deflection)
 
 
@@ -169,7 +156,7 @@ def mesh_faces_alone(part: Part, faces: Sequence[int], deflection: float) -> lis
             continue
         copy = TopoDS.Face_s(BRepBuilderAPI_Copy(f).Shape())
         BRepMesh_IncrementalMesh(copy, _OCC_SHARE * deflection, False, ANGULAR_DEFLECTION, True)
-        out.append(_occ_face_mesh(part.faces[int(k)], [copy], f, deflection))
+        out.append(_occ_face_mesh(part.faces[int(k)], copy, f, deflection))
     return out
 
 
