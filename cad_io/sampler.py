@@ -568,7 +568,8 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
         Mesh deflection in mm for starts and facets. Default: a coarse mesh for the
         Newton starts (``min(dx, dy) / START_SHARE``, the grid interval), and the points
         answered by facets on exact faces solved again on a fine one (``min(dx, dy) /
-        FACET_SHARE``, grid / 20) of the faces whose box holds such a point.
+        FACET_SHARE``, grid / 20) of the faces whose box holds such a point (each meshed alone;
+        a face too large to mesh that fine gets OCC's exact ray cast instead: :func:`fine_cast`).
     progress : bool or tqdm bar
         Show progress: True draws a bar of the stages (meshing, sampling, facets) in
         per cent; a tqdm bar given here (``total=100``, as ``zmap convert`` opens one before
