@@ -366,14 +366,13 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
                 tnx, tny = min(tile, stock.nx - gi0), min(tile, stock.ny - gj0)
                 fut = cl.submit(_sim_tile_of, shared, lists[k], table, history, stock.x0, stock.y0, stock.pitch,
                                 gi0, gj0, tnx, tny, stock.ny, folder, pure=False)
-                futures[fut] = k
+                futures[fut] = (k, tnx, tny)
             from dask.distributed import as_completed
 
             try:
                 with tqdm(total=len(futures), unit="tile", desc="tiles", disable=not progress, leave=False) as bar:
                     for fut in as_completed(list(futures)):
-                        k = futures[fut]
-                        tnx, tny = _tile_rays(stock.nx, stock.ny, tile, *divmod(k, nty))[2:4]
+                        k, tnx, tny = futures[fut]
                         results[k] = _unpack(fut.result(), history, tnx, tny)
                         bar.update(1)
                         if _on_result is not None:
