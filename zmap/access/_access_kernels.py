@@ -11,7 +11,7 @@ from numba import njit, prange
 
 from ._direction_kernels import lookup_one
 
-__all__ = ["accumulate", "paint_exterior", "skin_masks", "patch_slab", "piece_accumulate", "cast_directions",
+__all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "patch_slab", "piece_accumulate", "cast_directions",
            "ball_neighbours", "local_conditions", "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
@@ -191,6 +191,60 @@ def skin_masks(state, ijk, out):
 
 
 @njit(cache=True)
+def merge_runs(code, out):
+    """Greedy boxes of equal codes: every voxel with ``code > 0`` lies in exactly one box of
+    voxels that all hold its code. Boxes grow along the last axis first, then the middle,
+    then the first (the voxels' order of :func:`numpy.argwhere`). ``out`` (n, 7) gets rows
+    ``(i0, j0, l0, i1, j1, l1, code)`` (inclusive ends); returns the number of boxes.
+
+    The skin cubes of a face's layer share their neighbour mask, so they merge into a few
+    boxes: a line meets the union of the cubes exactly where it meets the box, and leaves it
+    at the largest of their exits, so a depth buffer drawn from the boxes holds the values
+    drawn from the cubes, for a fraction of the cells visited."""
+    ni, nj, nl = code.shape
+    used = np.zeros(code.shape, dtype=np.uint8)
+    nb = 0
+    for i in range(ni):
+        for j in range(nj):
+            for l in range(nl):
+                c = code[i, j, l]
+                if c <= 0 or used[i, j, l]:
+                    continue
+                l1 = l
+                while l1 + 1 < nl and code[i, j, l1 + 1] == c and not used[i, j, l1 + 1]:
+                    l1 += 1
+                j1 = j
+                while j1 + 1 < nj:
+                    ok = True
+                    for ll in range(l, l1 + 1):
+                        if code[i, j1 + 1, ll] != c or used[i, j1 + 1, ll]:
+                            ok = False
+                            break
+                    if not ok:
+                        break
+                    j1 += 1
+                i1 = i
+                while i1 + 1 < ni:
+                    ok = True
+                    for jj in range(j, j1 + 1):
+                        for ll in range(l, l1 + 1):
+                            if code[i1 + 1, jj, ll] != c or used[i1 + 1, jj, ll]:
+                                ok = False
+                                break
+                        if not ok:
+                            break
+                    if not ok:
+                        break
+                    i1 += 1
+                used[i:i1 + 1, j:j1 + 1, l:l1 + 1] = 1
+                out[nb, 0], out[nb, 1], out[nb, 2] = i, j, l
+                out[nb, 3], out[nb, 4], out[nb, 5] = i1, j1, l1
+                out[nb, 6] = c
+                nb += 1
+    return nb
+
+
+@njit(cache=True)
 def _line_setup(n, e, f):
     """Per axis c of direction n: (zero, 1/n_c, e_c/n_c, f_c/n_c, sign n_c)."""
     z = abs(n) < 1e-12
@@ -303,8 +357,8 @@ def patch_slab(vox, pts, nrm, point, normal, step, slab, grow):
 
 
 @njit(cache=True, parallel=True)
-def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin, hide, skin_mask, light, vl, ppt,
-                    pnrm, slab, d, cell, radius, lo, out):
+def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin, shalf, hide, skin_mask, light, vl,
+                    ppt, pnrm, slab, d, cell, radius, lo, out):
     """Cylinder casting of paper 002 §4.5 for every direction at once, one depth buffer each.
 
     For direction n, the lines parallel to n through the cell centres of a plane grid of
@@ -340,7 +394,8 @@ def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, s
 
     bxyz, bhalf : (mb, 3) centres and half extents of the boundary voxels' boxes as blockers;
     qxyz, qhalf : (mb, 3) the same as queries;
-    skin : (ms, 3) interior skin voxel centres (cubes of edge d);
+    skin, shalf : (ms, 3) centres and half extents of boxes of interior skin voxels, each box
+    of voxels with one neighbour mask ``skin_mask`` (:func:`merge_runs`; single cubes: half d);
     radius : half the diagonal of the part's box; lo : (3,) centre of the part's box.
     """
     k = dirs.shape[0]
@@ -348,7 +403,6 @@ def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, s
     mb = qxyz.shape[0]
     ms = skin.shape[0]
     g = 0.5 * np.sqrt(2.0) * cell
-    h = 0.5 * d
     u0 = -(radius + 2 * d)
     nc = int(np.ceil(2.0 * (radius + 2 * d) / cell)) + 1
     # the box holding every blocker and every voxel box (grown), relative to lo
@@ -363,13 +417,13 @@ def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, s
                 x0 = qxyz[m - nb, c] - qhalf[m - nb, c]
                 x1 = qxyz[m - nb, c] + qhalf[m - nb, c]
             else:
-                x0 = skin[m - nb - mb, c] - h
-                x1 = skin[m - nb - mb, c] + h
+                x0 = skin[m - nb - mb, c] - shalf[m - nb - mb, c]
+                x1 = skin[m - nb - mb, c] + shalf[m - nb - mb, c]
             gmin[c] = min(gmin[c], x0 - lo[c])
             gmax[c] = max(gmax[c], x1 - lo[c])
     for i in prange(k):  # the body is a call: parfor lowering of a big body compiles for minutes
-        _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin, hide, skin_mask, light, vl, ppt,
-                  pnrm, slab, d, cell, lo, g, h, u0, nc, gmin, gmax, out)
+        _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin, shalf, hide, skin_mask, light, vl,
+                  ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, out)
 
 
 @njit(cache=True)
@@ -423,8 +477,48 @@ def _row(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb, geo, 
 
 
 @njit(cache=True)
-def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin, hide, skin_mask, light, vl, ppt, pnrm,
-              slab, d, cell, lo, g, h, u0, nc, gmin, gmax, out):
+def _row_tight(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb, geo, u0, cell):
+    """:func:`_row` for a long box (merged skin cubes): its columns cut to the row's chord
+    through the box's projection (a hexagon), the columns whose line enters every slab
+    before it leaves any. The cut comes from the six pairs of an entry and another axis'
+    exit (linear in the column's centre) and is widened by a column; the callers' per-cell
+    test decides. (On small boxes it costs more than the cells it saves.)"""
+    jl, jh, xa, xb, ya, yb, za, zb = _row(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb, geo,
+                                          u0, cell)
+    px, py, pz = geo[12], geo[13], geo[14]
+    vlo, vhi = -1.0e300, 1.0e300
+    vlo, vhi = _pair_cut(xa, px, yb, py, vlo, vhi)
+    vlo, vhi = _pair_cut(xa, px, zb, pz, vlo, vhi)
+    vlo, vhi = _pair_cut(ya, py, xb, px, vlo, vhi)
+    vlo, vhi = _pair_cut(ya, py, zb, pz, vlo, vhi)
+    vlo, vhi = _pair_cut(za, pz, xb, px, vlo, vhi)
+    vlo, vhi = _pair_cut(za, pz, yb, py, vlo, vhi)
+    if vlo >= vhi:
+        return jl, jl - 1, xa, xb, ya, yb, za, zb
+    if vlo > -1.0e299:
+        jl = max(jl, int(np.floor((vlo - u0) / cell - 0.5)))
+    if vhi < 1.0e299:
+        jh = min(jh, int(np.ceil((vhi - u0) / cell - 0.5)))
+    return jl, jh, xa, xb, ya, yb, za, zb
+
+
+@njit(cache=True)
+def _pair_cut(a, pa, b, pb, vlo, vhi):
+    """(vlo, vhi) cut to the v where entry ``a - v pa`` comes before exit ``b - v pb``."""
+    dd = pb - pa
+    cc = b - a
+    if dd > 0.0:
+        vhi = min(vhi, cc / dd)
+    elif dd < 0.0:
+        vlo = max(vlo, cc / dd)
+    elif not (cc > 0.0):
+        vhi = -1.0e300
+    return vlo, vhi
+
+
+@njit(cache=True)
+def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin, shalf, hide, skin_mask, light, vl,
+              ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, out):
     """Direction i of :func:`cast_directions`: its depth buffer, then ``out[i, :]``."""
     nb = bxyz.shape[0]
     mb = qxyz.shape[0]
@@ -478,15 +572,20 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin
             if (skin_mask[m - nb] & req) == req:
                 continue
             cx, cy, cz = skin[m - nb, 0], skin[m - nb, 1], skin[m - nb, 2]
-            hx, hy, hz = h, h, h
+            hx, hy, hz = shalf[m - nb, 0], shalf[m - nb, 1], shalf[m - nb, 2]
             who = -2
         rx, ry, rz = cx - lo[0], cy - lo[1], cz - lo[2]
         pu, pv, ae, af, ia, ib, ja, jb, lxa, lxb, lya, lyb, lza, lzb = _span(rx, ry, rz, hx, hy, hz, geo, u0, cell,
                                                                             A0, A1, B0, B1)
+        wide = jb - ja > 8
         for a in range(ia, ib + 1):
             uc = u0 + (a + 0.5) * cell
-            jl, jh, xa, xb, ya, yb, za, zb = _row(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb,
-                                                  geo, u0, cell)
+            if wide:
+                jl, jh, xa, xb, ya, yb, za, zb = _row_tight(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza,
+                                                            lzb, geo, u0, cell)
+            else:
+                jl, jh, xa, xb, ya, yb, za, zb = _row(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb,
+                                                      geo, u0, cell)
             ra = a - A0
             kr = k0 - uc * ku
             for b in range(jl, jh + 1):

@@ -612,6 +612,24 @@ def _query_boxes(vm: VoxelMap) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(0.5 * (lo + hi)), np.ascontiguousarray(0.5 * (hi - lo))
 
 
+def _skin_boxes(vm: VoxelMap, sijk: np.ndarray, smask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The skin cubes merged into boxes of cubes with one neighbour mask
+    (:func:`~zmap.access._access_kernels.merge_runs`): centres, half extents (n, 3) and masks.
+    A box is left out of a direction exactly when each of its cubes would be, and its lines'
+    exits are the largest of its cubes', so the casting's bits are those of the cubes."""
+    from ._access_kernels import merge_runs
+
+    code = np.zeros(vm.state.shape, dtype=np.int64)
+    code[tuple(sijk.T)] = smask + 1  # 0: not skin
+    rows = np.empty((len(sijk), 7), dtype=np.int64)
+    n = merge_runs(code, rows)
+    rows = rows[:n]
+    lo, hi = rows[:, :3], rows[:, 3:6] + 1
+    centre = vm.origin + vm.d * 0.5 * (lo + hi)
+    half = 0.5 * vm.d * (hi - lo)
+    return np.ascontiguousarray(centre), np.ascontiguousarray(half), np.ascontiguousarray(rows[:, 6] - 1)
+
+
 def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True) -> np.ndarray:
     """``V'_g`` of every boundary voxel by cylinder casting (paper 002 §4.5).
 
@@ -627,7 +645,9 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True) -> np.n
     face where several meet), v's cylinder comes from its tight box made at least d' thick
     within the voxel (a flat box seen at a grazing angle would hold no line). ``cull``
     (default) leaves out, per direction, the skin cubes whose neighbours on its side are all
-    interior (the same bits, less work; ``False`` is for tests).
+    interior (the same bits, less work; ``False`` is for tests). The skin cubes are drawn as
+    boxes of cubes that share their neighbour mask (:func:`_skin_boxes`: on featuretype.STEP
+    at d = 0.5, 145,222 cubes in 9,996 boxes), again with the same bits.
 
     Returns
     -------
@@ -645,13 +665,14 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True) -> np.n
     smask = np.zeros(len(sijk), dtype=np.int64)
     skin_masks(vm.state, np.ascontiguousarray(sijk, dtype=np.int64), smask)
     allc = np.concatenate([qx, skin]) if len(skin) else qx
+    skin, shalf, smask = _skin_boxes(vm, sijk, smask)
     lo_, hi_ = allc.min(axis=0), allc.max(axis=0)
     centre = 0.5 * (lo_ + hi_)
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d
     out = np.zeros((ds.k, vm.n_boundary), dtype=np.uint8)
     hide = _hide_masks(ds.normals) if cull else np.full(ds.k, 1 << 27, dtype=np.int64)  # bit 27: never set
-    cast_directions(ds.normals, _opposite(ds), bx, bh, bvox, blight, bplane, qx, qh, skin, hide, smask, vm.light, vm.vl,
-                    np.ascontiguousarray(vm.point), np.ascontiguousarray(vm.normal), vm.slabs(),
+    cast_directions(ds.normals, _opposite(ds), bx, bh, bvox, blight, bplane, qx, qh, skin, shalf, hide, smask, vm.light,
+                    vm.vl, np.ascontiguousarray(vm.point), np.ascontiguousarray(vm.normal), vm.slabs(),
                     vm.d, vm.d / rays, radius, centre, out)
     return from_bool(out.T.astype(bool))
 

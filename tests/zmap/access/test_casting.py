@@ -94,3 +94,40 @@ def test_casting_kernel_matches_the_reference_on_a_bowl():
     fast = global_visibility(vm)
     assert (fast == global_visibility_reference(vm)).all()
     assert (count(fast) < count(vm.vl)).any()
+
+
+@settings(max_examples=40, deadline=None)
+@given(shape=st.tuples(*[st.integers(1, 6)] * 3), codes=st.integers(1, 3), seed=st.integers(0, 2**31 - 1),
+       fill=st.floats(0.0, 1.0))
+def test_merged_runs_cover_every_coded_voxel_once_with_its_code(shape, codes, seed, fill):
+    from zmap.access._access_kernels import merge_runs
+
+    rng = np.random.default_rng(seed)
+    code = np.where(rng.random(shape) < fill, rng.integers(1, codes + 1, shape), 0).astype(np.int64)
+    rows = np.empty((code.size, 7), dtype=np.int64)
+    n = merge_runs(code, rows)
+    seen = np.zeros(shape, dtype=np.int64)
+    for i0, j0, l0, i1, j1, l1, c in rows[:n]:
+        block = code[i0:i1 + 1, j0:j1 + 1, l0:l1 + 1]
+        assert block.size and (block == c).all()
+        seen[i0:i1 + 1, j0:j1 + 1, l0:l1 + 1] += 1
+    assert ((seen == 1) == (code > 0)).all() and seen.max(initial=0) <= 1
+
+
+def test_merged_skin_boxes_give_the_bits_of_the_cubes(monkeypatch):
+    """The casting draws the skin as boxes of cubes with one neighbour mask, with the chord
+    cut on long boxes; the bits are those of the single cubes (and of the reference)."""
+    import zmap.access.voxelmap as V
+
+    vm = _box_map((0.1, -0.2, 0.05), (6.0, 3.5, 4.0), d=0.5, q=2)
+    sijk = vm.skin_ijk()
+    merged = global_visibility(vm)
+    assert len(V._skin_boxes(vm, sijk, np.zeros(len(sijk), dtype=np.int64))[0]) < len(sijk) / 4
+
+    def cubes(vm, sijk, smask):
+        c = np.ascontiguousarray(vm.origin + vm.d * (sijk + 0.5))
+        return c, np.full_like(c, 0.5 * vm.d), smask
+
+    monkeypatch.setattr(V, "_skin_boxes", cubes)
+    assert (global_visibility(vm) == merged).all()
+    assert (global_visibility_reference(vm) == merged).all()
