@@ -52,6 +52,7 @@ class RayCaster:
         tris = []  # triangles (world) of faces without a surface
         tri_face = []
         n_geom = 0
+        self._geom: set[int] = set()
         for k, f in enumerate(self._faces):
             if BRep_Tool.Surface_s(f) is None:
                 loc = TopLoc_Location()
@@ -67,6 +68,7 @@ class RayCaster:
             else:
                 builder.Add(comp, f)
                 n_geom += 1
+                self._geom.add(k)
         self._tris = np.concatenate(tris) if tris else np.zeros((0, 3, 3))
         self._tri_face = np.concatenate(tri_face) if tri_face else np.zeros(0, dtype=np.int64)
         box = Bnd_Box()
@@ -80,6 +82,64 @@ class RayCaster:
             self._inter = IntCurvesFace_ShapeIntersector()
             self._inter.Load(comp, tol)
         self._fmap = fmap
+        self._tol = tol
+        self._boxes = None  # faces' view-frame xy boxes, for :meth:`_face_by_face`
+        self._single: dict = {}
+
+    def _face_by_face(self, line: Any, x: float, y: float) -> tuple[float, int]:
+        """Top-most hit of ``line`` (through view-frame ``(x, y)``) asking each face whose box
+        it passes with its own ``IntCurvesFace_Intersector``.
+
+        OCC's intersector throws Standard_NullObject on a face with a degenerated edge when
+        a hit lies outside the face's trim curves but within the uv resolution of its edge
+        tolerance (it projects the hit on every edge's 3D curve, and a degenerated edge has
+        none). Such a face is asked again with its boundary tolerance off (its hits strictly
+        inside only).
+        """
+        from OCP.Bnd import Bnd_Box
+        from OCP.BRepBndLib import BRepBndLib
+        from OCP.IntCurvesFace import IntCurvesFace_Intersector
+        from OCP.TopAbs import TopAbs_OUT
+
+        if self._boxes is None:
+            boxes = np.full((len(self._faces), 4), np.nan)
+            for k, f in enumerate(self._faces):
+                box = Bnd_Box()
+                BRepBndLib.Add_s(f, box, False)
+                if box.IsVoid():
+                    continue
+                x0, y0, z0, x1, y1, z1 = box.Get()
+                c = np.array([[a, b, d] for a in (x0, x1) for b in (y0, y1) for d in (z0, z1)]) @ self.R.T
+                boxes[k] = c[:, 0].min(), c[:, 1].min(), c[:, 0].max(), c[:, 1].max()
+            self._boxes = boxes
+        b = self._boxes
+        with np.errstate(invalid="ignore"):
+            near = np.flatnonzero((b[:, 0] <= x) & (x <= b[:, 2]) & (b[:, 1] <= y) & (y <= b[:, 3]))
+        best, zb, fb = np.inf, np.nan, -1
+        for k in near.tolist():
+            if k not in self._geom:
+                continue  # triangles only: intersected by _ray_triangles
+            for bound_tol in (True, False):
+                key = (k, bound_tol)
+                it = self._single.get(key)
+                if it is None:
+                    it = self._single[key] = IntCurvesFace_Intersector(self._faces[k], self._tol, True, bound_tol)
+                try:
+                    it.Perform(line, 0.0, self._depth)
+                except Exception:  # noqa: BLE001
+                    continue
+                break
+            else:
+                continue
+            if not it.IsDone():
+                continue
+            for i in range(1, it.NbPnt() + 1):
+                if it.State(i) != TopAbs_OUT and it.WParameter(i) < best:
+                    p = it.Pnt(i)
+                    best = it.WParameter(i)
+                    zb = float(self.R[2] @ np.array([p.X(), p.Y(), p.Z()]))
+                    fb = k
+        return zb, fb
 
     def _face_index(self, face: Any) -> int:
         i = self._fmap.FindIndex(face)
@@ -110,16 +170,15 @@ class RayCaster:
             if self._inter is None:
                 break
             o = R.T @ np.array([xf[n], yf[n], self._top])
+            line = gp_Lin(gp_Pnt(*o.tolist()), direction)
             try:
-                self._inter.Perform(gp_Lin(gp_Pnt(*o.tolist()), direction), 0.0, self._depth)
+                self._inter.Perform(line, 0.0, self._depth)
             except Exception:  # noqa: BLE001 (OCCT errors share no base class in OCP)
-                # Standard_NullObject on some of trj8's faces seen from the side: a ray
-                # 1e-9 mm beside it answers (far below any height we compare)
-                try:
-                    o = R.T @ np.array([xf[n] + 1e-9, yf[n] + 1e-9, self._top])
-                    self._inter.Perform(gp_Lin(gp_Pnt(*o.tolist()), direction), 0.0, self._depth)
-                except Exception:  # noqa: BLE001
-                    continue
+                # one face's intersector threw (Standard_NullObject on trj8's faces 22, 33,
+                # 372), and the shape intersector lost the whole ray with it: ask the faces
+                # the ray passes one by one
+                z[n], face[n] = self._face_by_face(line, xf[n], yf[n])
+                continue
             if not self._inter.IsDone():
                 continue
             best = np.inf
