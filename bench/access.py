@@ -11,7 +11,8 @@ visibility and access stages; comparable to the anchor's Embree rays/s, which le
 building the scene); ``pairs_per_s_pipeline``: the same pairs per second of the whole pipeline
 (``seconds``: sampling, voxel map, visibility, access, set-ups). ``tool_stats``: shank and
 holder tests decided by the dilated buffers as clear, as blocked, and by a disc scan.
-``agree_share``: share of (point, direction) pairs where the map's V'_g agrees with OCC thin
+``agree_share``: share of (point, direction) pairs where the map's V'_g (a point's face's
+piece's in a voxel where several faces meet, ``cad_io.access.point_visibility``) agrees with OCC thin
 rays (``cad_io.access.reference_visibility``) on ``--points`` random surface points x all k
 directions (the same answer for the same pair; nothing is counted as agreeing for being near
 a silhouette); ``voxel_only_far``: pairs the map calls free that OCC finds blocked more than a

@@ -25,7 +25,7 @@ from cad_io.part import Part
 from zmap.access.voxelmap import (AccessModelError, AccessResult, Tool, VoxelMap, accessibility,
                                   global_visibility, set_cover, three_axis)
 
-__all__ = ["Samples", "surface_samples", "voxelize", "analyse", "agreement", "reference_visibility",
+__all__ = ["Samples", "surface_samples", "voxelize", "analyse", "agreement", "point_visibility", "reference_visibility",
            "reference_tool", "read_part"]
 
 
@@ -224,7 +224,7 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     sec["voxelize"] = time.perf_counter() - t
     t = time.perf_counter()
     say(f"{vm.n_boundary:,} boundary, {vm.n_interior:,} interior voxels; cylinder casting")
-    vg = global_visibility(vm, rays=rays)
+    vg, vg_pieces = global_visibility(vm, rays=rays, pieces=True)
     sec["visibility"] = time.perf_counter() - t
     t = time.perf_counter()
     say("accessibility for the tool")
@@ -236,7 +236,7 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     sec["setups"] = time.perf_counter() - t
     sec["total"] = time.perf_counter() - t0
     return AccessResult(vm=vm, vg=vg, amap=amap, tool=tool, verdict=verdict, setups=setups, seconds=sec,
-                        source=str(part.source or ""))
+                        source=str(part.source or ""), vg_pieces=vg_pieces)
 
 
 def read_part(path) -> Part:
@@ -360,6 +360,25 @@ def reference_tool(shape: Any, points, normals, directions, tool: Tool, *, tol: 
     return out
 
 
+def point_visibility(result: AccessResult, voxel: np.ndarray, face: np.ndarray) -> np.ndarray:
+    """``V'_g`` (n, words) that the map gives surface points of ``face`` in boundary voxels
+    ``voxel``: their face's piece's where several faces meet in the voxel (and the pieces
+    were cast), else the voxel's."""
+    out = result.vg[voxel].copy()
+    p = result.vm.pieces
+    vp = result.vg_pieces
+    if p is None or vp is None or not len(vp) or p.face is None:
+        return out
+    nf = int(max(p.face.max(), np.max(face))) + 1
+    keys = p.voxel.astype(np.int64) * nf + p.face
+    order = np.argsort(keys)
+    want = np.asarray(voxel, dtype=np.int64) * nf + np.asarray(face, dtype=np.int64)
+    at = np.clip(np.searchsorted(keys[order], want), 0, len(keys) - 1)
+    hit = keys[order][at] == want
+    out[hit] = vp[order[at[hit]]]
+    return out
+
+
 def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int = 0,
               tool: bool = False, samples: Samples | None = None, explain: bool = False) -> dict:
     """Compare the voxel map with the OCC reference on random surface points x all k directions.
@@ -392,7 +411,7 @@ def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int
         hit = np.where(ref, np.inf, 0.0)
     else:
         ref, hit = reference_visibility(part.shape, pts, ds.normals)
-        mine = to_bool(result.vg[vb], ds.k)
+        mine = to_bool(point_visibility(result, vb, s.face[pick]), ds.k)
     diag = np.sqrt(3.0) * vm.d
     vo = mine & ~ref
     near_sil = 0

@@ -147,6 +147,33 @@ def test_voxel_map_against_occ_rays(slot):
     assert ag["agree_share"] > 0.95
 
 
+def test_points_on_edges_take_their_faces_piece(slot):
+    """On the slot's edges (voxels where two faces meet) a surface point gets its own face's
+    piece's V'_g, which holds more directions than the voxel's (the AND over both faces), and
+    the map with pieces still never frees a blocked ray."""
+    from cad_io.access import agreement, point_visibility, surface_samples
+    from zmap.access.directions import count
+    from zmap.access.voxelmap import AccessResult
+
+    part, vm, vg = slot
+    vg2, vp = global_visibility(vm, pieces=True)
+    assert (vg2 == vg).all() and len(vp) == len(vm.pieces.voxel) > 0
+    res = AccessResult(vm=vm, vg=vg, amap=vg, tool=Tool(4.0), verdict={}, setups=[], seconds={}, vg_pieces=vp)
+    p = vm.pieces
+    got = point_visibility(res, p.voxel, p.face)
+    assert (got == vp).all()
+    plain = np.flatnonzero(vm.surface >= 0)[:50]
+    assert (point_visibility(res, plain, vm.surface[plain]) == vg[plain]).all()
+    assert (count(vp) > count(vg[p.voxel])).mean() > 0.5
+    s = surface_samples(part, vm.step)
+    on_edge = vm.surface[vm.voxel_of(s.points)] < 0
+    assert on_edge.any()
+    ag = agreement(part, res, n_points=12, seed=3)
+    plain_ag = agreement(part, AccessResult(vm=vm, vg=vg, amap=vg, tool=Tool(4.0), verdict={}, setups=[],
+                                            seconds={}), n_points=12, seed=3)
+    assert ag["voxel_only_far"] == 0 and ag["agree_share"] >= plain_ag["agree_share"]
+
+
 def test_bad_input(slot, tmp_path):
     from cad_io.access import analyse, voxelize
     from cad_io.step import read_step

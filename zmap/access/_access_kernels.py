@@ -283,9 +283,10 @@ def _zcols(uc, e, f, r, h, u0, cell, jlo, jhi):
 
 
 @njit(cache=True)
-def piece_accumulate(piece, pts, nrm, centres, frames, q, hl, exact, dirs, light, psum, nsum, pmin, pmax):
-    """Fold samples into pieces (one face's samples in one voxel): L' (OR of each sample's
-    exact hemisphere, or of H_L of its tessel), point and normal sums, samples' box."""
+def piece_accumulate(piece, pts, nrm, centres, frames, q, hv, hl, exact, dirs, vl, light, psum, nsum, pmin, pmax):
+    """Fold samples into pieces (one face's samples in one voxel): V'_l (AND) and L' (OR) of
+    each sample's exact hemisphere, or of H_V / H_L of its tessel, as :func:`accumulate` does
+    for voxels; point and normal sums, samples' box."""
     W = light.shape[1]
     k = dirs.shape[0]
     for s in range(piece.shape[0]):
@@ -293,11 +294,16 @@ def piece_accumulate(piece, pts, nrm, centres, frames, q, hl, exact, dirs, light
         nx, ny, nz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
         if exact:
             for w in range(W):
-                light[p, w] |= _hemisphere_word(dirs, k, w, nx, ny, nz)
+                acc = _hemisphere_word(dirs, k, w, nx, ny, nz)
+                vl[p, w] &= acc
+                light[p, w] |= acc
         else:
             t = lookup_one(nx, ny, nz, centres, frames, q)
-            if t >= 0:
-                for w in range(W):
+            for w in range(W):
+                if t < 0:  # a sample without a normal: nothing is known visible (conservative)
+                    vl[p, w] = np.uint64(0)
+                else:
+                    vl[p, w] &= hv[t, w]
                     light[p, w] |= hl[t, w]
         for c in range(3):
             psum[p, c] += pts[s, c]
@@ -357,8 +363,8 @@ def patch_slab(vox, pts, nrm, point, normal, step, slab, grow):
 
 
 @njit(cache=True, parallel=True)
-def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin, shalf, hide, skin_mask, light, vl,
-                    ppt, pnrm, slab, d, cell, radius, lo, out):
+def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid, skin, shalf, hide, skin_mask, light,
+                    vl, ppt, pnrm, slab, d, cell, radius, lo, out):
     """Cylinder casting of paper 002 §4.5 for every direction at once, one depth buffer each.
 
     For direction n, the lines parallel to n through the cell centres of a plane grid of
@@ -393,7 +399,9 @@ def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, s
     along a row (one add per axis), and the buffer covers only the part's footprint.
 
     bxyz, bhalf : (mb, 3) centres and half extents of the boundary voxels' boxes as blockers;
-    qxyz, qhalf : (mb, 3) the same as queries;
+    qxyz, qhalf : (mb, 3) the queries' boxes (the boundary voxels', then any pieces'), with
+    ``light``, ``vl``, ``ppt``, ``pnrm``, ``slab`` per query; qid : (mb,) the blocker number
+    (``bvox``) a query skips as itself where it is also a blocker (-3 and below: none);
     skin, shalf : (ms, 3) centres and half extents of boxes of interior skin voxels, each box
     of voxels with one neighbour mask ``skin_mask`` (:func:`merge_runs`; single cubes: half d);
     radius : half the diagonal of the part's box; lo : (3,) centre of the part's box.
@@ -422,8 +430,8 @@ def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, s
             gmin[c] = min(gmin[c], x0 - lo[c])
             gmax[c] = max(gmax[c], x1 - lo[c])
     for i in prange(k):  # the body is a call: parfor lowering of a big body compiles for minutes
-        _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin, shalf, hide, skin_mask, light, vl,
-                  ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, out)
+        _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid, skin, shalf, hide, skin_mask, light,
+                  vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, out)
 
 
 @njit(cache=True)
@@ -517,8 +525,8 @@ def _pair_cut(a, pa, b, pb, vlo, vhi):
 
 
 @njit(cache=True)
-def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin, shalf, hide, skin_mask, light, vl,
-              ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, out):
+def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid, skin, shalf, hide, skin_mask, light,
+              vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, out):
     """Direction i of :func:`cast_directions`: its depth buffer, then ``out[i, :]``."""
     nb = bxyz.shape[0]
     mb = qxyz.shape[0]
@@ -641,7 +649,7 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin
                 hits += 1
                 s0 = max(s0, cr - vc * cv)
                 rb = b - B0
-                top = b2[ra, rb] if two and id1[ra, rb] == m else b1[ra, rb]
+                top = b2[ra, rb] if two and id1[ra, rb] == qid[m] else b1[ra, rb]
                 if top > s0 + eps:
                     ok = 0
                     break
@@ -653,7 +661,7 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, skin
             b = min(B1, max(B0, int(np.floor((pv - u0) / cell))))
             s0 = rx * nx + ry * ny + rz * nz - (hx * abs(nx) + hy * abs(ny) + hz * abs(nz))
             s0 = max(s0, c0 - pu * cu - pv * cv - ae * abs(cu) - af * abs(cv))
-            top = b2[a - A0, b - B0] if two and id1[a - A0, b - B0] == m else b1[a - A0, b - B0]
+            top = b2[a - A0, b - B0] if two and id1[a - A0, b - B0] == qid[m] else b1[a - A0, b - B0]
             if top > s0 + eps:
                 ok = 0
         out[i, m] = ok

@@ -48,13 +48,19 @@ def _clip(base, n, c, h):
     return s0, s1
 
 
-def global_visibility_reference(vm, *, rays: int = 2) -> np.ndarray:
-    """V'_g (mb, words) computed plainly; small maps only (O(k mb^2))."""
+def global_visibility_reference(vm, *, rays: int = 2, pieces: bool = False) -> np.ndarray:
+    """V'_g (mb, words) computed plainly; small maps only (O(k mb^2)). ``pieces``: the bits of
+    the pieces' own queries (np, words) instead (:func:`zmap.access.voxelmap.global_visibility`)."""
     from .voxelmap import _query_boxes
 
     ds = vm.directions
     bc, bh, bvox, blight, bplane = vm.blockers()
     qc, qh_ = _query_boxes(vm)
+    q_point, q_normal, q_slab, q_vl, q_self = vm.point, vm.normal, vm.slabs(), vm.vl, np.arange(vm.n_boundary)
+    if pieces:
+        pc = vm.pieces
+        pqc, pqh = _query_boxes(vm, pieces=True)
+        q_point, q_normal, q_slab, q_vl, q_self = pc.point, pc.normal, pc.slab, pc.vl, np.full(len(pc.voxel), -3)
     skin = vm.skin()
     allc = np.concatenate([qc, skin]) if len(skin) else qc
     lo_, hi_ = allc.min(axis=0), allc.max(axis=0)
@@ -64,19 +70,21 @@ def global_visibility_reference(vm, *, rays: int = 2) -> np.ndarray:
     u0 = -(radius + 2 * vm.d)
     nc = int(np.ceil(2.0 * (radius + 2 * vm.d) / cell)) + 1
     light = to_bool(blight, ds.k)
-    vl = to_bool(vm.vl, ds.k)
+    vl = to_bool(q_vl, ds.k)
+    if pieces:
+        qc, qh_ = pqc, pqh
     opp = ds.lookup(-ds.normals)
     sc = skin - mid
     sh = np.full((len(skin), 3), 0.5 * vm.d)
     rel = bc - mid
-    out = np.zeros((vm.n_boundary, ds.k), bool)
-    slab = vm.slabs()
+    out = np.zeros((len(qc), ds.k), bool)
+    slab = q_slab
     for i in range(ds.k):
         n = ds.normals[i]
         e, f = _basis(n)
         blk = np.flatnonzero(light[:, opp[i]])
         for b in np.flatnonzero(vl[:, i]):
-            others = blk[bvox[blk] != b]
+            others = blk[bvox[blk] != q_self[b]]
             cs = np.concatenate([rel[others], sc])
             gc = 0.5 * cell * (np.abs(e) + np.abs(f))  # a ray's offset from its cell's line, per axis
             hs = np.concatenate([bh[others] + gc, sh])
@@ -97,12 +105,12 @@ def global_visibility_reference(vm, *, rays: int = 2) -> np.ndarray:
             pu, pv = qr @ e, qr @ f
             ae, af = qh @ np.abs(e), qh @ np.abs(f)
             # the patch's slab: on a line base + s n no patch point lies below start(base)
-            m_ = vm.normal[b]
+            m_ = q_normal[b]
             nm = float(n @ m_)
             use = nm > 1e-9 and slab[b] < 1e300
 
             def start(base, m_=m_, nm=nm, use=use, b=b):
-                return ((vm.point[b] - mid) @ m_ - slab[b] - base @ m_) / nm if use else -np.inf
+                return ((q_point[b] - mid) @ m_ - slab[b] - base @ m_) / nm if use else -np.inf
 
             ia, ib = max(0, int(np.floor((pu - ae - u0) / cell))), min(nc - 1, int(np.floor((pu + ae - u0) / cell)))
             ja, jb = max(0, int(np.floor((pv - af - u0) / cell))), min(nc - 1, int(np.floor((pv + af - u0) / cell)))

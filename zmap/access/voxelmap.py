@@ -146,6 +146,12 @@ class Pieces:
     point, normal, slab :
         Mean point (np, 3), unit mean normal (np, 3) and half-thickness (np,) of the piece
         about that plane, as ``VoxelMap.slab``.
+    face : ndarray of shape (np,), int64
+        The piece's face.
+    vl : ndarray of shape (np, words), uint64
+        ``V'_l`` of the piece's samples: the casting's query for the piece's own visibility
+        (:func:`global_visibility` with ``pieces=True``), which a point of that face in the
+        voxel has, rather than the voxel's (the AND over all its faces).
     """
 
     voxel: np.ndarray
@@ -155,6 +161,8 @@ class Pieces:
     point: np.ndarray
     normal: np.ndarray
     slab: np.ndarray
+    face: np.ndarray | None = None
+    vl: np.ndarray | None = None
 
 
 @dataclass
@@ -401,19 +409,23 @@ class VoxelMap:
         npc = len(ukey)
         pvox = ukey // (int(fid.max()) + 1)
         plight = np.zeros((npc, W), dtype=np.uint64)
+        pvl = np.full((npc, W), np.uint64(0xFFFFFFFFFFFFFFFF), dtype=np.uint64)
+        if ds.k % 64:
+            pvl[:, -1] = np.uint64((1 << (ds.k % 64)) - 1)
         ps, ns = np.zeros((npc, 3)), np.zeros((npc, 3))
         pmn, pmx = np.full((npc, 3), np.inf), np.full((npc, 3), -np.inf)
         spts, snrm = np.ascontiguousarray(pts[sel]), np.ascontiguousarray(nrm[sel])
         pinv = np.ascontiguousarray(pinv, dtype=np.int64)
-        piece_accumulate(pinv, spts, snrm, ds._centres, ds._frames, ds.q, ds.hl, 1 if exact else 0, ds.normals,
-                         plight, ps, ns, pmn, pmx)
+        piece_accumulate(pinv, spts, snrm, ds._centres, ds._frames, ds.q, ds.hv, ds.hl, 1 if exact else 0, ds.normals,
+                         pvl, plight, ps, ns, pmn, pmx)
         ppoint = ps / np.bincount(pinv, minlength=npc)[:, None]
         plen = np.linalg.norm(ns, axis=1)
         pnormal = np.where(plen[:, None] > 0, ns / np.maximum(plen, 1e-300)[:, None], 0.0)
         pslab, pgrow = np.empty(npc), np.empty((npc, 3))
         patch_slab(pinv, spts, snrm, ppoint, pnormal, step_, pslab, pgrow)
         pieces = Pieces(voxel=pvox, lo=np.maximum(pmn - pgrow, vlo[pvox]), hi=np.minimum(pmx + pgrow, vlo[pvox] + d),
-                        light=plight, point=ppoint, normal=pnormal, slab=pslab)
+                        light=plight, point=ppoint, normal=pnormal, slab=pslab,
+                        face=(ukey % (int(fid.max()) + 1)).astype(np.int64), vl=pvl)
         return cls(origin=origin, d=d, state=state, index=index, ijk=bijk, vl=vl, light=light,
                    curvature=curv, surface=surf, crease=crease.astype(bool), point=point,
                    normal=normal, area=area, q=ds.q, flipped=flipped,
@@ -602,12 +614,18 @@ def _hide_masks(normals: np.ndarray, tiny: float = 1e-9) -> np.ndarray:
     return out
 
 
-def _query_boxes(vm: VoxelMap) -> tuple[np.ndarray, np.ndarray]:
+def _query_boxes(vm: VoxelMap, pieces: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Centres and half extents (mb, 3) of the casting's cylinders: the tight boxes grown to at
-    least d' on each axis (a flat box seen at a grazing angle holds no line), within the voxel."""
-    c, h = vm.boxes(tight=True)
+    least d' on each axis (a flat box seen at a grazing angle holds no line), within the voxel
+    (``pieces``: the pieces' boxes, within their voxels)."""
+    if pieces:
+        p = vm.pieces
+        c, h = 0.5 * (p.lo + p.hi), 0.5 * (p.hi - p.lo)
+        vlo = vm.origin + vm.d * vm.ijk[p.voxel]
+    else:
+        c, h = vm.boxes(tight=True)
+        vlo = vm.origin + vm.d * vm.ijk
     t = np.maximum(0.5 * vm.sampling_step - h, 0.0)
-    vlo = vm.origin + vm.d * vm.ijk
     lo, hi = np.maximum(c - h - t, vlo), np.minimum(c + h + t, vlo + vm.d)
     return np.ascontiguousarray(0.5 * (lo + hi)), np.ascontiguousarray(0.5 * (hi - lo))
 
@@ -630,7 +648,8 @@ def _skin_boxes(vm: VoxelMap, sijk: np.ndarray, smask: np.ndarray) -> tuple[np.n
     return np.ascontiguousarray(centre), np.ascontiguousarray(half), np.ascontiguousarray(rows[:, 6] - 1)
 
 
-def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True) -> np.ndarray:
+def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True,
+                      pieces: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """``V'_g`` of every boundary voxel by cylinder casting (paper 002 §4.5).
 
     A direction n stays in ``V'_g(v)`` when no line parallel to n through v's surface box
@@ -649,9 +668,15 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True) -> np.n
     boxes of cubes that share their neighbour mask (:func:`_skin_boxes`: on featuretype.STEP
     at d = 0.5, 145,222 cubes in 9,996 boxes), again with the same bits.
 
+    ``pieces=True`` also casts each piece of the voxels where several faces meet
+    (:class:`Pieces`) as a query of its own, from its own box and slab with its own ``V'_l``:
+    the directions free from that face's patch in the voxel, which a point of the face has
+    (the voxel's ``V'_l`` is the AND over all its faces: at a convex edge, few directions).
+    The voxels' bits are the same either way.
+
     Returns
     -------
-    ndarray of shape (mb, words), uint64
+    ndarray of shape (mb, words), uint64; with ``pieces``, also the pieces' (np, words)
     """
     from ._access_kernels import cast_directions, skin_masks
 
@@ -669,12 +694,29 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True) -> np.n
     lo_, hi_ = allc.min(axis=0), allc.max(axis=0)
     centre = 0.5 * (lo_ + hi_)
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d
-    out = np.zeros((ds.k, vm.n_boundary), dtype=np.uint8)
+    mb = vm.n_boundary
+    qid = np.arange(mb, dtype=np.int64)
+    light, vl, ppt, pnrm, slab = vm.light, vm.vl, vm.point, vm.normal, vm.slabs()
+    extra = pieces and vm.pieces is not None and vm.pieces.vl is not None
+    if extra:
+        p = vm.pieces
+        px, ph = _query_boxes(vm, pieces=True)
+        qx, qh = np.concatenate([qx, px]), np.concatenate([qh, ph])
+        qid = np.concatenate([qid, -3 - np.arange(len(p.voxel), dtype=np.int64)])  # skip nothing as itself
+        light, vl = np.concatenate([light, p.light]), np.concatenate([vl, p.vl])
+        ppt, pnrm, slab = np.concatenate([ppt, p.point]), np.concatenate([pnrm, p.normal]), np.concatenate([slab, p.slab])
+    out = np.zeros((ds.k, len(qx)), dtype=np.uint8)
     hide = _hide_masks(ds.normals) if cull else np.full(ds.k, 1 << 27, dtype=np.int64)  # bit 27: never set
-    cast_directions(ds.normals, _opposite(ds), bx, bh, bvox, blight, bplane, qx, qh, skin, shalf, hide, smask, vm.light,
-                    vm.vl, np.ascontiguousarray(vm.point), np.ascontiguousarray(vm.normal), vm.slabs(),
-                    vm.d, vm.d / rays, radius, centre, out)
-    return from_bool(out.T.astype(bool))
+    cast_directions(ds.normals, _opposite(ds), bx, bh, bvox, blight, bplane, np.ascontiguousarray(qx),
+                    np.ascontiguousarray(qh), qid, skin, shalf, hide, smask, np.ascontiguousarray(light),
+                    np.ascontiguousarray(vl), np.ascontiguousarray(ppt), np.ascontiguousarray(pnrm),
+                    np.ascontiguousarray(slab), vm.d, vm.d / rays, radius, centre, out)
+    bits = from_bool(out.T.astype(bool))
+    if not pieces:
+        return bits
+    if not extra:
+        return bits, np.zeros((0, ds.words), dtype=np.uint64)
+    return bits[:mb], bits[mb:]
 
 
 def _disc_rows(rad: float, *, outer: bool) -> np.ndarray:
@@ -909,6 +951,8 @@ class AccessResult:
     source: str = ""
     #: optional per z-map node arrays (``node_voxel``, ``node_count``) and their grid
     nodes: dict = field(default_factory=dict)
+    #: ``V'_g`` of each piece of ``vm.pieces`` (a face in a voxel where several meet), or None
+    vg_pieces: np.ndarray | None = None
 
     def summary(self) -> str:
         """A markdown table of the verdict and the set-ups."""
@@ -961,6 +1005,8 @@ class AccessResult:
                       n_access=count(self.amap).astype(np.int32),
                       directions=vm.directions.normals,
                       header=np.frombuffer(json.dumps(header).encode(), dtype=np.uint8))
+        if self.vg_pieces is not None and vm.pieces is not None and vm.pieces.face is not None:
+            arrays.update(piece_voxel=vm.pieces.voxel, piece_face=vm.pieces.face, piece_vg=self.vg_pieces)
         for key, val in self.nodes.items():
             if isinstance(val, np.ndarray):
                 arrays[key] = val

@@ -131,3 +131,18 @@ def test_merged_skin_boxes_give_the_bits_of_the_cubes(monkeypatch):
     monkeypatch.setattr(V, "_skin_boxes", cubes)
     assert (global_visibility(vm) == merged).all()
     assert (global_visibility_reference(vm) == merged).all()
+
+
+def test_piece_queries_match_the_reference_on_a_bowl():
+    """Each face's piece in an edge voxel is cast as a query of its own: its bits are the
+    reference's, the voxels' bits do not change, and a piece keeps directions that its
+    voxel (the AND over its faces) loses."""
+    vm = VoxelMap.from_samples(*bowl_samples(r=2.0, half=3.0, depth=2.5, step=0.15), d=0.6, q=1, step=0.15)
+    p = vm.pieces
+    assert len(p.voxel) > 0 and p.vl.shape == (len(p.voxel), vm.directions.words)
+    vg, vp = global_visibility(vm, pieces=True)
+    assert (vg == global_visibility(vm)).all()
+    assert (vp == global_visibility_reference(vm, pieces=True)).all()
+    assert (count(vp) > count(vg[p.voxel])).sum() > len(p.voxel) // 4
+    # a piece's V'_l holds its voxel's (the voxel's is the AND over its pieces')
+    assert not (vm.vl[p.voxel] & ~p.vl).any()
