@@ -852,6 +852,25 @@ def _disc_test(buf, up, lo_, A0, B0, u0, cell, pu, pv, rr, h0, skip, stats):
 
 
 @njit(cache=True)
+def _block_max(buf, A0, B0, hm, bufh, H0, G0):
+    """Raise ``bufh`` (cells H0.., G0.. of pitch hm times buf's) to the max of buf's cells
+    (A0.., B0..) in each of its cells."""
+    na, nb = buf.shape
+    nh, ng = bufh.shape
+    for p in range(na):
+        P = (A0 + p) // hm - H0
+        if P < 0 or P >= nh:
+            continue
+        row = buf[p]
+        for q in range(nb):
+            z = row[q]
+            if z > -1.0e300:
+                Q = (B0 + q) // hm - G0
+                if 0 <= Q < ng and z > bufh[P, Q]:
+                    bufh[P, Q] = z
+
+
+@njit(cache=True)
 def _window(cmin, cmax, ex, ey, ez, fx, fy, fz, grow, u0, cell, nc):
     cx, cy, cz = 0.5 * (cmin[0] + cmax[0]), 0.5 * (cmin[1] + cmax[1]), 0.5 * (cmin[2] + cmax[2])
     hx, hy, hz = 0.5 * (cmax[0] - cmin[0]), 0.5 * (cmax[1] - cmin[1]), 0.5 * (cmax[2] - cmin[2])
@@ -867,7 +886,7 @@ def _window(cmin, cmax, ex, ey, ez, fx, fy, fz, grow, u0, cell, nc):
 
 
 @njit(cache=True, parallel=True)
-def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, holder_r, lo, radius,
+def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, hm, stick, holder_r, lo, radius,
                 up_r, low_r, up_h, low_h, out, stats):
     """Shank and holder cylinders: per direction, max-depth buffers of the occupied voxels
     (boundary sample boxes and interior skin cubes: footprint box and far end along n), at pitch
@@ -882,6 +901,11 @@ def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, hold
     in between scan the disc's cells (less those the second filter vouched for), so the bits
     are those of the plain disc scan. ``stats`` (k, 3): pairs decided
     clear, blocked and scanned, per direction (shank and holder tests together).
+
+    ``hm`` > 0: ``cell_h`` is ``hm`` (a power of two) times ``cell`` on the same origin, and the
+    holder's buffer is the shank's maximum over blocks of hm x hm cells (a box meets a coarse
+    cell exactly when it meets one of its fine cells: ``floor(floor(t) / hm) = floor(t / hm)``,
+    and the division by a power of two rounds alike), instead of drawing every box again.
     """
     k = dirs.shape[0]
     mb = centre.shape[0]
@@ -900,13 +924,13 @@ def tool_kernel(dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, hold
             cmin[c] = min(cmin[c], centre[m, c] - lo[c])
             cmax[c] = max(cmax[c], centre[m, c] - lo[c])
     for i in prange(k):  # the body is a call: parfor lowering of a big body compiles for minutes
-        _tool_one(i, dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, holder_r, lo, up_r, low_r,
+        _tool_one(i, dirs, local, centre, occ, ohalf, d, a, cell, cell_h, hm, stick, holder_r, lo, up_r, low_r,
                   up_h, low_h, u0, nc, nch, cmin, cmax, out, stats)
 
 
 @njit(cache=True)
-def _tool_one(i, dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, holder_r, lo, up_r, low_r, up_h, low_h,
-              u0, nc, nch, cmin, cmax, out, stats):
+def _tool_one(i, dirs, local, centre, occ, ohalf, d, a, cell, cell_h, hm, stick, holder_r, lo, up_r, low_r, up_h,
+              low_h, u0, nc, nch, cmin, cmax, out, stats):
     """Direction i of :func:`tool_kernel`: its shank and holder buffers, then ``out[i, :]``."""
     mb = centre.shape[0]
     nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
@@ -927,8 +951,10 @@ def _tool_one(i, dirs, local, centre, occ, ohalf, d, a, cell, cell_h, stick, hol
         pv = rx * fx + ry * fy + rz * fz
         top = rx * nx + ry * ny + rz * nz + ext
         _rasterise_max(buf, A0, B0, u0, cell, pu, pv, ae, af, top)
-        if holder_r > 0:
+        if holder_r > 0 and hm <= 0:
             _rasterise_max(bufh, H0, G0, u0, cell_h, pu, pv, ae, af, top)
+    if holder_r > 0 and hm > 0:
+        _block_max(buf, A0, B0, hm, bufh, H0, G0)
     up = np.empty_like(buf)
     low = np.empty_like(buf)
     disc_max(buf, up_r, low_r, up, low)

@@ -97,6 +97,23 @@ def test_tool_clearance_kernel_matches_the_plain_reference(step_block, tool):
     assert not (fast_s & ~fast).any()
 
 
+@pytest.mark.parametrize("cells", [(0.2, 0.4), (0.15, 0.6), (0.1, 0.8)], ids=["x2", "x4", "x8"])
+def test_holder_buffer_from_block_maxima_matches_the_reference(step_block, cells):
+    """A holder cell a power of two times the shank's: its buffer is the shank's block maxima,
+    with the bits of the reference's box-by-box drawing (and of the drawn path)."""
+    vm = step_block
+    tool = Tool(0.8, stickout=1.2, holder_diameter=2.4, holder_length=5.0)
+    fast = tool_clearance(vm, vm.vl, tool, cell=cells[0], cell_holder=cells[1])
+    assert (fast == tool_clearance_reference(vm, vm.vl, tool, cell=cells[0], cell_holder=cells[1])).all()
+    # the same cells drawn box by box (a ratio just off the power of two takes that path)
+    off = tool_clearance(vm, vm.vl, tool, cell=cells[0], cell_holder=cells[1] * (1 + 1e-12))
+    assert (off == tool_clearance_reference(vm, vm.vl, tool, cell=cells[0], cell_holder=cells[1] * (1 + 1e-12))).all()
+    assert 0 < count(fast).sum() < count(vm.vl).sum()
+    # the holder takes directions here (so its buffer is tested)
+    bare = tool_clearance(vm, vm.vl, Tool(0.8), cell=cells[0], cell_holder=cells[1])
+    assert count(fast).sum() < count(bare).sum()
+
+
 def test_casting_without_hidden_skin_cubes_gives_the_same_bits():
     """A thick interior (a ball in a block with a cavity): leaving out the skin cubes hidden
     along each direction changes no bit, and it does leave some out."""
