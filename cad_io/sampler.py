@@ -57,13 +57,10 @@ NEWTON_MAX_ITER = 30
 #: uv lattice size for faces with a surface but no (u, v) triangulation
 LATTICE = 48
 #: Points this close (mm) to a face's trim loop count as inside it: the loops are polylines
-#: within about 1e-4 mm of the true boundary (see _trim_slack_uv).
+#: within about 1e-4 mm of the true boundary (see _trim_slack_uv). A face whose edges carry a
+#: larger tolerance in the file also holds the points OCC's ray cast counts as on it within
+#: that tolerance (``_sample_kernels.in_tolerance``).
 TRIM_SLACK_MM = 5e-4
-#: A face whose edges carry a larger tolerance in the file (its trim curves may be that far
-#: from the true boundary) widens its slack to that tolerance, up to this many mm. OCC's own
-#: face classifier counts points within the edge tolerance as on the face (trj8's faces,
-#: edges up to 0.95 mm, gave 4e-3 and 1.5e-2 mm differences from its ray cast at 0.05 mm).
-TRIM_SLACK_MAX_MM = 1.0
 #: Boundary triangles of an exact face pair with points up to this many mesh deflections
 #: outside them (Newton and the trim test then decide)
 BOUNDARY_MARGIN = 2.0
@@ -230,19 +227,17 @@ def _silhouette_triangles(nodes: np.ndarray, tris: np.ndarray) -> np.ndarray:
     return steep & near
 
 
-def _trim_slack_uv(packed, face_loops: dict[int, list[np.ndarray]], F: int,
-                   tol_mm: np.ndarray | None = None) -> dict[int, np.ndarray]:
+def _trim_slack_uv(packed, face_loops: dict[int, list[np.ndarray]], F: int) -> dict[int, np.ndarray]:
     """Per face, per loop edge, the uv distance across the edge that spans
-    :data:`TRIM_SLACK_MM` on the surface (or the face's own edge tolerance ``tol_mm[k]``
-    where larger, up to :data:`TRIM_SLACK_MAX_MM`).
+    :data:`TRIM_SLACK_MM` on the surface.
 
     The trim loops are polylines within about 1e-4 mm of the true boundary, so a point
     exactly on a curved boundary can fall just outside the polygon of both faces that meet
     there (a wall's top edge and the fillet below it), and a lower face would answer. A
-    point within the slack of a loop counts as inside. A file's edge tolerance says how far
-    its trim curves may lie from the boundary they share with the next face: on a soap-box
-    moulding, edges of 7.7e-3 mm left nodes at a face boundary in neither face, and the
-    floor 2.1 mm below answered.
+    point within the slack of a loop counts as inside. (A file's larger edge tolerances are
+    honoured as OCC's ray cast honours them, by :func:`_tolerance_band`: widening the slack
+    to the tolerance made trj8's faces, edges of 0.2-0.3 mm, claim points 0.2 mm beyond
+    their loops that OCC gives to the face beside, 0.04 mm lower.)
 
     The scale is measured across each loop edge, ``|S_u n_u + S_v n_v|`` at its midpoint
     for the uv normal ``n`` of the edge: one scale per face (the median of |dS| / |duv|
@@ -265,8 +260,6 @@ def _trim_slack_uv(packed, face_loops: dict[int, list[np.ndarray]], F: int,
             nu, nv = -d[:, 1] / duv, d[:, 0] / duv
             across = np.linalg.norm(der[:, 1, :] * nu[:, None] + der[:, 2, :] * nv[:, None], axis=1)
         mm = TRIM_SLACK_MM
-        if tol_mm is not None and np.isfinite(tol_mm[k]):
-            mm = min(max(mm, float(tol_mm[k])), max(mm, TRIM_SLACK_MAX_MM))
         ok = np.isfinite(across) & (across > 0) & (duv > 0)
         slack = np.zeros(len(a))
         if ok.any():
@@ -279,13 +272,97 @@ def _trim_slack_uv(packed, face_loops: dict[int, list[np.ndarray]], F: int,
     return out
 
 
+def _tolerance_band(vpart: Part, face_loops: dict[int, list[np.ndarray]]) -> tuple[np.ndarray, ...]:
+    """What ``_sample_kernels.in_tolerance`` needs besides the loops: ``face_tol (F, 8)``
+    (the face's largest edge tolerance t in mm, 0 where it is within :data:`TRIM_SLACK_MM`;
+    the uv distance OCC classifies at t, the larger of the surface's u and v resolutions;
+    the face's uv bounds u0, u1, v0, v1, outside which OCC's intersector finds no hit at
+    all; the start and height of its segment bands along x), ``face_seg (F, 2)`` (first
+    band and number of bands of its 3D edge segments) and the segments ``seg (S, 6)`` (the
+    part's edge polylines, view frame), ``seg_ptr``, ``seg_members`` bucketed per face in
+    bands of x widened by t.
+
+    OCC's ray cast (IntCurvesFace_Intersector, boundary tolerance on) counts a hit outside
+    a face's trim curves as on the face when it is within that uv distance of them and
+    within t in space of one of the face's edge curves. trj8's faces carry edges of
+    0.2-0.95 mm: their neighbours overlap them within that band, and which face answers
+    there is OCC's classification. (A band point beyond the face's uv bounds is not seen by
+    OCC: trj8's face 122 ends at u = 0.7320715, and a point 0.012 mm outside its loop at
+    u = 0.732083 was left to the face beside, 4e-5 mm lower.)
+    """
+    F = len(vpart.faces)
+    face_tol = np.zeros((F, 8))
+    face_tol[:, 7] = 1.0
+    face_seg = np.zeros((F, 2), dtype=np.int64)
+    wide = []
+    for k, lps in face_loops.items():
+        f = vpart.faces[k]
+        t3 = float(getattr(f, "tolerance", 0.0))
+        if lps and f.topo is not None and np.isfinite(t3) and t3 > TRIM_SLACK_MM:
+            from OCP.BRepAdaptor import BRepAdaptor_Surface
+
+            ad = BRepAdaptor_Surface(f.topo, True)  # restricted to the face's uv bounds
+            face_tol[k, :6] = (t3, max(ad.UResolution(t3), ad.VResolution(t3)), ad.FirstUParameter(),
+                               ad.LastUParameter(), ad.FirstVParameter(), ad.LastVParameter())
+            wide.append(k)
+    by_face: dict[int, list[np.ndarray]] = {k: [] for k in wide}
+    for e in vpart.edges:
+        pts = np.asarray(e.points, dtype=np.float64)
+        if len(pts) < 2:
+            continue
+        for k in set(e.faces):
+            if k in by_face:
+                by_face[k].append(np.hstack([pts[:-1], pts[1:]]))
+    segs, counts_l, members_l = [], [], []
+    n_seg = n_bands = 0
+    for k in wide:
+        sk = np.concatenate(by_face[k]) if by_face[k] else np.zeros((0, 6))
+        if not len(sk):
+            face_tol[k, 0] = 0.0  # no edge curves known: the loops' slack only
+            continue
+        t3 = face_tol[k, 0]
+        lo = np.minimum(sk[:, 0], sk[:, 3]) - t3
+        hi = np.maximum(sk[:, 0], sk[:, 3]) + t3
+        nb = int(min(max(len(sk) // 2, 1), 4096))
+        h = (hi.max() - lo.min()) / nb if hi.max() > lo.min() else 1.0
+        counts, members = _bucket(lo, hi, float(lo.min()), h, nb)
+        face_tol[k, 6:] = lo.min(), h
+        face_seg[k] = n_bands, nb
+        segs.append(sk)
+        counts_l.append(counts)
+        members_l.append(members + n_seg)
+        n_seg += len(sk)
+        n_bands += nb
+    if not segs:
+        return face_tol, face_seg, np.zeros((0, 6)), np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    seg_ptr = np.concatenate([[0], np.cumsum(np.concatenate(counts_l))]).astype(np.int64)
+    return (face_tol, face_seg, np.ascontiguousarray(np.concatenate(segs)), seg_ptr,
+            np.ascontiguousarray(np.concatenate(members_l)).astype(np.int64))
+
+
+def _bucket(lo: np.ndarray, hi: np.ndarray, vlo: float, h: float, nb: int) -> tuple[np.ndarray, np.ndarray]:
+    """Items with ranges ``[lo, hi]`` in ``nb`` bands of height ``h`` from ``vlo``: the count per
+    band and the items band by band (each listed in every band its range meets)."""
+    b0 = np.clip(np.floor((lo - vlo) / h), 0, nb - 1).astype(np.int64)
+    b1 = np.clip(np.floor((hi - vlo) / h), 0, nb - 1).astype(np.int64)
+    span = b1 - b0 + 1
+    eid = np.repeat(np.arange(len(lo)), span)
+    start = np.repeat(np.cumsum(span) - span, span)
+    band = np.repeat(b0, span) + (np.arange(len(eid)) - start)
+    order = np.argsort(band, kind="stable")
+    return np.bincount(band, minlength=nb), eid[order]
+
+
 def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: int,
-                slack_uv: dict[int, np.ndarray] | None = None) -> tuple[np.ndarray, ...]:
+                slack_uv: dict[int, np.ndarray] | None = None,
+                reach_uv: dict[int, float] | None = None) -> tuple[np.ndarray, ...]:
     """Trim loop edges of every face bucketed in bands of v (see ``_sample_kernels.point_in_bands``).
 
     ``slack_uv[k]`` (optional, one value per loop edge of face k, from
     :func:`_trim_slack_uv`) widens face k's loops: points that close to an edge count as
-    inside. Returns ``edges (E, 5)`` (ua, va, ub, vb, slack in uv), ``band_ptr (B+1,),
+    inside. ``reach_uv[k]`` (optional) widens the bands of face k's edges, so that a
+    point's band lists every edge within that uv distance of it (the tolerance band of
+    ``_sample_kernels.in_tolerance``). Returns ``edges (E, 5)`` (ua, va, ub, vb, slack in uv), ``band_ptr (B+1,),
     band_edges (X,), face_bi (F, 2), face_bf (F, 3)``.
     """
     face_bi = np.zeros((F, 2), dtype=np.int64)
@@ -304,20 +381,16 @@ def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: 
         if slack_uv is not None and k in slack_uv:
             own = np.asarray(slack_uv[k], dtype=np.float64)
         e = np.hstack([a, b, np.maximum(own, eps)[:, None]])
-        wide = float(e[:, 4].max()) if len(e) else eps
+        reach = np.maximum(e[:, 4], float(reach_uv.get(k, 0.0)) if reach_uv else 0.0)
+        wide = float(reach.max()) if len(e) else eps
         vlo = float(min(a[:, 1].min(), b[:, 1].min())) - wide
         vhi = float(max(a[:, 1].max(), b[:, 1].max())) + wide
         nb = int(min(max(len(e) // 2, 1), 4096))
         h = (vhi - vlo) / nb if vhi > vlo else 1.0
-        lo = np.clip(np.floor((np.minimum(e[:, 1], e[:, 3]) - e[:, 4] - vlo) / h), 0, nb - 1).astype(np.int64)
-        hi = np.clip(np.floor((np.maximum(e[:, 1], e[:, 3]) + e[:, 4] - vlo) / h), 0, nb - 1).astype(np.int64)
-        span = hi - lo + 1
-        eid = np.repeat(np.arange(len(e)), span)
-        start = np.repeat(np.cumsum(span) - span, span)
-        band = np.repeat(lo, span) + (np.arange(len(eid)) - start)
-        order = np.argsort(band, kind="stable")
-        counts_l.append(np.bincount(band, minlength=nb))
-        members_l.append(eid[order] + n_edges)
+        counts, members = _bucket(np.minimum(e[:, 1], e[:, 3]) - reach, np.maximum(e[:, 1], e[:, 3]) + reach,
+                                  vlo, h, nb)
+        counts_l.append(counts)
+        members_l.append(members + n_edges)
         edges_l.append(e)
         face_bi[k] = n_bands, nb
         face_bf[k] = vlo, h, eps
@@ -328,6 +401,46 @@ def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: 
     band_ptr = np.concatenate([[0], np.cumsum(np.concatenate(counts_l))]).astype(np.int64)
     return (np.ascontiguousarray(np.concatenate(edges_l)), band_ptr,
             np.ascontiguousarray(np.concatenate(members_l)).astype(np.int64), face_bi, face_bf)
+
+
+#: triangles per face whose centroids :func:`_mesh_errors` checks against the surface
+ERROR_SAMPLES = 4096
+
+
+def _mesh_errors(packed, meshes: dict[int, Any]) -> dict[int, float]:
+    """Per face, the largest distance (mm) between a mesh triangle's centroid and the surface
+    point at the centroid's (u, v), over up to :data:`ERROR_SAMPLES` triangles.
+
+    BRepMesh does not hold the deflection asked for on a face whose edges carry a large
+    tolerance (it meshes such a face at about twice its tolerance): trj8's faces, edges up
+    to 0.95 mm, are 0.4-0.8 mm off their surface at a requested 5 um. The Newton starts'
+    layer check and boundary margin must use the error the mesh has, not the one asked for:
+    with the asked one, Newton's exact answers were refused as "another layer" and facets
+    0.8 mm off answered instead (53.8 M of trj8's 95 M e-points at grid 0.5).
+    """
+    from .nurbs import evaluate_packed
+
+    ks, us, vs, cs = [], [], [], []
+    for k, m in meshes.items():
+        t = np.asarray(m.triangles)
+        if len(t) > ERROR_SAMPLES:
+            t = t[np.linspace(0, len(t) - 1, ERROR_SAMPLES).astype(np.int64)]
+        uvc = np.asarray(m.uv)[t].mean(axis=1)
+        ks.append(np.full(len(t), k))
+        us.append(uvc[:, 0])
+        vs.append(uvc[:, 1])
+        cs.append(np.asarray(m.nodes)[t].mean(axis=1))
+    if not ks:
+        return {}
+    k_all = np.concatenate(ks)
+    s = evaluate_packed(packed, k_all, np.concatenate(us), np.concatenate(vs))[:, 0]
+    d = np.linalg.norm(s - np.concatenate(cs), axis=1)
+    out = {}
+    ends = np.cumsum([len(a) for a in ks])
+    for k, e, n in zip(meshes, ends, (len(a) for a in ks)):
+        dk = d[e - n:e]
+        out[k] = float(np.nanmax(dk)) if n and np.isfinite(dk).any() else 0.0
+    return out
 
 
 def _lattice_mesh(surface, n: int):
@@ -372,14 +485,21 @@ class _FaceSet:
     face_mode: np.ndarray | None = None
     face_zgap: np.ndarray | None = None
     trim: tuple = ()
+    band: tuple = ()
     msgs: list = field(default_factory=list)
 
     def solve_args(self) -> tuple:
-        """Arguments of ``solve_pairs``/``solve_pairs_xy`` from ``nodes`` to ``face_bf``."""
+        """Arguments of ``solve_pairs``/``solve_pairs_xy`` from ``nodes`` to ``seg``."""
         pk = self.packed
         return (self.nodes, self.uv, self.tris, self.tri_face, self.tri_check, self.face_mode, self.face_zgap,
                 pk.deg, pk.ncp, pk.koff, pk.poff, pk.knots, pk.cpw,
-                np.ascontiguousarray(np.nan_to_num(pk.domain)), *self.trim)
+                np.ascontiguousarray(np.nan_to_num(pk.domain)), *self.trim, *self.band)
+
+
+def _in_window(b, window: Sequence[float] | None) -> bool:
+    """False where the box ``b`` (x0, y0, z0, x1, y1, z1) misses ``window = (x0, y0, x1, y1)``."""
+    return window is None or not np.all(np.isfinite(b)) or not (
+        b[3] < window[0] or b[0] > window[2] or b[4] < window[1] or b[1] > window[3])
 
 
 def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = None) -> _FaceSet:
@@ -427,6 +547,10 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
     nodes_l, uv_l, tris_l, tface_l, check_l, margin_l = [], [], [], [], [], []
     n_nodes = 0
     lattice_set = set(lattice)
+    errors = _mesh_errors(packed, {k: f.mesh for k, f in enumerate(vpart.faces)
+                                   if surfaces[k] is not None and k not in lattice_set and f.mesh is not None
+                                   and f.mesh.uv is not None and len(f.mesh.triangles)
+                                   and _in_window(f.bbox, window)})
     for k, f in enumerate(vpart.faces):
         m = f.mesh
         on_lattice = k in lattice_set
@@ -434,13 +558,13 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
             m = _lattice_mesh(surfaces[k], LATTICE)
         if m is None or len(m.triangles) == 0:
             continue
-        b = f.bbox
-        if window is not None and np.all(np.isfinite(b)) and (
-                b[3] < window[0] or b[0] > window[2] or b[4] < window[1] or b[1] > window[3]):
+        if not _in_window(f.bbox, window):
             continue
+        # the mesh's own deflection, or the error it has where BRepMesh did not reach it
+        md = max(m.deflection, errors.get(k, 0.0))
         if surfaces[k] is not None and m.uv is not None:
             fs.face_mode[k] = 1
-            fs.face_zgap[k] = np.inf if on_lattice else max(20.0 * max(m.deflection, deflection), 1e-6)
+            fs.face_zgap[k] = np.inf if on_lattice else max(20.0 * max(md, deflection), 1e-6)
             lps = [np.asarray(lp, dtype=np.float64).reshape(-1, 2) for lp in f.loops]
             face_loops[k] = [lp for lp in lps if len(lp) >= 3]
         tri = np.asarray(m.triangles, dtype=np.int64)
@@ -464,20 +588,26 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
         # call needs (bench/convert.py's jacobian_pps: grid / 20 for a grid-sized request)
         # took 20x the margin, and cornetta 2.2 M pairs instead of 1.2 M (6.7 s, not 1.8 s),
         # with the same map
-        md = m.deflection if m.deflection > 0 else deflection
+        md = md if md > 0 else deflection
         margin = BOUNDARY_MARGIN * md if fs.face_mode[k] == 1 else 0.0
+        if margin and f.topo is not None and float(getattr(f, "tolerance", 0.0)) > TRIM_SLACK_MM:
+            # and as far as the edges' tolerance beyond the boundary, within which OCC's ray
+            # cast still sees the face (:func:`_tolerance_band`; BRepMesh's error on such a
+            # face, about twice the tolerance, mostly covers it already)
+            margin = max(margin, md + float(f.tolerance))
         margin_l.append(np.where(check, margin, 0.0))
         n_nodes += len(m.nodes)
     if tris_l:
-        face_tol = np.array([float(getattr(f, "tolerance", 0.0)) for f in vpart.faces])
         fs.nodes = np.ascontiguousarray(np.concatenate(nodes_l))
         fs.uv = np.ascontiguousarray(np.concatenate(uv_l))
         fs.tris = np.ascontiguousarray(np.concatenate(tris_l))
         fs.tri_face = np.ascontiguousarray(np.concatenate(tface_l))
         fs.tri_check = np.ascontiguousarray(np.concatenate(check_l))
         fs.tri_margin = np.ascontiguousarray(np.concatenate(margin_l))
-        slack = _trim_slack_uv(packed, face_loops, F, face_tol)
-        fs.trim = _trim_bands(face_loops, np.nan_to_num(packed.domain), F, slack)
+        slack = _trim_slack_uv(packed, face_loops, F)
+        fs.band = _tolerance_band(vpart, face_loops)
+        reach = {k: float(fs.band[0][k, 1]) for k in np.flatnonzero(fs.band[0][:, 0] > 0).tolist()}
+        fs.trim = _trim_bands(face_loops, np.nan_to_num(packed.domain), F, slack, reach)
     return fs
 
 
