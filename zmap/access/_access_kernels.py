@@ -11,7 +11,7 @@ from numba import njit, prange
 
 from ._direction_kernels import lookup_one
 
-__all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "patch_slab", "piece_accumulate", "cast_directions",
+__all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "patch_slab", "piece_accumulate", "cast_directions",
            "ball_neighbours", "local_conditions", "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
@@ -242,6 +242,43 @@ def merge_runs(code, out):
                 out[nb, 6] = c
                 nb += 1
     return nb
+
+
+@njit(cache=True)
+def self_blocking(vl, light, opp, out):
+    """out[m] = 1 where some direction i is in vl[m] and opp[i] in light[m] (bitsets)."""
+    k = opp.shape[0]
+    for m in range(vl.shape[0]):
+        out[m] = 0
+        for i in range(k):
+            if (vl[m, i >> 6] >> np.uint64(i & 63)) & np.uint64(1):
+                o = opp[i]
+                if (light[m, o >> 6] >> np.uint64(o & 63)) & np.uint64(1):
+                    out[m] = 1
+                    break
+
+
+@njit(cache=True)
+def run_members(runs, first, ax, lo, hi, offset, slab, mlo, mhi, mslab):
+    """Per run of :func:`merge_runs` over blockers (``first``: the blocker of each voxel):
+    the union of its members' extents along their axis, and the slab that reaches as low as
+    the lowest of theirs, measured from the plane offset of the run's first member."""
+    for r in range(runs.shape[0]):
+        a = ax[first[runs[r, 0], runs[r, 1], runs[r, 2]]]
+        ref = offset[first[runs[r, 0], runs[r, 1], runs[r, 2]]]
+        lo_ = 1.0e300
+        hi_ = -1.0e300
+        low = 1.0e300
+        for i in range(runs[r, 0], runs[r, 3] + 1):
+            for j in range(runs[r, 1], runs[r, 4] + 1):
+                for l in range(runs[r, 2], runs[r, 5] + 1):
+                    m = first[i, j, l]
+                    lo_ = min(lo_, lo[m, a])
+                    hi_ = max(hi_, hi[m, a])
+                    low = min(low, offset[m] - slab[m])
+        mlo[r, a] = lo_
+        mhi[r, a] = hi_
+        mslab[r] = ref - low
 
 
 @njit(cache=True)

@@ -133,6 +133,28 @@ def test_merged_skin_boxes_give_the_bits_of_the_cubes(monkeypatch):
     assert (global_visibility_reference(vm) == merged).all()
 
 
+def test_merged_flat_blockers_give_the_bits_of_the_voxels(monkeypatch):
+    """The flat boxes of a box's faces merge into a few blockers per face, with the bits of
+    one blocker per voxel (and of the reference); voxels that query and block one direction
+    (the paper's tessel sets) stay apart."""
+    import zmap.access.voxelmap as V
+
+    for exact in (True, False):
+        lo = np.array((0.1, -0.2, 0.05))
+        vm = VoxelMap.from_samples(*box_samples(lo, lo + np.array((6.0, 3.5, 4.0)), 0.125), d=0.5, q=2,
+                                   step=0.125, exact=exact)
+        blk = vm.blockers()
+        few = V._merged_blockers(vm, blk)
+        assert len(few[0]) < 0.75 * len(blk[0])
+        merged = global_visibility(vm)
+        monkeypatch.setattr(V, "_merged_blockers", lambda vm, b: b)
+        assert (global_visibility(vm) == merged).all()
+        assert (global_visibility_reference(vm) == merged).all()
+        monkeypatch.undo()
+        if not exact:
+            assert V._self_blocking(vm).any()
+
+
 def test_piece_queries_match_the_reference_on_a_bowl():
     """Each face's piece in an edge voxel is cast as a query of its own: its bits are the
     reference's, the voxels' bits do not change, and a piece keeps directions that its
