@@ -295,15 +295,28 @@ def _tolerance_band(vpart: Part, face_loops: dict[int, list[np.ndarray]]) -> tup
     face_tol[:, 7] = 1.0
     face_seg = np.zeros((F, 2), dtype=np.int64)
     wide = []
+    originals = None
     for k, lps in face_loops.items():
         f = vpart.faces[k]
         t3 = float(getattr(f, "tolerance", 0.0))
         if lps and f.topo is not None and np.isfinite(t3) and t3 > TRIM_SLACK_MM:
             from OCP.BRepAdaptor import BRepAdaptor_Surface
 
+            if originals is None:
+                originals = _occ_faces(vpart.shape)
             ad = BRepAdaptor_Surface(f.topo, True)  # restricted to the face's uv bounds
-            face_tol[k, :6] = (t3, max(ad.UResolution(t3), ad.VResolution(t3)), ad.FirstUParameter(),
-                               ad.LastUParameter(), ad.FirstVParameter(), ad.LastVParameter())
+            bounds = (ad.FirstUParameter(), ad.LastUParameter(), ad.FirstVParameter(), ad.LastVParameter())
+            res = max(ad.UResolution(t3), ad.VResolution(t3))
+            orig = originals[f.index] if f.index < len(originals) else None
+            if orig is not None and not orig.IsSame(f.topo):
+                # a converted face (plane, cylinder...): OCC classifies on the original
+                # surface, whose resolution a B-spline's pole bound underestimates (trj8's
+                # plane 135: 0.119 for 0.168); its parameters map linearly on ours
+                ao = BRepAdaptor_Surface(orig, True)
+                su = (bounds[1] - bounds[0]) / max(ao.LastUParameter() - ao.FirstUParameter(), 1e-300)
+                sv = (bounds[3] - bounds[2]) / max(ao.LastVParameter() - ao.FirstVParameter(), 1e-300)
+                res = max(ao.UResolution(t3) * su, ao.VResolution(t3) * sv)
+            face_tol[k, :6] = (t3, res, *bounds)
             wide.append(k)
     by_face: dict[int, list[np.ndarray]] = {k: [] for k in wide}
     for e in vpart.edges:
@@ -338,6 +351,20 @@ def _tolerance_band(vpart: Part, face_loops: dict[int, list[np.ndarray]]) -> tup
     seg_ptr = np.concatenate([[0], np.cumsum(np.concatenate(counts_l))]).astype(np.int64)
     return (face_tol, face_seg, np.ascontiguousarray(np.concatenate(segs)), seg_ptr,
             np.ascontiguousarray(np.concatenate(members_l)).astype(np.int64))
+
+
+def _occ_faces(shape) -> list:
+    """The faces of an OCP shape in ``TopExp.MapShapes`` order (``Face.index`` order); [] for None."""
+    if shape is None:
+        return []
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp
+    from OCP.TopoDS import TopoDS
+    from OCP.TopTools import TopTools_IndexedMapOfShape
+
+    fmap = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(shape, TopAbs_FACE, fmap)
+    return [TopoDS.Face_s(fmap.FindKey(i)) for i in range(1, fmap.Extent() + 1)]
 
 
 def _bucket(lo: np.ndarray, hi: np.ndarray, vlo: float, h: float, nb: int) -> tuple[np.ndarray, np.ndarray]:

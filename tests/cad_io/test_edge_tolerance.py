@@ -95,6 +95,22 @@ def test_trj8_heights_within_edge_tolerance_are_occs():
     assert face[0] == 355 and face[3] == 390 and face[4] == 37 and face[8] == 27
 
 
+def test_trj8_converted_plane_band_seen_from_the_side():
+    """Seen along -y, trj8's planes 135 and 52 (edges 0.17 and 0.11 mm) hold points 0.14 and
+    0.11 mm outside their loops, as OCC's ray cast has them: OCC classifies on the plane,
+    whose uv resolution is the tolerance itself, where the converted B-spline's pole bound
+    gave 0.119 and 0.079, and the faces behind answered, 6.8e-3 and 4e-3 mm lower."""
+    from cad_io.raycast import RayCaster, read_shape
+
+    part, _ = _trj8()
+    x, y = np.array([161.2439, 151.7439]), np.array([32.0, -21.5])
+    z, face, how = sample_points(part, x, y, axis="-y")
+    zr, fr = RayCaster(read_shape(TRJ8), axis="-y")(x, y)
+    assert fr.tolist() == [135, 52] and (how == 1).all()
+    np.testing.assert_allclose(z, zr, rtol=0, atol=1e-6)
+    assert face.tolist() == [135, 52]
+
+
 def test_in_tolerance_kernel():
     """The band test alone on the unit square's loop, 10 mm per unit of u along its edge
     v = 0 in space: near a loop edge in uv and near an edge curve in space, inside the
