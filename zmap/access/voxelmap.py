@@ -681,7 +681,10 @@ def _merged_blockers(vm: VoxelMap, blockers: tuple[np.ndarray, ...]) -> tuple[np
         return blockers
     # one group per face, axis, side, plane and extent along the axis, and light set
     offset = (bplane[:, :3] * nrm).sum(axis=1)  # the plane's, in the last bits per voxel
-    nano = lambda x: np.round(x * 1e9).astype(np.int64)[:, None]  # noqa: E731 (nm)
+
+    def nano(x: np.ndarray) -> np.ndarray:  # in nanometres: planes equal but for the last bits
+        return np.round(x * 1e9).astype(np.int64)[:, None]
+
     key = np.concatenate([vm.surface[vox[cand]][:, None].astype(np.int64), ax[cand, None].astype(np.int64),
                           np.sign(nrm[cand, ax[cand]]).astype(np.int64)[:, None], nano(offset[cand]),
                           nano(lo[cand, ax[cand]]), nano(hi[cand, ax[cand]]), blight[cand].view(np.int64)], axis=1)
