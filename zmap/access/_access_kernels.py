@@ -11,7 +11,7 @@ from numba import njit, prange
 
 from ._direction_kernels import lookup_one
 
-__all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "patch_slab", "piece_accumulate", "cast_directions",
+__all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "pack_columns", "row_hash", "patch_slab", "piece_accumulate", "cast_directions",
            "ball_neighbours", "local_conditions", "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
@@ -279,6 +279,38 @@ def run_members(runs, first, ax, lo, hi, offset, slab, mlo, mhi, mslab):
         mlo[r, a] = lo_
         mhi[r, a] = hi_
         mslab[r] = ref - low
+
+
+@njit(cache=True, parallel=True)
+def pack_columns(out, bits):
+    """bits[m] (words) = the bitset of column m of ``out`` (k, mb) uint8 (bit i: out[i, m] != 0):
+    blocks of 64 columns per thread, each reading its stretch of every row."""
+    k, m = out.shape
+    for bl in prange((m + 63) // 64):
+        m0 = bl * 64
+        m1 = min(m, m0 + 64)
+        for mm in range(m0, m1):
+            for w in range(bits.shape[1]):
+                bits[mm, w] = np.uint64(0)
+        for i in range(k):
+            w = i >> 6
+            bit = np.uint64(1) << np.uint64(i & 63)
+            for mm in range(m0, m1):
+                if out[i, mm]:
+                    bits[mm, w] |= bit
+
+
+@njit(cache=True)
+def row_hash(key, out):
+    """out[r] = a 64-bit FNV-1a hash of row r of ``key`` (int64): rows equal, hashes equal."""
+    for r in range(key.shape[0]):
+        h = np.uint64(14695981039346656037)
+        for c in range(key.shape[1]):
+            x = np.uint64(key[r, c])
+            for b in range(8):
+                h ^= (x >> np.uint64(8 * b)) & np.uint64(255)
+                h *= np.uint64(1099511628211)
+        out[r] = h
 
 
 @njit(cache=True)

@@ -688,7 +688,7 @@ def _merged_blockers(vm: VoxelMap, blockers: tuple[np.ndarray, ...]) -> tuple[np
     key = np.concatenate([vm.surface[vox[cand]][:, None].astype(np.int64), ax[cand, None].astype(np.int64),
                           np.sign(nrm[cand, ax[cand]]).astype(np.int64)[:, None], nano(offset[cand]),
                           nano(lo[cand, ax[cand]]), nano(hi[cand, ax[cand]]), blight[cand].view(np.int64)], axis=1)
-    _, group = np.unique(key, axis=0, return_inverse=True)
+    group = _row_groups(key)
     code = np.zeros(vm.state.shape, dtype=np.int64)
     code[tuple(vm.ijk[vox[cand]].T)] = group.ravel() + 1
     runs = np.empty((len(cand), 7), dtype=np.int64)
@@ -712,6 +712,21 @@ def _merged_blockers(vm: VoxelMap, blockers: tuple[np.ndarray, ...]) -> tuple[np
             np.ascontiguousarray(np.concatenate([bvox[keep], bvox[rep]])),
             np.ascontiguousarray(np.concatenate([blight[keep], blight[rep]])),
             np.ascontiguousarray(np.concatenate([bplane[keep], plane])))
+
+
+def _row_groups(key: np.ndarray) -> np.ndarray:
+    """Group number per row of ``key`` (int64), equal rows alike: by a 64-bit hash of each row,
+    checked against the rows (``np.unique(axis=0)``, several times slower, if any differ)."""
+    from ._access_kernels import row_hash
+
+    key = np.ascontiguousarray(key)
+    h = np.empty(len(key), dtype=np.uint64)
+    row_hash(key, h)
+    _, first, group = np.unique(h, return_index=True, return_inverse=True)
+    group = group.ravel()
+    if (key[first[group]] == key).all():
+        return group
+    return np.unique(key, axis=0, return_inverse=True)[1].ravel()
 
 
 def _self_blocking(vm: VoxelMap) -> np.ndarray:
@@ -757,9 +772,7 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True,
     -------
     ndarray of shape (mb, words), uint64; with ``pieces``, also the pieces' (np, words)
     """
-    from ._access_kernels import cast_directions, skin_masks
-
-    from .directions import from_bool
+    from ._access_kernels import cast_directions, pack_columns, skin_masks
 
     ds = vm.directions
     blockers = _merged_blockers(vm, tuple(np.ascontiguousarray(a) for a in vm.blockers()))
@@ -791,7 +804,8 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True,
                     np.ascontiguousarray(qh), qid, skin, shalf, hide, smask, np.ascontiguousarray(light),
                     np.ascontiguousarray(vl), np.ascontiguousarray(ppt), np.ascontiguousarray(pnrm),
                     np.ascontiguousarray(slab), vm.d, vm.d / rays, radius, centre, out)
-    bits = from_bool(out.T.astype(bool))
+    bits = np.empty((len(qx), ds.words), dtype=np.uint64)
+    pack_columns(out, bits)
     if not pieces:
         return bits
     if not extra:
@@ -902,9 +916,7 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     the cubes out keeps every true block, drops only those false ones, and halves the boxes
     drawn. ``skin=True`` draws them too (the rule before; a subset of the bits).
     """
-    from ._access_kernels import tool_kernel
-
-    from .directions import from_bool
+    from ._access_kernels import pack_columns, tool_kernel
 
     ds = vm.directions
     a = tool.radius
@@ -936,7 +948,9 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
                 _disc_rows(holder_r / cell_holder, outer=True), _disc_rows(holder_r / cell_holder, outer=False),
                 out, stats)
     _LAST_TOOL_STATS[:] = [int(x) for x in stats.sum(axis=0)]
-    return from_bool(out.T.astype(bool))
+    bits = np.empty((mb, ds.words), dtype=np.uint64)
+    pack_columns(out, bits)
+    return bits
 
 
 def three_axis(vm: VoxelMap, amap: np.ndarray, *, axis="+z") -> dict:

@@ -168,3 +168,26 @@ def test_piece_queries_match_the_reference_on_a_bowl():
     assert (count(vp) > count(vg[p.voxel])).sum() > len(p.voxel) // 4
     # a piece's V'_l holds its voxel's (the voxel's is the AND over its pieces')
     assert not (vm.vl[p.voxel] & ~p.vl).any()
+
+
+@settings(max_examples=30, deadline=None)
+@given(k=st.integers(1, 200), m=st.integers(0, 300), seed=st.integers(0, 2**31 - 1))
+def test_packed_columns_are_the_bitsets_of_the_transpose(k, m, seed):
+    from zmap.access._access_kernels import pack_columns
+    from zmap.access.directions import from_bool, words_for
+
+    out = (np.random.default_rng(seed).random((k, m)) < 0.4).astype(np.uint8)
+    bits = np.empty((m, words_for(k)), dtype=np.uint64)
+    pack_columns(out, bits)
+    assert (bits == from_bool(out.T.astype(bool))).all()
+
+
+@settings(max_examples=30, deadline=None)
+@given(n=st.integers(1, 400), cols=st.integers(1, 6), span=st.integers(1, 4), seed=st.integers(0, 2**31 - 1))
+def test_row_groups_are_the_groups_of_equal_rows(n, cols, span, seed):
+    import zmap.access.voxelmap as V
+
+    key = np.random.default_rng(seed).integers(-span, span, (n, cols)).astype(np.int64)
+    g = V._row_groups(key)
+    same = (key[:, None, :] == key[None, :, :]).all(axis=2)
+    assert ((g[:, None] == g[None, :]) == same).all()
