@@ -1449,8 +1449,11 @@ class CellPatches:
         if not self.n_patches or x.size == 0:
             return
         lx, ly = base.world_to_local(x, y)
-        i = np.floor((lx - base.x0) / base.dx).astype(np.int64)
-        j = np.floor((ly - base.y0) / base.dy).astype(np.int64)
+        # a NaN point (a caller's "no point") lies in no cell: -1, not the cast of NaN
+        fi = np.floor((lx - base.x0) / base.dx)
+        fj = np.floor((ly - base.y0) / base.dy)
+        i = np.where(np.isfinite(fi), fi, -1).astype(np.int64)
+        j = np.where(np.isfinite(fj), fj, -1).astype(np.int64)
         # points on the map's far edges belong to the last cell, as in the kernels
         i = np.where(i == base.nx - 1, base.nx - 2, i)
         j = np.where(j == base.ny - 1, base.ny - 2, j)

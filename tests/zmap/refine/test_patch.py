@@ -312,3 +312,21 @@ def test_misfit_holds_gentle_slopes_to_tol_vertically():
     # gentle along x and y (0.83), 1.17 along the diagonal: held to tol, as Table 2 counts it
     diag = lambda x, y: 0.83 * x + 0.83 * y
     assert misfit(diag(x, y) + 1.05 * TOL, x, y, diag(x, y), diag, TOL).all()
+
+
+def test_patches_pass_nan_points_by_without_a_cast_warning():
+    """A NaN point (a caller's "no point") lies in no patched cell: its height stays as given,
+    and no NaN is cast to a cell index (numpy's RuntimeWarning, seen in the suite's log)."""
+    import warnings
+
+    rib = Rib()
+    base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
+    ez = build_ez(base, rib, tol=TOL, se_curves=rib.se_curves())
+    assert ez.n_patches > 0
+    x = np.array([np.nan, 2.0, 1.0])
+    y = np.array([1.0, np.nan, np.nan])
+    out = np.array([7.0, 8.0, 9.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ez.patches.evaluate(base, ez.interval, ez.tol, x, y, out)
+    assert out.tolist() == [7.0, 8.0, 9.0]
