@@ -637,7 +637,7 @@ def _skin_boxes(vm: VoxelMap, sijk: np.ndarray, smask: np.ndarray) -> tuple[np.n
     exits are the largest of its cubes', so the casting's bits are those of the cubes."""
     from ._access_kernels import merge_runs
 
-    code = np.zeros(vm.state.shape, dtype=np.int64)
+    code = np.zeros(vm.state.shape, dtype=np.int32)  # int32: the grid can be large
     code[tuple(sijk.T)] = smask + 1  # 0: not skin
     rows = np.empty((len(sijk), 7), dtype=np.int64)
     n = merge_runs(code, rows)
@@ -689,13 +689,13 @@ def _merged_blockers(vm: VoxelMap, blockers: tuple[np.ndarray, ...]) -> tuple[np
                           np.sign(nrm[cand, ax[cand]]).astype(np.int64)[:, None], nano(offset[cand]),
                           nano(lo[cand, ax[cand]]), nano(hi[cand, ax[cand]]), blight[cand].view(np.int64)], axis=1)
     group = _row_groups(key)
-    code = np.zeros(vm.state.shape, dtype=np.int64)
+    code = np.zeros(vm.state.shape, dtype=np.int32)
     code[tuple(vm.ijk[vox[cand]].T)] = group.ravel() + 1
     runs = np.empty((len(cand), 7), dtype=np.int64)
     n = merge_runs(code, runs)
     runs = runs[:n]
     # one member of each run stands for it (the runs' first voxel): its light, plane, axis
-    first = np.full(code.shape, -1, dtype=np.int64)
+    first = np.full(code.shape, -1, dtype=np.int32)
     first[tuple(vm.ijk[vox[cand]].T)] = cand
     rep = first[runs[:, 0], runs[:, 1], runs[:, 2]]
     mlo = vm.origin + vm.d * runs[:, :3]
