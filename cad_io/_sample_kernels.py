@@ -190,33 +190,34 @@ def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps)
 
 
 @njit(cache=True, _nrt=False)
-def in_tolerance(u, v, x, y, z, k, edges, band_ptr, band_edges, face_bi, face_bf, face_tol, face_seg, seg, seg_ptr,
-                 seg_members):
+def in_tolerance(u, v, x, y, z, k, edges, band_ptr, band_edges, face_bi, face_bf):
     """True where a point of face ``k``'s surface outside its trim loops is on the face
     within the tolerance of its edges in the file, as OCC's ray cast counts it.
 
-    The point ((u, v) on the surface, (x, y, z) in space) must lie in the face's uv bounds
-    (``face_tol[k, 2:6]`` = u0, u1, v0, v1), within ``face_tol[k, 1]`` in (u, v) of one
-    of the face's loop edges (the edges of its band of v, :func:`point_in_bands`; the bands
-    reach that far) and within ``face_tol[k, 0]`` mm in space of one of its edges' 3D
-    curves (segments x0, y0, z0, x1, y1, z1 of ``seg``, listed per band of x from
-    ``face_tol[k, 6]`` in steps of ``face_tol[k, 7]``: ``seg_members[seg_ptr[face_seg[k, 0]
-    + b]:...]``): IntCurvesFace_Intersector's ON test with its boundary tolerance (the 2D
-    classification at the uv resolution of the largest edge tolerance, then the point's
-    distance to the nearest edge curve). A face without a tolerance above the loops'
-    slack has ``face_tol[k, 0] = 0``.
+    The trim arrays of :func:`point_in_bands` carry the band too (one call with few
+    arguments: each array passed per pair costs, 15-25% of the die's pair loop for five
+    more): ``face_bf[k, 3:11]`` = the face's largest edge tolerance t (mm; 0: no band), the
+    uv distance OCC classifies at it, the face's uv bounds u0, u1, v0, v1, the start and
+    height of its segment bands along x; ``face_bi[k, 2:4]`` = its first segment band (in
+    ``band_ptr``) and their number; a segment row of ``edges`` is x0, y0, z0, x1, y1, z1.
+    The point ((u, v) on the surface, (x, y, z) in space) must lie in the uv bounds, within
+    the uv distance of one of the face's loop edges (the edges of its band of v; the bands
+    reach that far) and within t in space of one of its edges' 3D curves:
+    IntCurvesFace_Intersector's ON test with its boundary tolerance (the 2D classification
+    at the uv resolution of the largest edge tolerance, then the point's distance to the
+    nearest edge curve).
     """
-    t3 = face_tol[k, 0]
+    t3 = face_bf[k, 3]
     if not (t3 > 0.0) or face_bi[k, 1] == 0:
         return False
-    if u < face_tol[k, 2] or u > face_tol[k, 3] or v < face_tol[k, 4] or v > face_tol[k, 5]:
+    if u < face_bf[k, 5] or u > face_bf[k, 6] or v < face_bf[k, 7] or v > face_bf[k, 8]:
         return False  # beyond the face's uv bounds, where OCC's intersector sees no surface
     nband = face_bi[k, 1]
     fb = (v - face_bf[k, 0]) / face_bf[k, 1]
     if fb < 0.0 or fb >= nband:
         return False
     b = min(int(math.floor(fb)), nband - 1)
-    t2 = face_tol[k, 1] * face_tol[k, 1]
+    t2 = face_bf[k, 4] * face_bf[k, 4]
     near = False
     first = face_bi[k, 0]
     for q in range(band_ptr[first + b], band_ptr[first + b + 1]):
@@ -226,20 +227,20 @@ def in_tolerance(u, v, x, y, z, k, edges, band_ptr, band_edges, face_bi, face_bf
             break
     if not near:
         return False
-    nsb = face_seg[k, 1]
-    fx = (x - face_tol[k, 6]) / face_tol[k, 7]
+    nsb = face_bi[k, 3]
+    fx = (x - face_bf[k, 9]) / face_bf[k, 10]
     if nsb == 0 or fx < 0.0 or fx >= nsb:
         return False
-    sb = face_seg[k, 0] + min(int(math.floor(fx)), nsb - 1)
+    sb = face_bi[k, 2] + min(int(math.floor(fx)), nsb - 1)
     t3 *= t3
-    for m in range(seg_ptr[sb], seg_ptr[sb + 1]):
-        q = seg_members[m]
-        ax = seg[q, 0]
-        ay = seg[q, 1]
-        az = seg[q, 2]
-        ex = seg[q, 3] - ax
-        ey = seg[q, 4] - ay
-        ez = seg[q, 5] - az
+    for m in range(band_ptr[sb], band_ptr[sb + 1]):
+        q = band_edges[m]
+        ax = edges[q, 0]
+        ay = edges[q, 1]
+        az = edges[q, 2]
+        ex = edges[q, 3] - ax
+        ey = edges[q, 4] - ay
+        ez = edges[q, 5] - az
         ll = ex * ex + ey * ey + ez * ez
         s_ = 0.0
         if ll > 0.0:
@@ -542,7 +543,7 @@ def _facet_pair(p, tri, w, nodes, tris, z, status):
 @njit(cache=True, _nrt=False)
 def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
-               face_tol, face_seg, seg, seg_ptr, seg_members, mode, tol, max_iter, z, status, out):
+               mode, tol, max_iter, z, status, out):
     """Height candidate of pair ``p`` at the world point (xg, yg), into ``z[p]`` and ``status[p]``.
 
     The one solver behind :func:`solve_pairs` (grid points) and :func:`solve_pairs_xy`
@@ -631,8 +632,7 @@ def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mod
         if ok and tri_check[t] and face_bi[k, 1] > 0:
             if not point_in_bands(u, v, edges, band_ptr, band_edges, face_bi[k, 0], face_bi[k, 1],
                                   face_bf[k, 0], face_bf[k, 1], face_bf[k, 2]) and not in_tolerance(
-                    u, v, out[0, 0], out[0, 1], out[0, 2], k, edges, band_ptr, band_edges, face_bi, face_bf,
-                    face_tol, face_seg, seg, seg_ptr, seg_members):
+                    u, v, out[0, 0], out[0, 1], out[0, 2], k, edges, band_ptr, band_edges, face_bi, face_bf):
                 status[p] = 0  # outside the trimmed face (and its edges' tolerance)
                 z[p] = np.nan
                 return
@@ -648,8 +648,7 @@ def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mod
             v = w0 * uv[a, 1] + w1 * uv[b, 1] + w2 * uv[c, 1]
             if not point_in_bands(u, v, edges, band_ptr, band_edges, face_bi[k, 0], face_bi[k, 1],
                                   face_bf[k, 0], face_bf[k, 1], face_bf[k, 2]) and not in_tolerance(
-                    u, v, xg, yg, zf, k, edges, band_ptr, band_edges, face_bi, face_bf, face_tol, face_seg,
-                    seg, seg_ptr, seg_members):
+                    u, v, xg, yg, zf, k, edges, band_ptr, band_edges, face_bi, face_bf):
                 z[p] = np.nan
                 status[p] = 0
                 return
@@ -663,7 +662,7 @@ def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mod
 @njit(cache=True, parallel=True)
 def _solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                  deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
-                 face_tol, face_seg, seg, seg_ptr, seg_members, px, py, x0, y0, dx, dy, ny, mode, tol, max_iter, z, status):
+                 px, py, x0, y0, dx, dy, ny, mode, tol, max_iter, z, status):
     """The pair loop of :func:`solve_pairs` (``ny > 0``: pair ``p`` at grid point
     ``gidx[p]`` of an ``ny``-column grid) and :func:`solve_pairs_xy` (``ny == 0``: at
     ``(px[gidx[p]], py[gidx[p]])``), in 64 blocks over the threads."""
@@ -685,14 +684,14 @@ def _solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, 
                 _facet_pair(p, tri, w, nodes, tris, z, status)
                 continue
             _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap, deg, ncp,
-                       koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf, face_tol,
-                       face_seg, seg, seg_ptr, seg_members, mode, tol, max_iter, z, status, out)
+                       koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf, mode, tol,
+                       max_iter, z, status, out)
 
 
 @njit(cache=True)
 def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                 deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
-                face_tol, face_seg, seg, seg_ptr, seg_members, x0, y0, dx, dy, ny, mode, tol, max_iter, z, status):
+                x0, y0, dx, dy, ny, mode, tol, max_iter, z, status):
     """Height candidate of every pair, into ``z`` (P,) and ``status`` (P,) int8; pair ``p``
     is at grid point ``gidx[p]``, ``(x0 + (g // ny) * dx, y0 + (g % ny) * dy)``.
 
@@ -709,24 +708,22 @@ def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, f
         First band and number of bands of each face (0 bands: untrimmed).
     face_bf : (F, 3) float64
         ``vlo``, band height ``h`` and on-boundary tolerance ``eps`` of each face.
-    face_tol, face_seg, seg, seg_ptr, seg_members : the faces' edge tolerances and their
-        edges' 3D segments in bands (:func:`in_tolerance`)
     mode : int
         0 auto (Newton, facet where it fails), 1 Newton only, 2 facets only.
     """
     none = np.empty(0)
     _solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap, deg, ncp, koff, poff,
-                 knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf, face_tol, face_seg, seg, seg_ptr, seg_members, none,
+                 knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf, none,
                  none, x0, y0, dx, dy, max(ny, 1), mode, tol, max_iter, z, status)
 
 
 @njit(cache=True)
 def solve_pairs_xy(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                    deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
-                   face_tol, face_seg, seg, seg_ptr, seg_members, px, py, mode, tol, max_iter, z, status):
+                   px, py, mode, tol, max_iter, z, status):
     """:func:`solve_pairs` for scattered points: pair ``p`` is at ``(px[gidx[p]], py[gidx[p]])``."""
     _solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap, deg, ncp, koff, poff,
-                 knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf, face_tol, face_seg, seg, seg_ptr, seg_members, px, py,
+                 knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf, px, py,
                  0.0, 0.0, 0.0, 0.0, 0, mode, tol, max_iter, z, status)
 
 

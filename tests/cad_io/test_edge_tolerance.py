@@ -116,17 +116,16 @@ def test_in_tolerance_kernel():
     v = 0 in space: near a loop edge in uv and near an edge curve in space, inside the
     face's uv bounds; a face without a tolerance (0) has no band."""
     from cad_io._sample_kernels import in_tolerance
-    from cad_io.sampler import _trim_bands
+    from cad_io.sampler import _trim_bands, _with_band
 
     loop = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     trim = _trim_bands({0: [loop]}, np.array([[-1.0, 2.0, -1.0, 2.0]]), 1, reach_uv={0: 0.02})
     seg = np.array([[0.0, 0.0, 0.0, 10.0, 0.0, 0.0]])  # the edge v = 0 in space
-    seg_ptr, seg_members = np.array([0, 1]), np.array([0])
-    face_seg = np.array([[0, 1]])
     tol = np.array([[0.2, 0.02, -1.0, 2.0, -1.0, 2.0, -1.0, 12.0]])  # one x band over -1..11
 
     def band(u, v, x, y, z, t=tol):
-        return in_tolerance(u, v, x, y, z, 0, *trim, t, face_seg, seg, seg_ptr, seg_members)
+        arrays = _with_band(trim, (t, np.array([[0, 1]]), seg, np.array([0, 1]), np.array([0])))
+        return in_tolerance(u, v, x, y, z, 0, *arrays)
 
     assert band(0.5, -0.01, 5.0, -0.1, 0.0)
     assert not band(0.5, -0.03, 5.0, -0.3, 0.0)  # too far in uv
