@@ -949,13 +949,18 @@ def fine_cast(part: Part, fine: float) -> np.ndarray:
         mesh = face.mesh
         if mesh is None or not len(mesh.triangles) or face.surface is None:
             continue  # (a face without a surface keeps its stored triangles)
+        if float(mesh.deflection) <= fine:
+            continue  # its own mesh is fine enough: the pass uses it as it is
         out[k] = len(mesh.triangles) * max(float(mesh.deflection) / fine, 1.0) > FINE_FACE_TRIANGLES
     return out
 
 
 def _whole_fine_meshes(part: Part, faces: np.ndarray, fine: float) -> list:
     """Fine meshes of ``part``'s faces ``faces``, each meshed alone on a copy (so the same
-    whatever other faces a call needs) and kept on the part for the next calls."""
+    whatever other faces a call needs) and kept on the part for the next calls; a face whose
+    own mesh is already at ``fine`` or finer (a part triangulated that finely by its user)
+    keeps it (meshing it again, or ray-casting a face whose fine mesh is large, took the
+    die's 1000 x 1000 facet map from 0.46 to 111 CPU-s)."""
     from .mesh import mesh_faces_alone
 
     cache = part.__dict__.setdefault(_FINE_CACHE_ATTR, {})
@@ -963,10 +968,12 @@ def _whole_fine_meshes(part: Part, faces: np.ndarray, fine: float) -> list:
         cache.clear()
         cache.update(fine=fine, meshes={})
     meshes = cache["meshes"]
-    missing = [int(k) for k in faces if int(k) not in meshes]
-    for k, mesh in zip(missing, mesh_faces_alone(part, missing, fine)):
+    own = {int(k): part.faces[int(k)].mesh for k in faces
+           if part.faces[int(k)].mesh is not None and float(part.faces[int(k)].mesh.deflection) <= fine}
+    missing = [int(k) for k in faces if int(k) not in meshes and int(k) not in own]
+    for k, mesh in zip(missing, mesh_faces_alone(part, missing, fine) if missing else []):
         meshes[k] = mesh
-    out = [meshes[int(k)] for k in faces]
+    out = [own[int(k)] if int(k) in own else meshes[int(k)] for k in faces]
     held = sum(len(m.triangles) for m in meshes.values() if m is not None)
     used = set(faces.tolist())
     for k in list(meshes):  # the oldest first, but never one this call uses

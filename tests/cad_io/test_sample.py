@@ -576,3 +576,32 @@ def test_fine_pass_ray_casts_a_face_too_large_to_mesh(sample_data, monkeypatch):
     assert exact.sum() > 0.9 * np.isfinite(z).sum() > 150
     np.testing.assert_allclose(z[exact], zw[exact], atol=1e-6, rtol=0)
     np.testing.assert_allclose(z, zw, atol=0.2, rtol=0)
+
+
+def test_fine_pass_keeps_a_part_meshed_finely_enough(sample_data, monkeypatch):
+    """A part already triangulated at the fine deflection (or finer) by its user is used as it
+    is: no face is meshed again or ray-cast, whatever its size (the die's 1000 x 1000 facet
+    map took 111 CPU-s with every point ray-cast, 0.67 s this way), and the answers are those
+    of its own meshes."""
+    import cad_io.mesh as CM
+    import cad_io.sampler as S
+    from cad_io.mesh import triangulate
+    from cad_io.view import transform_part
+
+    part = read_step(sample_data / "step" / "bug27693_cornetta-step.stp", mesh_deflection=2.0)
+    triangulate(part, 0.2)
+    monkeypatch.setattr(S, "FINE_FACE_TRIANGLES", 50)  # every face "too large" to mesh at 0.2
+    assert not S.fine_cast(part, 0.2).any() and S.fine_cast(part, 0.1).any()
+
+    def refuse(*a, **k):
+        raise AssertionError("meshed again")
+
+    monkeypatch.setattr(CM, "mesh_faces_alone", refuse)
+    monkeypatch.setattr(S, "_face_caster", refuse)
+    vpart = transform_part(part, "+z")
+    rng = np.random.default_rng(3)
+    gx, gy = rng.uniform(-60.0, 60.0, 300), rng.uniform(-60.0, 60.0, 300)
+    z, f, m, n = S._fine_facets(part, vpart, gx, gy, 0.2, 2.0, "auto", "+z", S.fine_cast(part, 0.2))
+    zw, fw, mw = S.sample_points(part, gx, gy, deflection=0.2)
+    assert n > 0 and np.isfinite(z).sum() > 100
+    assert np.array_equal(z, zw, equal_nan=True) and np.array_equal(f, fw)
