@@ -51,8 +51,17 @@ def test_newton_answers_where_brepmesh_misses_the_deflection(tmp_path):
 
     from cad_io.raycast import RayCaster
 
+    import dataclasses
+
+    from cad_io.step import _edge_tolerance
+
     part = read_step(_bspline_face_file(tmp_path / "sheet.step"))
     ShapeFix_ShapeTolerance().SetTolerance(part.shape, 0.3, TopAbs_SHAPE)
+    # the part records its faces' edge tolerances as read: record the new ones, as a file
+    # with these tolerances would give them
+    part = dataclasses.replace(part, faces=[dataclasses.replace(f, tolerance=_edge_tolerance(f.topo))
+                                            for f in part.faces])
+    assert min(f.tolerance for f in part.faces) >= 0.3
     rng = np.random.default_rng(0)
     x, y = rng.uniform(1, 39, 200), rng.uniform(1, 39, 200)
     z, _, how = sample_points(part, x, y, deflection=0.005)
