@@ -782,7 +782,7 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True,
     skin = np.ascontiguousarray(vm.origin + vm.d * (sijk + 0.5))
     smask = np.zeros(len(sijk), dtype=np.int64)
     skin_masks(vm.state, np.ascontiguousarray(sijk, dtype=np.int64), smask)
-    allc = np.concatenate([qx, skin]) if len(skin) else qx
+    allc = np.concatenate([qx, skin]) if len(skin) else qx  # the grid's extent: the cubes'
     skin, shalf, smask = _skin_boxes(vm, sijk, smask)
     lo_, hi_ = allc.min(axis=0), allc.max(axis=0)
     centre = 0.5 * (lo_ + hi_)
