@@ -140,6 +140,10 @@ def test_the_estimate_never_refuses_a_program_within_the_cap(rows, pitch):
         # a zero-radius arc makes chords but no positions: counted as chords, it may refuse
         # a program (only with an absurd number of turns); none here
         assume(kind < 2 or min(math.hypot(p[0] - ci, p[1] - cj) for p in (prev, end)) > 0)
+        # an arc that ends where it starts is a full circle in G-code (the parser gives it a
+        # sweep of whole turns); this generator's sweep of 0.3 rad + turns cannot say that,
+        # and such a move made no positions while its estimate counted one (a CI failure)
+        assume(kind < 2 or (prev[0], prev[1]) != (end[0], end[1]))
         moves.append((kind, list(end), [ci, cj, 0], sw, i + 1))
         prev = end
     prog = _program(*moves)
