@@ -937,6 +937,12 @@ _FINE_CACHE_ATTR = "_fine_mesh_cache"
 _CASTER_ATTR = "_fine_ray_casters"
 
 
+def _fine_enough(mesh: Any, fine: float) -> bool:
+    """Whether a face's own mesh is at deflection ``fine`` or finer (the fine facet pass then
+    uses it as it is: neither meshed again nor ray-cast)."""
+    return mesh is not None and float(mesh.deflection) <= fine
+
+
 def fine_cast(part: Part, fine: float) -> np.ndarray:
     """Per face of ``part``: True where the fine facet pass ray-casts the face instead of
     meshing it at ``fine``.
@@ -953,8 +959,8 @@ def fine_cast(part: Part, fine: float) -> np.ndarray:
         mesh = face.mesh
         if mesh is None or not len(mesh.triangles) or face.surface is None:
             continue  # (a face without a surface keeps its stored triangles)
-        if float(mesh.deflection) <= fine:
-            continue  # its own mesh is fine enough: the pass uses it as it is
+        if _fine_enough(mesh, fine):
+            continue  # the pass uses its own mesh as it is
         out[k] = len(mesh.triangles) * max(float(mesh.deflection) / fine, 1.0) > FINE_FACE_TRIANGLES
     return out
 
@@ -972,8 +978,7 @@ def _whole_fine_meshes(part: Part, faces: np.ndarray, fine: float) -> list:
         cache.clear()
         cache.update(fine=fine, meshes={})
     meshes = cache["meshes"]
-    own = {int(k): part.faces[int(k)].mesh for k in faces
-           if part.faces[int(k)].mesh is not None and float(part.faces[int(k)].mesh.deflection) <= fine}
+    own = {int(k): part.faces[int(k)].mesh for k in faces if _fine_enough(part.faces[int(k)].mesh, fine)}
     missing = [int(k) for k in faces if int(k) not in meshes and int(k) not in own]
     for k, mesh in zip(missing, mesh_faces_alone(part, missing, fine) if missing else []):
         meshes[k] = mesh
