@@ -163,11 +163,11 @@ def _ez_bytes(ez) -> dict:
         patch_codes = round(float((np.diff(p.code_off) * w).sum()) / 8 / 1024 + a["patch_codes_w4"].nbytes / 1024, 1)
     return {"codes_windowed_edges": round(float(win) / 1024, 1),
             "codes_other_edges": round(float(other) / 1024, 1),
-            "lo_step": kb("lo", "step"), "edge_bits_counts": kb("edge_bits", "counts"),
+            "lo_step": kb("lo", "lo_k", "lo_lattice", "step", "step_common", "step_is_common"), "edge_bits_counts": kb("edge_bits", "counts"),
             "windows": kb("win_bits", "win_b", "win_nl", "win_kink", "win_forced"),
             "patch_codes": patch_codes, "patch_nodes": patch_nodes,
             "patch_counts": kb("patch_counts", "patch_counts4", "patch_counts_nz", "patch_counts4nz",
-                                               "patch_counts8nz"),
+                                               "patch_counts8nz", "patch_countsbnz", "patch_counts_bw"),
             "patch_cells_levels_scales": kb("patch_cells", "patch_level", "patch_lo", "patch_step"),
             "sub_lattices": kb(*[k for k in a if k.startswith("patch_sub_")]),
             "n_edges": ez.n_edges, "n_windows": ez.n_windows, "n_patches": ez.n_patches}

@@ -24,7 +24,7 @@ __all__ = ["BREAK_RATIO", "FORMAT_VERSION", "QUANTUM_SHARE", "WINDOW_HALF", "NAN
            "SubLattices", "break_thresholds", "code_patch", "decimate", "full_counts",
            "cells_around", "edge_count", "encode_heights", "pack_codes", "sub_grid", "unpack_codes"]
 
-FORMAT_VERSION = 5
+FORMAT_VERSION = 6
 #: A windowed edge's break may move this share of an e-map interval from the full
 #: sequence's (a kink placed from coded heights: 0.05 of 0.01 mm is 5e-4 mm).
 KINK_SHIFT = 0.05
@@ -38,10 +38,12 @@ SERIAL_BELOW = 4096
 #: A jump or kink must stand out this many times from its neighbours to count as a break.
 BREAK_RATIO = 4.0
 #: The finest quantum of the coded heights, as a share of the tolerance (:func:`encode_heights`'s
-#: ``quantum``): tol/128 = 7.8e-5 mm at tol 0.01, about the quantum of a 5 mm wall's 16-bit
-#: codes, so no height is coded finer than it needs; stored, an edge's codes take the bits
-#: their range needs at that quantum (:func:`pack_codes`).
-QUANTUM_SHARE = 1.0 / 128.0
+#: ``quantum``): tol/32 = 3.1e-4 mm at tol 0.01 (an error of at most 1.6e-4 mm), about the
+#: quantum of a 20 mm wall's 16-bit codes (the paper's Table 2 codes), so no height is coded
+#: finer than it needs; stored, an edge's codes take the bits their range needs at that
+#: quantum (:func:`pack_codes`), and its offset is a whole number of quanta
+#: (:func:`pack_offsets`). Every cell is checked against the exact surface as coded.
+QUANTUM_SHARE = 1.0 / 32.0
 
 
 def edge_count(nx: int, ny: int) -> int:
@@ -96,9 +98,16 @@ def encode_heights(offsets: np.ndarray, heights: np.ndarray, quantum: float = 0.
         hi = np.maximum.reduceat(np.where(finite, heights, -np.inf), starts)
     lo[empty], hi[empty] = np.inf, -np.inf  # reduceat gives an empty segment its next value
     none = ~np.isfinite(lo)
-    lo[none] = 0.0
-    hi[none] = 0.0
-    lo32 = lo.astype(np.float32)
+    if quantum > 0 and not none.all():
+        # offsets on one lattice, origin + k * quantum (k >= 0), each at or below its edge's
+        # lowest height: stored as the integers k in the bits their range needs
+        # (:func:`pack_offsets`), not as float32
+        lo[none] = hi[none] = np.min(lo[~none])
+        lo32 = _lattice_offsets(lo, float(quantum))
+    else:
+        lo[none] = 0.0
+        hi[none] = 0.0
+        lo32 = lo.astype(np.float32)
     span = np.maximum(hi - lo32.astype(np.float64), 0.0)
     step32 = half_step(np.maximum(span / (NAN_CODE - 1), float(quantum)))
     e = np.repeat(np.arange(E), np.diff(offsets))
@@ -135,6 +144,73 @@ def _segment_cumsum(x: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     size = np.diff(offsets)
     st = offsets[:-1][size > 0]
     return cs - np.repeat(cs[st] - x[st], size[size > 0])
+
+
+def _lattice_origin(lowest: float) -> float:
+    """The largest float32 value at or below ``lowest``, as float64."""
+    o = np.float32(lowest)
+    if float(o) > lowest:
+        o = np.nextafter(o, np.float32(-np.inf))
+    return float(o)
+
+
+def _lattice_offsets(lo: np.ndarray, quantum: float) -> np.ndarray:
+    """float32 offsets ``float32(origin + k * quantum)`` at or below ``lo`` (float64), with
+    ``origin`` the float32 at or below ``lo.min()`` (so the lowest edge has ``k = 0``)."""
+    origin = _lattice_origin(float(lo.min()))
+    k = np.floor((lo - origin) / quantum)
+    out = (origin + k * quantum).astype(np.float32)
+    for _ in range(4):  # float32 rounding may land just above the edge's lowest height
+        up = out.astype(np.float64) > lo
+        if not up.any():
+            break
+        k[up] -= 1.0
+        out[up] = (origin + k[up] * quantum).astype(np.float32)
+    return out
+
+
+def _pack_bits(v: np.ndarray, w: int) -> np.ndarray:
+    """Non-negative integers below ``2**w`` in ``w`` bits each, MSB first, packed."""
+    v = np.asarray(v, dtype=np.int64)
+    bits = (v[:, None] >> np.arange(w - 1, -1, -1, dtype=np.int64)[None, :]) & 1
+    return np.packbits(bits.astype(np.uint8).ravel())
+
+
+def _unpack_bits(b: np.ndarray, count: int, w: int, what: str) -> np.ndarray:
+    """Inverse of :func:`_pack_bits`: ``count`` values, int64."""
+    bits = np.unpackbits(np.asarray(b, dtype=np.uint8))
+    if not 1 <= w <= 62 or bits.size < count * w or bits.size >= count * w + 8:
+        raise ValueError(f"e-map arrays: {bits.size} bits of {what} for {count} values of {w} bits")
+    return bits[:count * w].reshape(count, w).astype(np.int64) @ (1 << np.arange(w - 1, -1, -1, dtype=np.int64))
+
+
+def pack_offsets(lo: np.ndarray, quantum: float) -> dict[str, np.ndarray]:
+    """Per-edge offsets as stored: where every one is ``float32(origin + k * quantum)`` with
+    ``origin = lo.min()`` and integers ``k >= 0`` (as :func:`encode_heights` places them), the
+    ``k`` in the fewest bits that hold them (``lo_k``, MSB first; ``lo_lattice`` holds origin,
+    quantum and the width), else the float32 values (``lo``)."""
+    lo = np.asarray(lo, dtype=np.float32)
+    if lo.size < 8 or not quantum > 0:
+        return {"lo": lo}
+    origin = float(lo.min())
+    k = np.rint((lo.astype(np.float64) - origin) / quantum)
+    if k.max() >= 2.0 ** 31 or not np.array_equal((origin + k * quantum).astype(np.float32), lo):
+        return {"lo": lo}
+    k = k.astype(np.int64)
+    w = max(1, int(k.max()).bit_length())
+    return {"lo_lattice": np.array([origin, quantum, w], dtype=np.float64), "lo_k": _pack_bits(k, w)}
+
+
+def unpack_offsets(arrays: dict, count: int, prefix: str = "") -> np.ndarray:
+    """Inverse of :func:`pack_offsets` (keys with ``prefix``): ``count`` float32 offsets."""
+    if prefix + "lo_k" not in arrays:
+        lo = np.asarray(arrays[prefix + "lo"], dtype=np.float32)
+        if lo.shape != (count,):
+            raise ValueError(f"e-map arrays: {lo.size} offsets for {count} segments")
+        return lo
+    origin, quantum, w = (float(v) for v in np.asarray(arrays[prefix + "lo_lattice"], dtype=np.float64).ravel())
+    k = _unpack_bits(arrays[prefix + "lo_k"], count, int(w), "offsets")
+    return (origin + k * quantum).astype(np.float32)
 
 
 def pack_codes(codes: np.ndarray, offsets: np.ndarray) -> dict[str, np.ndarray]:
@@ -920,7 +996,7 @@ class EZMap:
             "counts": np.diff(self.offsets).astype(np.uint8 if self.n_edges == 0 or np.diff(self.offsets).max() < 256
                                                    else np.uint16),
             **{f"codes_{k}": v for k, v in pack_codes(self.codes, self.offsets).items()},
-            "lo": self.lo,
+            **pack_offsets(self.lo, QUANTUM_SHARE * self.tol),
             **_pack_steps(self.step),
         } | self._window_arrays() | {f"patch_{k}": v for k, v in (self.patches or CellPatches.empty()).to_arrays().items()}
 
@@ -981,7 +1057,9 @@ class EZMap:
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> EZMap:
         """Inverse of :meth:`to_arrays`."""
-        missing = {"version", "grid", "shape", "lo"} - set(arrays)
+        missing = {"version", "grid", "shape"} - set(arrays)
+        if "lo" not in arrays and "lo_k" not in arrays:
+            missing.add("lo")
         if "step" not in arrays and "step_common" not in arrays:
             missing.add("step")
         if "codes" not in arrays and "codes_bits" not in arrays:
@@ -1016,7 +1094,7 @@ class EZMap:
         codes = (unpack_codes(arrays["codes_bits"], arrays["codes_w4"], offsets, arrays.get("codes_mode"),
                               arrays.get("codes_r4")) if "codes_bits" in arrays else arrays["codes"])
         return cls(g[0], g[1], g[2], g[3], int(s[0]), int(s[1]), g[4], g[5], edge_ids, offsets,
-                   codes, arrays["lo"], _unpack_steps(arrays, edge_ids.size), failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0,
+                   codes, unpack_offsets(arrays, edge_ids.size), _unpack_steps(arrays, edge_ids.size), failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0,
                    patches=patches, unresolved=int(s[4]) if s.size > 4 else 0, pruned=int(s[5]) if s.size > 5 else 0,
                    win=win)
 
@@ -1055,14 +1133,20 @@ def full_counts(level, dx: float, dy: float, interval: float) -> np.ndarray:
 def _pack_counts(counts: np.ndarray) -> dict[str, np.ndarray]:
     """Sub-edge counts as stored: a bit per sub-edge (it keeps points: most keep none) and
     the non-zero counts, two to a byte when all are below 16 (``counts_nz``, ``counts4nz``),
-    else a byte each (``counts8nz``); above 255 two bytes each (``counts``). Format 5's first commits
-    stored every count two to a byte (``counts4``)."""
+    else less one in the bits the largest needs (``countsbnz``, width ``counts_bw``; format 5:
+    a byte each, ``counts8nz``); above 255 two bytes each (``counts``). Format 5's first
+    commits stored every count two to a byte (``counts4``)."""
     c = np.asarray(counts)
     if c.size and int(c.max()) < 16:
         c = c.astype(np.uint8)
         return {"counts_nz": np.packbits(c > 0), "counts4nz": _nibbles(c[c > 0])}
-    if c.size and int(c.max()) < 256:  # finer sub-grids of a coarse base (grid 2: up to 24 points)
-        return {"counts_nz": np.packbits(c > 0), "counts8nz": c[c > 0].astype(np.uint8)}
+    if c.size and int(c.max()) < 256:
+        # longer sub-edges (level 2 at grid 0.5, finer sub-grids of a coarse base: up to 24
+        # points): the non-zero counts minus one in the bits the largest needs (format 6)
+        v = c[c > 0].astype(np.int64) - 1
+        w = max(1, int(v.max()).bit_length()) if v.size else 1
+        return {"counts_nz": np.packbits(c > 0), "counts_bw": np.array([w], dtype=np.uint8),
+                "countsbnz": _pack_bits(v, w)}
     return {"counts": c.astype(np.uint8 if c.size == 0 or int(c.max()) < 256 else np.uint16)}
 
 
@@ -1071,7 +1155,11 @@ def _unpack_counts(a: dict, size: int) -> np.ndarray:
     if "counts_nz" in a:
         nz = np.unpackbits(np.asarray(a["counts_nz"], dtype=np.uint8), count=size).astype(bool)
         c = np.zeros(size, dtype=np.int64)
-        if "counts8nz" in a:
+        if "countsbnz" in a:
+            v = _unpack_bits(a["countsbnz"], int(nz.sum()), int(np.asarray(a["counts_bw"]).ravel()[0]),
+                             "sub-edge counts") + 1
+            c[nz] = v
+        elif "counts8nz" in a:  # format 5
             v = np.asarray(a["counts8nz"]).astype(np.int64)
             if v.size != int(nz.sum()):
                 raise ValueError(f"cell patches: {v.size} sub-edge counts for {int(nz.sum())} sub-edges with points")
@@ -1324,7 +1412,8 @@ class CellPatches:
         packed = {f"codes_{k}": v for k, v in pack_codes(allc.astype(np.uint16),
                                                          _patch_segments(seg, nn, self.edge_off, self.counts,
                                                                          raw)).items()}
-        return {"cells": _narrow(self.cells), "level": self.level, "lo": lo, "step": _stored_step(step),
+        level = self.level.astype(np.int8) if K == 0 or int(np.abs(self.level).max()) < 128 else self.level
+        return {"cells": _narrow(self.cells), "level": level, "lo": lo, "step": _stored_step(step),
                 "codes_raw": np.packbits(raw)} | packed | _pack_counts(self.counts) | subs
 
     @classmethod
@@ -1526,6 +1615,9 @@ class SubLattices:
         Lattice heights, C order per sub-cell, :data:`NAN_CODE` = none.
     lo, step : ndarray of shape (S,), float32
         Offset and quantum of each sub-lattice's codes.
+    quantum : float
+        The finest quantum they were coded at (:func:`encode_heights`; 0: unknown), which
+        lets :meth:`to_arrays` store the offsets as lattice steps (:func:`pack_offsets`).
     """
 
     mn: np.ndarray
@@ -1533,6 +1625,7 @@ class SubLattices:
     codes: np.ndarray
     lo: np.ndarray
     step: np.ndarray
+    quantum: float = 0.0
 
     def __post_init__(self) -> None:
         self.mn = np.asarray(self.mn, dtype=np.int64).ravel()
@@ -1552,8 +1645,8 @@ class SubLattices:
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         seg = np.arange(self.n + 1, dtype=np.int64) * (int(self.mn[1]) + 1) ** 2
-        return {"mn": self.mn, "keys": _narrow(self.keys), "lo": self.lo, "step": _stored_step(self.step)} | {
-            f"codes_{k}": v for k, v in pack_codes(self.codes, seg).items()}
+        return {"mn": self.mn, "keys": _narrow(self.keys), "step": _stored_step(self.step)} | pack_offsets(
+            self.lo, self.quantum) | {f"codes_{k}": v for k, v in pack_codes(self.codes, seg).items()}
 
     @classmethod
     def from_arrays(cls, a: dict[str, np.ndarray]) -> SubLattices:
@@ -1563,7 +1656,8 @@ class SubLattices:
             codes = unpack_codes(a["codes_bits"], a["codes_w4"], seg, a.get("codes_mode"), a.get("codes_r4"))
         else:
             codes = a["codes"]
-        return cls(a["mn"], a["keys"], codes, a["lo"], a["step"])
+        quantum = float(np.asarray(a["lo_lattice"]).ravel()[1]) if "lo_lattice" in a else 0.0
+        return cls(a["mn"], a["keys"], codes, unpack_offsets(a, np.asarray(a["keys"]).size), a["step"], quantum)
 
     def override(self, cell: np.ndarray, base: ZMap, lx: np.ndarray, ly: np.ndarray, h: np.ndarray) -> np.ndarray:
         """``h`` with the points in a sub-lattice (base ``cell`` ids, local xy) answered by it."""

@@ -1,5 +1,6 @@
-"""Format 5 of the e-map: codes stored in the bits their range needs at the finest quantum,
-and forced breaks on windowed edges (the full sequence's, not re-detected)."""
+"""Formats 5 and 6 of the e-map: codes stored in the bits their range needs at the finest
+quantum, forced breaks on windowed edges (the full sequence's, not re-detected), and (6) the
+edges' offsets as steps of the finest quantum."""
 
 from __future__ import annotations
 
@@ -18,7 +19,9 @@ from zmap.refine._emap import (
     EZMap,
     encode_heights,
     pack_codes,
+    pack_offsets,
     unpack_codes,
+    unpack_offsets,
 )
 from zmap.refine.ez import BREAK_RATIO, build_ez
 
@@ -147,13 +150,21 @@ def _node_codes(p):
     return np.where(np.isnan(p.nodes), NAN_CODE, np.rint((np.nan_to_num(p.nodes) - lo) / st)).astype(np.uint16)
 
 
-def test_sub_edge_counts_above_15_are_a_byte_each_behind_a_bit():
+def test_sub_edge_counts_above_15_are_stored_in_the_bits_the_largest_needs_behind_a_bit():
     from zmap.refine._emap import _pack_counts, _unpack_counts
 
     c = np.array([0, 0, 17, 0, 3, 200, 0, 0, 0], dtype=np.uint16)
     a = _pack_counts(c)
-    assert set(a) == {"counts_nz", "counts8nz"} and a["counts8nz"].tolist() == [17, 3, 200]
-    assert np.array_equal(_unpack_counts(a, c.size), c)
+    # 16, 2 and 199 (the counts less one) in 8 bits: 3 bytes
+    assert set(a) == {"counts_nz", "counts_bw", "countsbnz"} and a["counts_bw"].tolist() == [8]
+    assert a["countsbnz"].tolist() == [16, 2, 199] and np.array_equal(_unpack_counts(a, c.size), c)
+    c24 = np.array([24, 0, 1, 17, 0, 9, 3], dtype=np.uint16)  # level 2 at grid 0.5: up to 24 points, 5 bits
+    a = _pack_counts(c24)
+    assert a["counts_bw"].tolist() == [5] and a["countsbnz"].size == 4  # 5 counts x 5 bits
+    assert np.array_equal(_unpack_counts(a, c24.size), c24)
+    # format 5 stored them a byte each
+    old = {"counts_nz": np.packbits(c > 0), "counts8nz": np.array([17, 3, 200], dtype=np.uint8)}
+    assert np.array_equal(_unpack_counts(old, c.size), c)
     a = _pack_counts(np.minimum(c, 15))
     assert set(a) == {"counts_nz", "counts4nz"} and np.array_equal(_unpack_counts(a, c.size), np.minimum(c, 15))
     assert set(_pack_counts(np.array([300, 0]))) == {"counts"}
@@ -171,3 +182,33 @@ def test_the_common_quantum_is_stored_once():
     # all different (or few): stored as they are
     few = half_step(np.linspace(1e-4, 1e-3, 20))
     assert set(_pack_steps(few)) == {"step"} and np.array_equal(_unpack_steps(_pack_steps(few), 20), few)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.lists(st.one_of(st.floats(-40.0, 60.0), st.just(float("nan"))), min_size=1, max_size=8),
+                min_size=1, max_size=40),
+       st.sampled_from([QUANTUM_SHARE * TOL, 0.01 / 32, 1e-3]))
+def test_offsets_lie_on_the_quantum_lattice_and_round_trip(segments, quantum):
+    h = np.array([v for s in segments for v in s])
+    off = np.concatenate([[0], np.cumsum([len(s) for s in segments])]).astype(np.int64)
+    codes, lo, step = encode_heights(off, h, quantum)
+    # every offset at or below its edge's lowest height, the codes within half a quantum
+    e = np.repeat(np.arange(len(segments)), np.diff(off))
+    fin = ~np.isnan(h)
+    assert np.all(lo[e][fin].astype(np.float64) <= h[fin])
+    dec = lo[e].astype(np.float64) + step[e].astype(np.float64) * codes
+    assert np.all(np.abs(dec[fin] - h[fin]) <= 0.5 * step[e][fin] * (1 + 1e-6) + 1e-9)
+    assert np.all(codes[~fin] == NAN_CODE) and np.all(codes[fin] < NAN_CODE)
+    a = pack_offsets(lo, quantum)
+    back = unpack_offsets(a, lo.size)
+    assert back.dtype == np.float32 and np.array_equal(back, lo)
+    if lo.size >= 8 and fin.any():
+        # steps of the quantum above the lowest offset, in the bits the largest needs
+        k = np.rint((lo.astype(np.float64) - float(lo.min())) / quantum).astype(np.int64)
+        assert "lo" not in a and a["lo_k"].size == (lo.size * max(1, int(k.max()).bit_length()) + 7) // 8
+
+
+def test_offsets_off_the_lattice_are_stored_as_float32():
+    lo = np.array([0.0, 0.1, 0.25, 1.0 / 3.0, 2.0, 7.5, 9.1, 12.0], dtype=np.float32)
+    a = pack_offsets(lo, QUANTUM_SHARE * TOL)
+    assert set(a) == {"lo"} and np.array_equal(unpack_offsets(a, lo.size), lo)

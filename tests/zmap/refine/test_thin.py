@@ -13,7 +13,7 @@ from zmap import ZMap
 from zmap.model import PrecisionModel
 from zmap.refine import _ez_kernels as _k
 from zmap.refine import _reference as ref
-from zmap.refine._emap import decimate
+from zmap.refine._emap import QUANTUM_SHARE, decimate
 from zmap.refine.ez import THIN_SHARE, EZMap, build_ez
 
 TOL = 0.01
@@ -111,14 +111,18 @@ def test_stored_bytes_are_bits_counts_codes_and_scales():
     nd = int(np.unpackbits(a["codes_mode"], count=ez.n_edges).sum())
     assert a["codes_bits"].size <= math.ceil(plain / 8)
     codes = a["codes_bits"].size + math.ceil(ez.n_edges / 2) + math.ceil(ez.n_edges / 8) + math.ceil(nd / 2)
-    # header (version, grid, shape: 104 bytes), a bit per grid edge, a byte count, a float32
-    # offset and a float16 quantum per e-edge, the codes; a bit per e-edge, two bytes and a
-    # bit (its break a kink) per windowed wall edge; no patches
+    # header (version, grid, shape: 104 bytes), a bit per grid edge, a byte count, an offset
+    # (steps of the finest quantum, in the bits the largest needs) and a float16 quantum per
+    # e-edge, the codes; a bit per e-edge, two bytes and a bit (its break a kink) per
+    # windowed wall edge; no patches
     assert ez.n_windows >= 8 and a["step"].dtype == np.float16
     # quanta: one common value, a bit per edge, the others float16
     steps = sum(a[k].nbytes for k in ("step", "step_common", "step_is_common") if k in a)
     assert steps <= 2 * ez.n_edges
-    assert ez.nbytes == (104 + math.ceil(E / 8) + 5 * ez.n_edges + steps + codes
+    k = np.rint((ez.lo.astype(np.float64) - float(ez.lo.min())) / (QUANTUM_SHARE * TOL)).astype(np.int64)
+    lo_bytes = 24 + math.ceil(ez.n_edges * max(1, int(k.max()).bit_length()) / 8)
+    assert "lo" not in a and a["lo_lattice"].nbytes + a["lo_k"].nbytes == lo_bytes < 4 * ez.n_edges
+    assert ez.nbytes == (104 + math.ceil(E / 8) + ez.n_edges + lo_bytes + steps + codes
                          + math.ceil(ez.n_edges / 8) + 2 * ez.n_windows + math.ceil(ez.n_windows / 8))
     # fewer than 16 bits a code: smooth edges' ranges at the finest quantum
     assert plain < 16 * ez.n_points
@@ -214,15 +218,21 @@ def test_patch_sub_edges_may_keep_no_point_and_counts_pack_two_to_a_byte():
     p = ez.patches
     assert p is not None and (p.counts[:p.edge_off[-1]] == 0).any()  # linear between sub-grid nodes
     arr = p.to_arrays()
-    # a bit per sub-edge, the non-zero counts two to a byte
+    # a bit per sub-edge, the non-zero counts two to a byte where all are below 16, else in
+    # the bits the largest needs (a level-2 sub-edge of 0.25 mm holds up to 24 points)
     nz = int(np.count_nonzero(p.counts))
-    assert arr["counts_nz"].size == (p.counts.size + 7) // 8 and arr["counts4nz"].size == (nz + 1) // 2
+    small = int(p.counts.max()) < 16
+    assert arr["counts_nz"].size == (p.counts.size + 7) // 8
+    assert (arr["counts4nz"].size == (nz + 1) // 2) if small else (arr["countsbnz"].size == (nz * int(arr["counts_bw"][0]) + 7) // 8)
     back = CellPatches.from_arrays(arr)
     assert np.array_equal(back.counts, p.counts)
+    sub = CellPatches.pack({c: t for c, t in p.unpack().items() if int(t[0]) >= 4})  # no count above 15
+    arr4 = sub.to_arrays()
+    assert "counts4nz" in arr4 and arr4["counts4nz"].size == (int(np.count_nonzero(sub.counts)) + 1) // 2
     # every count two to a byte (the first format-5 files) still loads
-    c = np.concatenate([p.counts, np.zeros(p.counts.size % 2, np.uint16)]).astype(np.uint8)
-    old = {k: v for k, v in arr.items() if not k.startswith("counts")} | {"counts4": c[0::2] | (c[1::2] << 4)}
-    assert np.array_equal(CellPatches.from_arrays(old).counts, p.counts)
+    c = np.concatenate([sub.counts, np.zeros(sub.counts.size % 2, np.uint16)]).astype(np.uint8)
+    old = {k: v for k, v in arr4.items() if not k.startswith("counts")} | {"counts4": c[0::2] | (c[1::2] << 4)}
+    assert np.array_equal(CellPatches.from_arrays(old).counts, sub.counts)
     x, y = np.random.default_rng(5).uniform(0, 4, (2, 20000))
     from zmap.refine.patch import misfit
 
