@@ -104,6 +104,8 @@ def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods
         "plain_fine_kb": kb(rep["plain_fine_bytes"]), "plain_fine_shape": rep["plain_fine_shape"],
         "ez_over_plain_fine": (round(r["ez"]["total_bytes"] / rep["plain_fine_bytes"], 5) if "ez" in r else None),
         "max_dist": {k: v["max_dist"] for k, v in r.items()},
+        "max_dist_own_tolerance": {k: v.get("max_dist_own_tolerance") for k, v in r.items()},
+        "largest_tolerance_used": {k: v.get("largest_tolerance_used") for k, v in r.items()},
         "p999_dist": {k: v["p999_dist"] for k, v in r.items()},
         "max_dist_topmost": {k: v.get("max_dist_topmost") for k, v in r.items()},
         "ez_patches": r["ez"].get("ez_patches") if "ez" in r else None,
@@ -267,6 +269,9 @@ def markdown(res: dict) -> str:
         ("", "EZ", lambda r: _fmt(r["max_dist"].get("ez"))),
         ("", "CZ", lambda r: _fmt(r["max_dist"].get("cz"))),
         ("", "CZ inside domains", lambda r: _fmt(r["max_dist_in_cz"])),
+        ("Max 3D distance, edges at the file's tolerance (mm)", "EZ",
+         lambda r: _fmt(r["max_dist_own_tolerance"].get("ez")) + (
+             f" (edges up to {r['largest_tolerance_used']['ez']:.4f})" if r["largest_tolerance_used"].get("ez") else "")),
         ("Max distance to the top-most surface (mm)", "base", lambda r: _fmt(r["max_dist_topmost"]["base"])),
         ("", "EZ", lambda r: _fmt(r["max_dist_topmost"].get("ez"))),
         ("", "CZ", lambda r: _fmt(r["max_dist_topmost"].get("cz"))),

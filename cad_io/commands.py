@@ -321,6 +321,10 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
         the B-rep's faces plus the vertical skirts where the top-most height jumps without a
         wall (an overhang, a hole through to a face far below). A z-map holds that surface,
         not the faces under an overhang; on a height field (a die) the two agree.
+        ``max_dist_own_tolerance`` (refined models) measures to the shape as valid within the
+        file's tolerances (:func:`cad_io.distance.occ_distance_own_tolerance`: a face reaches
+        its edges' tolerance beyond their curves, where the sampler and OCC's ray cast answer),
+        ``largest_tolerance_used`` the largest edge tolerance that moved a point's distance.
 
     Examples
     --------
@@ -331,7 +335,7 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
     >>> sorted(rep["rows"]), rep["deflection"], rep["reference_facet_points"]
     (['base', 'ez'], 0.025, 0)
     """
-    from cad_io.distance import confirm_with_occ, distance_to_part
+    from cad_io.distance import confirm_with_occ, distance_to_part, occ_distance_own_tolerance
     from cad_io.sampler import FACET, sample, sample_points
     from zmap.model import PrecisionModel
 
@@ -363,6 +367,19 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
         dist, exact = distance_to_part(part, pts, deflection=ddefl, return_exact=True)
         # a mesh distance may under-report by up to the deflection: those near tol/2 go to OCC too
         d[ok], n_occ, n_unchecked = confirm_with_occ(part, pts, dist, above=tol / 2, slack=np.where(exact, 0.0, ddefl))
+        # the shape as valid within its tolerances: a point within the file's tolerance of the
+        # nearest edge (a face reaches that far beyond its curve, and the sampler answers there,
+        # as OCC's ray cast does) is on it
+        d_own = d.copy()
+        above = np.flatnonzero(np.nan_to_num(d, nan=-1.0) > tol / 2)
+        above = above[np.argsort(-d[above], kind="stable")][:2000]  # as confirm_with_occ, largest first
+        own_tol = 0.0
+        if name != "base" and above.size and part.shape is not None:
+            pts_all = np.c_[xs, ys, h]
+            do, to = occ_distance_own_tolerance(part.shape, pts_all[above])
+            d_own[above] = np.maximum(do - to, 0.0)
+            moved = d[above] - d_own[above] > 1e-9
+            own_tol = float(np.max(to[moved], initial=0.0))
         flat = ok & np.isfinite(zex) & ~steep
         nb = model.nbytes
         dtop = d.copy()
@@ -375,6 +392,8 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
                "n_cz": len(model.cz),
                "max_vertical_flat": float(np.max(np.abs(h[flat] - zex[flat]), initial=0.0)),
                "max_dist": float(np.nanmax(d)) if ok.any() else None,
+               "max_dist_own_tolerance": float(np.nanmax(d_own)) if ok.any() else None,
+               "largest_tolerance_used": own_tol,
                "p999_dist": float(np.nanpercentile(d, 99.9)) if ok.any() else None,
                "max_dist_topmost": float(np.nanmax(dtop)) if ok.any() else None,
                "p999_dist_topmost": float(np.nanpercentile(dtop, 99.9)) if ok.any() else None,

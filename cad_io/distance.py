@@ -236,6 +236,56 @@ def occ_distance(shape: Any, points: Any) -> np.ndarray:
     return np.array(out, dtype=np.float64)
 
 
+def occ_distance_own_tolerance(shape: Any, points: Any) -> tuple[np.ndarray, np.ndarray]:
+    """OCC's exact distance from each point to the faces of ``shape`` (as :func:`occ_distance`)
+    and the tolerance, as the file gives it, of the nearest sub-shape (the face, or the edge or
+    vertex of its boundary that the nearest point lies on).
+
+    A shape is valid within its tolerances: a face reaches as far as its edges' tolerance
+    beyond their curves, and OCC's ray cast (``IntCurvesFace_Intersector``) answers there, as
+    the sampler does. ``max(dist - tolerance, 0)`` is the distance to the shape so toleranced.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> import cad_io
+    >>> part = cad_io.read_step(Path(cad_io.__file__).parents[1] / "data" / "pocket.step")
+    >>> d, t = occ_distance_own_tolerance(part.shape, [[0.0, 0.0, 16.0]])
+    >>> round(float(d[0]), 9), bool(t[0] < 1e-3)
+    (1.0, True)
+    """
+    from OCP.BRep import BRep_Builder, BRep_Tool
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.gp import gp_Pnt
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_VERTEX
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS, TopoDS_Compound
+
+    comp = TopoDS_Compound()
+    builder = BRep_Builder()
+    builder.MakeCompound(comp)
+    ex = TopExp_Explorer(shape, TopAbs_FACE)
+    while ex.More():
+        builder.Add(comp, ex.Current())
+        ex.Next()
+    tol_of = {TopAbs_EDGE: lambda s: BRep_Tool.Tolerance_s(TopoDS.Edge_s(s)),
+              TopAbs_VERTEX: lambda s: BRep_Tool.Tolerance_s(TopoDS.Vertex_s(s)),
+              TopAbs_FACE: lambda s: BRep_Tool.Tolerance_s(TopoDS.Face_s(s))}
+    dist, tol = [], []
+    for p in np.asarray(points, dtype=np.float64).reshape(-1, 3):
+        v = BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, p))).Vertex()
+        d = BRepExtrema_DistShapeShape(v, comp)
+        dist.append(d.Value())
+        t = 0.0
+        for k in range(1, d.NbSolution() + 1):  # the largest over equally near supports
+            s = d.SupportOnShape2(k)
+            f = tol_of.get(s.ShapeType())
+            t = max(t, f(s) if f is not None else 0.0)
+        tol.append(t)
+    return np.array(dist, dtype=np.float64), np.array(tol, dtype=np.float64)
+
+
 def confirm_with_occ(part: Part, points: Any, dist: np.ndarray, *, above: float, slack: Any = 0.0,
                      max_points: int = 2000) -> tuple[np.ndarray, int, int]:
     """Replace the largest distances above ``above`` by OCC's exact ones.

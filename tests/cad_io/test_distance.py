@@ -92,3 +92,23 @@ def test_confirm_with_occ_slack_sends_mesh_distances_near_the_threshold_to_occ()
     d, n_occ, n_left = confirm_with_occ(part, pts, np.array([0.003, 0.003]), above=0.005, slack=[0.0, 0.0025])
     assert (n_occ, n_left) == (1, 0)
     np.testing.assert_allclose(d, [0.003, 0.004], atol=1e-9)
+
+
+def test_own_tolerance_is_the_nearest_edges_in_the_file():
+    from OCP.ShapeFix import ShapeFix_ShapeTolerance
+    from OCP.TopAbs import TopAbs_EDGE
+
+    from cad_io.distance import occ_distance_own_tolerance
+
+    part = read_step(DATA / "pocket.step")
+    # a point 0.1 mm out from the block's top edge at x = 50, z = 30 both ways, one 0.2 mm
+    # out from the side face, and one above the pocket's floor
+    pts = [[50.1, 0.0, 30.1], [50.2, 0.0, 15.0], [0.0, 0.0, 16.0]]
+    d, t = occ_distance_own_tolerance(part.shape, pts)
+    assert np.allclose(d, _occ_distance(part.shape, pts), rtol=0, atol=1e-12)
+    assert np.allclose(d, [0.1 * np.sqrt(2), 0.2, 1.0], rtol=0, atol=1e-9) and np.all(t < 1e-3)
+    ShapeFix_ShapeTolerance().SetTolerance(part.shape, 0.3, TopAbs_EDGE)  # as a badly toleranced file has it
+    d2, t2 = occ_distance_own_tolerance(part.shape, pts)
+    assert np.allclose(d2, d, rtol=0, atol=1e-12)
+    assert t2[0] == pytest.approx(0.3) and d2[0] - t2[0] < 0  # within the edge's tolerance: on the shape
+    assert np.all(t2[1:] < 1e-3)  # nearest a face's interior: the face's own tolerance

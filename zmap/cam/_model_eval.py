@@ -55,14 +55,14 @@ def threaded(kernel, n: int, *args, chunk: int = 256) -> None:
 
 
 def _ez_arrays(ez, base):
-    """``(z, par, edge_ids, offsets, hq, brk_kind, brk_t, ecell_ids, slots, nb, bk, bt, pts, arc)``
+    """``(z, par, edge_ids, offsets, hq, brk_kind, brk_t, ecell_ids, slots, nb, bk, bt, pts, arc, bub)``
     of an EZ-map over ``base`` (its own tables and codes)."""
     a = ez._tables(base)
     off = ez._voff() if hasattr(ez, "_voff") else ez.offsets
     par = np.array([base.x0, base.y0, base.dx, base.dy, math.cos(base.angle), math.sin(base.angle),
                     base.origin[0], base.origin[1]], dtype=np.float64)
     return (np.ascontiguousarray(base.z, dtype=np.float64), par, ez.edge_ids, off, ez._hq(), a["brk_kind"],
-            a["brk_t"], a["ecell_ids"], a["slots"], a["nb"], a["bk"], a["bt"], a["pts"], a["arc"])
+            a["brk_t"], a["ecell_ids"], a["slots"], a["nb"], a["bk"], a["bt"], a["pts"], a["arc"], a["bub"])
 
 
 def supported(model) -> bool:
@@ -132,7 +132,7 @@ def pack_model(model) -> tuple:
 @njit(cache=True)
 def _ez_at(E, x, y):
     """One EZ-map's height at world xy (its kernel's rule); NaN outside its e-cells."""
-    z, par, edge_ids, offsets, hq, brk_kind, brk_t, ecell_ids, slots, nb, bk, bt, pts, arc = E
+    z, par, edge_ids, offsets, hq, brk_kind, brk_t, ecell_ids, slots, nb, bk, bt, pts, arc, bub = E
     nx, ny = z.shape
     i, j, u, v = _locate(x, y, par[0], par[1], par[2], par[3], par[4], par[5], par[6], par[7], nx, ny)
     if i < 0:
@@ -143,7 +143,8 @@ def _ez_at(E, x, y):
     if nb[c] == 2 and (pts[c, 0, 0] != pts[c, 2, 0] or pts[c, 0, 1] != pts[c, 2, 1]):
         return _ezk._split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, bk, bt, pts, arc,
                            par[2], par[3])
-    return _ezk._coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, par[2], par[3], nb[c] > 0)
+    return _ezk._coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, par[2], par[3], nb[c] > 0,
+                       bub[c])
 
 
 @njit(cache=True)

@@ -607,6 +607,13 @@ class EZMap:
         edge k (:func:`zmap.refine._ez_kernels.pack_window`), whose ``offsets`` count the
         codes it stores (knots either side of the full samples around its jump), not its
         full samples; -1 (the default, all edges) for an edge that stores its samples.
+    bub_cells, bub_h : ndarray of shape (B,), optional
+        Bubbles: cells (sorted flat ids, Coons cells of the map) whose Coons patch gets
+        ``bub_h * 16 u (1 - u) v (1 - v)`` added, ``bub_h`` the exact height at the cell's
+        centre less the patch's there, in mm (whole quanta of :data:`QUANTUM_SHARE` tol).
+        Over a smooth surface the Coons patch of exact boundary curves errs by about that
+        shape (its leading error term); ``build_ez(verify=True)`` gives a cell that misses a
+        bubble before a cell patch, and keeps it where the cell then holds.
 
     Examples
     --------
@@ -640,12 +647,20 @@ class EZMap:
     pruned: int = 0
     win: Any = None
     forced: Any = None
+    bub_cells: Any = None
+    bub_h: Any = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         self.x0, self.y0, self.dx, self.dy = (float(v) for v in (self.x0, self.y0, self.dx, self.dy))
         self.nx, self.ny, self.failed, self.lifted = int(self.nx), int(self.ny), int(self.failed), int(self.lifted)
         self.unresolved, self.pruned = int(self.unresolved), int(self.pruned)
+        self.bub_cells = np.ascontiguousarray(np.zeros(0) if self.bub_cells is None else self.bub_cells, dtype=np.int64)
+        self.bub_h = np.ascontiguousarray(np.zeros(0) if self.bub_h is None else self.bub_h, dtype=np.float64)
+        if self.bub_h.shape != self.bub_cells.shape or self.bub_cells.ndim != 1 or (self.bub_cells.size and (
+                np.any(np.diff(self.bub_cells) <= 0) or self.bub_cells[0] < 0
+                or self.bub_cells[-1] >= (int(self.nx) - 1) * (int(self.ny) - 1))):
+            raise ValueError("bubbles: increasing cells of the grid, one height each")
         if self.patches is not None and self.patches.n_patches and (
                 self.patches.cells[0] < 0 or self.patches.cells[-1] >= (self.nx - 1) * (self.ny - 1)):
             raise ValueError("patched cells must be cells of the grid")
@@ -884,8 +899,13 @@ class EZMap:
         arc = np.zeros((C, 3), dtype=np.float64)
         if C:
             _k.cell_geometry(ecell, slots, kind, brk_t, nx, ny, self.dx, self.dy, self.interval, nb, bk, bt, pts, arc)
+        bub = np.zeros(C, dtype=np.float64)
+        if self.bub_cells.size and C:
+            at = np.minimum(np.searchsorted(ecell, self.bub_cells), C - 1)
+            on = ecell[at] == self.bub_cells
+            bub[at[on]] = self.bub_h[on]
         arrays = {"brk_kind": kind, "brk_t": brk_t, "ecell_ids": ecell, "slots": slots, "nb": nb, "bk": bk,
-                  "bt": bt, "pts": pts, "arc": arc}
+                  "bt": bt, "pts": pts, "arc": arc, "bub": bub}
         self._cache["key"] = key
         self._cache["arrays"] = arrays
         return arrays
@@ -912,6 +932,23 @@ class EZMap:
         a = self._tables(base)
         return a["brk_kind"].copy(), a["brk_t"].copy()
 
+
+    def coons_cells(self, base: ZMap, cells: np.ndarray) -> np.ndarray:
+        """The ``cells`` (flat ids) that :meth:`evaluate` answers with a Coons patch (e-cells
+        not split by a trace), sorted."""
+        self._check_base(base)
+        cells = np.unique(np.asarray(cells, dtype=np.int64))
+        if not self.n_edges or cells.size == 0:
+            return cells[:0]
+        a = self._tables(base)
+        ec = a["ecell_ids"]
+        if ec.size == 0:
+            return cells[:0]
+        at = np.minimum(np.searchsorted(ec, cells), ec.size - 1)
+        on = ec[at] == cells
+        P = a["pts"][at]
+        split = (a["nb"][at] == 2) & ((P[:, 0, 0] != P[:, 2, 0]) | (P[:, 0, 1] != P[:, 2, 1]))
+        return cells[on & ~split]
 
     def evaluate(self, base: ZMap, x, y) -> np.ndarray:
         """Heights in the cells of :meth:`cell_mask`; NaN elsewhere (use the base there).
@@ -958,7 +995,8 @@ class EZMap:
             kernel = _k.ez_kernel if xs.size >= SERIAL_BELOW else _k.ez_kernel_serial
             kernel(base.z, base.x0, base.y0, base.dx, base.dy, math.cos(base.angle), math.sin(base.angle),
                          base.origin[0], base.origin[1], xs, ys, self.edge_ids, self._voff(), self._hq(), a["brk_kind"],
-                         a["brk_t"], a["ecell_ids"], a["slots"], a["nb"], a["bk"], a["bt"], a["pts"], a["arc"], out)
+                         a["brk_t"], a["ecell_ids"], a["slots"], a["nb"], a["bk"], a["bt"], a["pts"], a["arc"], a["bub"],
+                         out)
         if self.n_patches and xs.size:
             self.patches.evaluate(base, self.interval, self.tol, xs, ys, out)
         out = out.reshape(shape)
@@ -993,12 +1031,46 @@ class EZMap:
             "shape": np.array([self.nx, self.ny, self.failed, self.lifted, self.unresolved, self.pruned],
                               dtype=np.int64),
             "edge_bits": self.edge_bits(),
-            "counts": np.diff(self.offsets).astype(np.uint8 if self.n_edges == 0 or np.diff(self.offsets).max() < 256
-                                                   else np.uint16),
+            **self._count_arrays(),
             **{f"codes_{k}": v for k, v in pack_codes(self.codes, self.offsets).items()},
             **pack_offsets(self.lo, QUANTUM_SHARE * self.tol),
             **_pack_steps(self.step),
-        } | self._window_arrays() | {f"patch_{k}": v for k, v in (self.patches or CellPatches.empty()).to_arrays().items()}
+        } | self._window_arrays() | self._bubble_arrays() | {
+            f"patch_{k}": v for k, v in (self.patches or CellPatches.empty()).to_arrays().items()}
+
+    def _count_arrays(self) -> dict[str, np.ndarray]:
+        """E-points stored per e-edge: in the bits the largest needs (``counts_b``, width
+        ``counts_w``; format 6), or a byte each where that is no larger (``counts``)."""
+        n = np.diff(self.offsets)
+        w = max(1, int(n.max()).bit_length()) if n.size else 8
+        if w >= 8 or n.size < 16:
+            return {"counts": n.astype(np.uint8 if n.size == 0 or n.max() < 256 else np.uint16)}
+        return {"counts_w": np.array([w], dtype=np.uint8), "counts_b": _pack_bits(n, w)}
+
+    def _bubble_arrays(self) -> dict[str, np.ndarray]:
+        """The bubbles as stored: their cells, and their heights as whole quanta (zigzag) in
+        the bits the largest needs; none where there are none."""
+        if not self.bub_cells.size:
+            return {}
+        q = QUANTUM_SHARE * self.tol
+        k = np.rint(self.bub_h / q).astype(np.int64)
+        if not np.array_equal(k * q, self.bub_h):
+            raise ValueError("bubbles: heights must be whole quanta of QUANTUM_SHARE * tol")
+        zz = np.where(k >= 0, 2 * k, -2 * k - 1)
+        w = max(1, int(zz.max()).bit_length())
+        return {"bub_cells": _narrow(self.bub_cells), "bub_q": np.array([q, w], dtype=np.float64),
+                "bub_codes": _pack_bits(zz, w)}
+
+    @staticmethod
+    def _bubbles_from(arrays: dict) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Inverse of :meth:`_bubble_arrays`."""
+        if "bub_cells" not in arrays:
+            return None, None
+        cells = np.asarray(arrays["bub_cells"]).astype(np.int64)
+        q, w = (float(v) for v in np.asarray(arrays["bub_q"], dtype=np.float64).ravel())
+        zz = _unpack_bits(arrays["bub_codes"], cells.size, int(w), "bubble heights")
+        k = np.where(zz % 2 == 0, zz // 2, -(zz + 1) // 2)
+        return cells, k * q
 
     def _window_arrays(self) -> dict[str, np.ndarray]:
         """The windows as stored: one bit per e-edge, and per windowed edge the first full
@@ -1064,8 +1136,12 @@ class EZMap:
             missing.add("step")
         if "codes" not in arrays and "codes_bits" not in arrays:
             missing.add("codes")
-        missing |= ({"edge_bits", "counts"} if "edge_bits" in arrays or "counts" in arrays
-                    else {"edge_ids", "offsets"}) - set(arrays)
+        if "edge_bits" in arrays:
+            missing |= set() if "counts" in arrays else {"counts_b", "counts_w"} - set(arrays)
+        elif "counts" in arrays:
+            missing.add("edge_bits")
+        else:
+            missing |= {"edge_ids", "offsets"} - set(arrays)
         if missing:
             raise ValueError(f"e-map arrays lack {sorted(missing)}, got {sorted(arrays)}")
         version = int(np.asarray(arrays["version"]).ravel()[0])
@@ -1082,7 +1158,9 @@ class EZMap:
             nx, ny = int(s[0]), int(s[1])
             bits = np.unpackbits(np.asarray(arrays["edge_bits"], dtype=np.uint8), count=edge_count(nx, ny))
             edge_ids = np.flatnonzero(bits).astype(np.int64)
-            counts = np.asarray(arrays["counts"]).astype(np.int64)
+            counts = (_unpack_bits(arrays["counts_b"], edge_ids.size, int(np.asarray(arrays["counts_w"]).ravel()[0]),
+                                   "point counts") if "counts_b" in arrays
+                      else np.asarray(arrays["counts"]).astype(np.int64))
             if counts.shape != edge_ids.shape:
                 raise ValueError(f"e-map arrays: {counts.size} point counts for {edge_ids.size} edges")
             offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
@@ -1093,10 +1171,11 @@ class EZMap:
             edge_ids, offsets, win = arrays["edge_ids"], arrays["offsets"], None
         codes = (unpack_codes(arrays["codes_bits"], arrays["codes_w4"], offsets, arrays.get("codes_mode"),
                               arrays.get("codes_r4")) if "codes_bits" in arrays else arrays["codes"])
+        bub_cells, bub_h = cls._bubbles_from(arrays)
         return cls(g[0], g[1], g[2], g[3], int(s[0]), int(s[1]), g[4], g[5], edge_ids, offsets,
                    codes, unpack_offsets(arrays, edge_ids.size), _unpack_steps(arrays, edge_ids.size), failed=int(s[2]), lifted=int(s[3]) if s.size > 3 else 0,
                    patches=patches, unresolved=int(s[4]) if s.size > 4 else 0, pruned=int(s[5]) if s.size > 5 else 0,
-                   win=win)
+                   win=win, bub_cells=bub_cells, bub_h=bub_h)
 
 
 def code_patch(m: int, nodes: np.ndarray, heights: np.ndarray, counts: np.ndarray, quantum: float = 0.0) -> tuple:
@@ -1234,12 +1313,20 @@ def _patch_chords(level: np.ndarray, node_off: np.ndarray, edge_off: np.ndarray,
 
 
 def _patch_segments(seg: np.ndarray, nn: np.ndarray, edge_off: np.ndarray, counts: np.ndarray,
-                    raw: np.ndarray) -> np.ndarray:
+                    raw: np.ndarray, level: np.ndarray | None = None) -> np.ndarray:
     """Offsets of the bit stream's segments of the cell patches: a plain patch (``raw``) is
-    one (its nodes then its codes), any other its nodes, then each sub-edge that holds codes."""
+    one (its nodes then its codes), any other its nodes, then each sub-edge that holds codes;
+    with ``level`` (format 6) its nodes a row of the sub-grid a segment."""
     total = int(seg[-1])
     start = np.zeros(total + 1, dtype=bool)
     start[seg[:-1]] = True
+    if level is not None:
+        m = np.asarray(level, dtype=np.int64)
+        rows = np.flatnonzero(~np.asarray(raw, dtype=bool) & (m > 0) & (nn > 0))
+        if rows.size:
+            r = np.repeat(rows, m[rows])  # rows 1..m of each sub-grid
+            k = np.arange(r.size) - np.repeat(np.cumsum(m[rows]) - m[rows], m[rows]) + 1
+            start[seg[r] + k * (m[r] + 1)] = True
     K = nn.size
     counts = np.asarray(counts, dtype=np.int64)
     kk = np.repeat(np.arange(K), np.diff(edge_off))
@@ -1411,10 +1498,19 @@ class CellPatches:
             allc[at_code[where[use]]] = zz[use]
         packed = {f"codes_{k}": v for k, v in pack_codes(allc.astype(np.uint16),
                                                          _patch_segments(seg, nn, self.edge_off, self.counts,
-                                                                         raw)).items()}
+                                                                         raw, self.level)).items()}
         level = self.level.astype(np.int8) if K == 0 or int(np.abs(self.level).max()) < 128 else self.level
-        return {"cells": _narrow(self.cells), "level": level, "lo": lo, "step": _stored_step(step),
-                "codes_raw": np.packbits(raw)} | packed | _pack_counts(self.counts) | subs
+        # format 6: the cells as the bits of their gaps, the quanta as the e-map's (one common
+        # value behind a bit each), the sub-grid nodes a row a segment (``node_rows``)
+        if K == 0:
+            cells = {"cells": _narrow(self.cells)}
+        else:
+            gaps = np.diff(np.concatenate([[0], self.cells]))
+            w = max(1, int(gaps.max()).bit_length())
+            cells = {"cells_w": np.array([w], dtype=np.uint8), "cells_gaps": _pack_bits(gaps, w),
+                     "node_rows": np.ones(1, dtype=np.uint8)}
+        return (cells | {"level": level, "lo": lo, "codes_raw": np.packbits(raw)} | _pack_steps(step) | packed
+                | _pack_counts(self.counts) | subs)
 
     @classmethod
     def from_arrays(cls, a: dict[str, np.ndarray], grid: tuple[float, float, float] | None = None) -> CellPatches:
@@ -1445,7 +1541,11 @@ class CellPatches:
         if edge_off[-1] != counts.size:
             raise ValueError(f"cell patches: {counts.size} counts for the {edge_off[-1]} sub-edges of the levels")
         K = m.size
-        lo_p, st_p = np.asarray(a["lo"], dtype=np.float32), np.asarray(a["step"], dtype=np.float32)
+        lo_p, st_p = np.asarray(a["lo"], dtype=np.float32), _unpack_steps(a, K)
+        if "cells_gaps" in a:  # format 6
+            cells = np.cumsum(_unpack_bits(a["cells_gaps"], K, int(np.asarray(a["cells_w"]).ravel()[0]), "cells"))
+        else:
+            cells = np.asarray(a["cells"], dtype=np.int64)
         node_off = off(np.where(ez, (m + 1) ** 2, 0))
         code_off = off(np.where(ez, _segment_sums(counts, edge_off), (1 - m) ** 2))
         if "codes_bits" in a:
@@ -1453,7 +1553,8 @@ class CellPatches:
             seg = off(nn + ncs)
             raw = (np.unpackbits(np.asarray(a["codes_raw"], dtype=np.uint8), count=K).astype(bool)
                    if "codes_raw" in a else np.ones(K, dtype=bool))
-            allc = unpack_codes(a["codes_bits"], a["codes_w4"], _patch_segments(seg, nn, edge_off, counts, raw),
+            allc = unpack_codes(a["codes_bits"], a["codes_w4"],
+                                _patch_segments(seg, nn, edge_off, counts, raw, m if "node_rows" in a else None),
                                 a.get("codes_mode"), a.get("codes_r4"))
             nc = allc[np.repeat(seg[:-1] - node_off[:-1], nn) + np.arange(int(node_off[-1]))]
             codes = allc[np.repeat(seg[:-1] + nn - code_off[:-1], ncs) + np.arange(int(code_off[-1]))].astype(np.int64)
@@ -1478,7 +1579,7 @@ class CellPatches:
         ke = np.repeat(np.arange(K), np.diff(edge_off))
         subs = SubLattices.from_arrays({k[4:]: v for k, v in a.items() if k.startswith("sub_")}) if any(
             k.startswith("sub_") for k in a) else None
-        return cls(a["cells"], a["level"], node_off, nodes, code_off, codes, edge_off, lo_p[ke], st_p[ke],
+        return cls(cells, a["level"], node_off, nodes, code_off, codes, edge_off, lo_p[ke], st_p[ke],
                    counts, subs=subs)
 
     # ---- evaluation -----------------------------------------------------------------------
@@ -1644,15 +1745,21 @@ class SubLattices:
         return int(self.keys.shape[0])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        seg = np.arange(self.n + 1, dtype=np.int64) * (int(self.mn[1]) + 1) ** 2
-        return {"mn": self.mn, "keys": _narrow(self.keys), "step": _stored_step(self.step)} | pack_offsets(
-            self.lo, self.quantum) | {f"codes_{k}": v for k, v in pack_codes(self.codes, seg).items()}
+        """Stored arrays: each lattice row's codes a segment of :func:`pack_codes` (format 6,
+        ``rows``; a row across a wall needs wide codes, the others few bits: on the Ventilator
+        43 KB against 58 KB a lattice a segment), the offsets on the quantum's lattice."""
+        seg = np.arange(self.n * (int(self.mn[1]) + 1) + 1, dtype=np.int64) * (int(self.mn[1]) + 1)
+        return {"mn": self.mn, "keys": _narrow(self.keys), "step": _stored_step(self.step),
+                "rows": np.ones(1, dtype=np.uint8)} | pack_offsets(self.lo, self.quantum) | {
+            f"codes_{k}": v for k, v in pack_codes(self.codes, seg).items()}
 
     @classmethod
     def from_arrays(cls, a: dict[str, np.ndarray]) -> SubLattices:
         if "codes_bits" in a:
             mn = np.asarray(a["mn"], dtype=np.int64).ravel()
-            seg = np.arange(np.asarray(a["keys"]).size + 1, dtype=np.int64) * (int(mn[1]) + 1) ** 2
+            S, n1 = np.asarray(a["keys"]).size, int(mn[1]) + 1
+            seg = (np.arange(S * n1 + 1, dtype=np.int64) * n1 if "rows" in a  # format 6: a row a segment
+                   else np.arange(S + 1, dtype=np.int64) * n1 * n1)
             codes = unpack_codes(a["codes_bits"], a["codes_w4"], seg, a.get("codes_mode"), a.get("codes_r4"))
         else:
             codes = a["codes"]

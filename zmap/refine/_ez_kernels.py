@@ -834,9 +834,11 @@ def _arc_sagitta(ax, ay, p1x, p1y, p2x, p2y):
 
 
 @njit(cache=True)
-def _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy, broken):
-    """Bilinearly blended Coons patch of the cell's four boundary curves; ``broken`` (a
-    cell with breaks but no single trace) clamps it to the range of the four curves."""
+def _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy, broken, bub):
+    """Bilinearly blended Coons patch of the cell's four boundary curves, plus ``bub`` times
+    the bubble ``16 u (1-u) v (1-v)`` (the cell's centre height correction, 0 for none);
+    ``broken`` (a cell with breaks but no single trace) clamps it to the range of the four
+    curves."""
     bot = _edge_value(z, i, j, 0, u, 0, slots[c, 0], edge_ids, offsets, hq, brk_kind, brk_t, dx, dy)
     rgt = _edge_value(z, i, j, 1, v, 0, slots[c, 1], edge_ids, offsets, hq, brk_kind, brk_t, dx, dy)
     top = _edge_value(z, i, j, 2, u, 0, slots[c, 2], edge_ids, offsets, hq, brk_kind, brk_t, dx, dy)
@@ -844,6 +846,8 @@ def _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, 
     bil = ((1.0 - u) * ((1.0 - v) * z[i, j] + v * z[i, j + 1])
            + u * ((1.0 - v) * z[i + 1, j] + v * z[i + 1, j + 1]))
     h = (1.0 - v) * bot + v * top + (1.0 - u) * lft + u * rgt - bil
+    if bub != 0.0:
+        h += bub * 16.0 * u * (1.0 - u) * v * (1.0 - v)
     if broken:
         # boundary curves with jumps at unmatched places: keep within their values
         lo = min(min(bot, top), min(lft, rgt))
@@ -975,8 +979,9 @@ def _hit(z, i, j, X, Y, lam, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, ed
 
 @njit(cache=True, parallel=True)
 def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, hq, brk_kind, brk_t,
-              ecell_ids, slots, nb, bk, bt, pts, arc, out):
-    """EZ hq at every query point; NaN outside e-cells (the caller uses the base)."""
+              ecell_ids, slots, nb, bk, bt, pts, arc, bub, out):
+    """EZ hq at every query point; NaN outside e-cells (the caller uses the base); ``bub``:
+    each e-cell's bubble height (:func:`_coons`)."""
     nx, ny = z.shape
     for p in prange(xs.shape[0]):
         i, j, u, v = _locate(xs[p], ys[p], x0, y0, dx, dy, cs, sn, ox, oy, nx, ny)
@@ -990,7 +995,7 @@ def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, hq, 
         if nb[c] == 2 and (pts[c, 0, 0] != pts[c, 2, 0] or pts[c, 0, 1] != pts[c, 2, 1]):
             out[p] = _split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, bk, bt, pts, arc, dx, dy)
         else:
-            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy, nb[c] > 0)
+            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy, nb[c] > 0, bub[c])
 
 
 #: :func:`ez_kernel` on one thread: for small batches (a cell patch's few points), where
@@ -1024,7 +1029,8 @@ def patch_kernel(zs, x0s, y0s, dx, dy, cs, sn, ox, oy, xs, ys, ks, edge_ids, off
             out[p] = _split(z, i, j, u, v, c, slots, edge_ids, off, hq, brk_kind[k], brk_t[k], bk[k], bt[k], pts[k],
                             arc[k], dx, dy)
         else:
-            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, off, hq, brk_kind[k], brk_t[k], dx, dy, nb[k, c] > 0)
+            out[p] = _coons(z, i, j, u, v, c, slots, edge_ids, off, hq, brk_kind[k], brk_t[k], dx, dy, nb[k, c] > 0,
+                            0.0)
 
 
 #: :func:`patch_kernel` on one thread, for small batches

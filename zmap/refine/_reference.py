@@ -191,6 +191,7 @@ def evaluate(ez, base: ZMap, x, y) -> np.ndarray:
                    + u * v * zc[i + 1, j + 1])
             b, r, t, l_ = value(0, u), value(1, v), value(2, u), value(3, v)
             h = (1 - v) * b + v * t + (1 - u) * l_ + u * r - bil
+            h += tables["bub"][c] * 16 * u * (1 - u) * v * (1 - v)  # the cell's bubble (0: none)
             if breaks:  # breaks but no single trace: kept within the four curves' values
                 h = min(max(h, min(b, r, t, l_)), max(b, r, t, l_))
             out[idx] = h

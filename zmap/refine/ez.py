@@ -232,10 +232,39 @@ def build_ez(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray]
 
         a = ez._tables(base) if ez.n_edges else None
         broken = a["ecell_ids"][a["nb"] > 0] if a is not None else None
-        _patches, still = patch_failing(lambda x, y: ez.height(base, x, y), base, heights, tol, interval, cells,
-                                        install, fine_cells=broken, thin=THIN_SHARE * tol if thin else None)
+        model = lambda x, y: ez.height(base, x, y)  # noqa: E731
+        _patches, still = patch_failing(model, base, heights, tol, interval, cells, install, fine_cells=broken,
+                                        thin=THIN_SHARE * tol if thin else None,
+                                        bubbles=lambda bad: _bubbles(ez, base, heights, tol, bad, model))
         ez.unresolved = int(still.size)
     return ez
+
+
+def _bubbles(ez: EZMap, base: ZMap, heights: Callable, tol: float, bad: np.ndarray, model: Callable) -> np.ndarray:
+    """Give the Coons cells among ``bad`` a bubble (their exact centre height less the
+    patch's, in whole quanta) and keep it where the cell then holds on the fine test
+    lattice (as a patch is tested); returns the cells of ``bad`` still missing."""
+    from .patch import CHECK_SHARE, TEST_POINTS, failing_cells
+
+    cells = ez.coons_cells(base, bad)
+    if cells.size == 0:
+        return bad
+    ci, cj = np.divmod(cells, base.ny - 1)
+    wx, wy = base.local_to_world(base.x0 + (ci + 0.5) * base.dx, base.y0 + (cj + 0.5) * base.dy)
+    r = np.asarray(heights(wx, wy), dtype=np.float64) - np.asarray(model(wx, wy), dtype=np.float64)
+    q = QUANTUM_SHARE * tol
+    with np.errstate(invalid="ignore"):
+        k = np.where(np.isfinite(r), np.rint(r / q), 0.0)
+    on = k != 0
+    if not on.any():
+        return bad
+    ez.bub_cells, ez.bub_h = cells[on], k[on] * q
+    ez._cache = {}
+    still = failing_cells(model, base, heights, CHECK_SHARE * tol, ez.bub_cells, 4 * TEST_POINTS)
+    keep = ~np.isin(ez.bub_cells, still)
+    ez.bub_cells, ez.bub_h = ez.bub_cells[keep], ez.bub_h[keep]
+    ez._cache = {}
+    return np.setdiff1d(bad, ez.bub_cells)
 
 
 #: probe points per steep edge, at t = q / (PROBES + 1)

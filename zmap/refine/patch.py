@@ -323,7 +323,8 @@ def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: floa
                   cells: np.ndarray, set_patches: Callable[[CellPatches], None],
                   levels: tuple[int, ...] | None = None, n: int = TEST_POINTS,
                   fine_cells: np.ndarray | None = None, lattice: bool = True,
-                  thin: float | None = None) -> tuple[CellPatches, np.ndarray]:
+                  thin: float | None = None,
+                  bubbles: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[CellPatches, np.ndarray]:
     """Test ``cells``, patch the misses level by level; returns the patches and the cells still off.
 
     ``set_patches`` installs a :class:`CellPatches` in the model that ``model_height``
@@ -332,7 +333,9 @@ def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: floa
     fine: a Coons cell split along a wall can miss by a sliver next to the wall that an
     ``n x n`` lattice steps over. ``levels`` (default :func:`patch_levels`) are the EZ patch
     levels tried in turn; ``lattice`` adds the dense lattice as the last resort; ``thin``
-    (mm) thins the patches' smooth sub-edges (:func:`build_patches`).
+    (mm) thins the patches' smooth sub-edges (:func:`build_patches`). ``bubbles(bad)``, called
+    with the cells that miss before any patch is built, may fix some more cheaply (the
+    EZ-map's bubbles, :func:`zmap.refine.ez.build_ez`) and returns those still missing.
     """
     per_cell: dict[int, tuple] = {}
     tol_check = CHECK_SHARE * tol
@@ -345,6 +348,8 @@ def patch_failing(model_height: Heights, base: ZMap, heights: Heights, tol: floa
                          failing_cells(model_height, base, heights, tol_check, cells[fine], 4 * n))
     else:
         bad = failing_cells(model_height, base, heights, tol_check, cells, n)
+    if bubbles is not None and bad.size:
+        bad = np.asarray(bubbles(bad), dtype=np.int64)
     patches = CellPatches.empty()
     for m in levels + ((0,) if lattice else ()):
         if bad.size == 0:

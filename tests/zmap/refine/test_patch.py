@@ -181,8 +181,13 @@ def test_bad_patch_arrays():
     bad = dict(old, codes=p.codes[:-1], node_codes=node_codes)
     with pytest.raises(ValueError, match="offsets"):
         CellPatches.from_arrays(bad)
+    # format 6 stores the cells as the bits of their gaps; format 5 as ids
+    ids = {k: v for k, v in a.items() if k not in ("cells_gaps", "cells_w")}
+    assert np.array_equal(CellPatches.from_arrays(ids | {"cells": p.cells.astype(np.uint32)}).cells, p.cells)
     with pytest.raises(ValueError, match="increasing"):
-        CellPatches.from_arrays(dict(a, cells=a["cells"][::-1].copy()))
+        CellPatches.from_arrays(ids | {"cells": p.cells[::-1].astype(np.uint32)})
+    with pytest.raises(ValueError, match="cells"):
+        CellPatches.from_arrays(dict(a, cells_gaps=a["cells_gaps"][:-1]))
 
 
 def test_stacked_kernel_matches_each_patch_on_its_own():
@@ -298,6 +303,15 @@ def test_sub_lattices_over_the_missing_sub_cells_hold_tol_and_cost_less(tmp_path
     back = PrecisionModel.load(m_.save(tmp_path / "subs.zpm"))
     assert back.ez.patches.subs is not None and np.array_equal(back.ez.patches.subs.keys, subs.keys)
     assert np.array_equal(back.height(x, y), m_.height(x, y), equal_nan=True)
+    # format 6 packs a lattice row a segment; format 5's lattice a segment still loads
+    from zmap.refine._emap import SubLattices, pack_codes
+
+    a = subs.to_arrays()
+    assert "rows" in a
+    f5 = {k: v for k, v in a.items() if k != "rows" and not k.startswith("codes_")} | {
+        f"codes_{k}": v for k, v in pack_codes(subs.codes, np.arange(subs.n + 1) * (n + 1) ** 2).items()}
+    old = SubLattices.from_arrays(f5)
+    assert np.array_equal(old.codes, subs.codes) and np.array_equal(old.lo, subs.lo)
 
 
 def test_misfit_holds_gentle_slopes_to_tol_vertically():
