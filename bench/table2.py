@@ -271,7 +271,8 @@ def markdown(res: dict) -> str:
         ("", "CZ inside domains", lambda r: _fmt(r["max_dist_in_cz"])),
         ("Max 3D distance, edges at the file's tolerance (mm)", "EZ",
          lambda r: _fmt(r["max_dist_own_tolerance"].get("ez")) + (
-             f" (edges up to {r['largest_tolerance_used']['ez']:.4f})" if r["largest_tolerance_used"].get("ez") else "")),
+             f" (edges up to {r['largest_tolerance_used']['ez']:.4f})"
+             if (r["largest_tolerance_used"].get("ez") or 0.0) > 1e-5 else "")),
         ("Max distance to the top-most surface (mm)", "base", lambda r: _fmt(r["max_dist_topmost"]["base"])),
         ("", "EZ", lambda r: _fmt(r["max_dist_topmost"].get("ez"))),
         ("", "CZ", lambda r: _fmt(r["max_dist_topmost"].get("cz"))),
