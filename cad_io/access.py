@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from cad_io.distance import faces_compound
 from cad_io.part import Part
 from zmap.access.voxelmap import (AccessModelError, AccessResult, Tool, VoxelMap, accessibility,
                                   global_visibility, set_cover, three_axis)
@@ -250,22 +251,6 @@ def read_part(path) -> Part:
 # the independent reference (OCC)
 
 
-def _faces_compound(shape: Any):
-    from OCP.BRep import BRep_Builder
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS_Compound
-
-    comp = TopoDS_Compound()
-    b = BRep_Builder()
-    b.MakeCompound(comp)
-    ex = TopExp_Explorer(shape, TopAbs_FACE)
-    while ex.More():
-        b.Add(comp, ex.Current())
-        ex.Next()
-    return comp
-
-
 def reference_visibility(shape: Any, points, directions, *, offset: float = 1e-4,
                          far: float = 1e4) -> tuple[np.ndarray, np.ndarray]:
     """Thin-ray visibility by OCC: is the ray from each point along each direction free?
@@ -290,7 +275,7 @@ def reference_visibility(shape: Any, points, directions, *, offset: float = 1e-4
 
     shape = getattr(shape, "wrapped", shape)
     inter = IntCurvesFace_ShapeIntersector()
-    inter.Load(_faces_compound(shape), 1e-7)
+    inter.Load(faces_compound(shape), 1e-7)
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     dirs = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
     hit = np.full((len(pts), len(dirs)), np.inf)
@@ -334,7 +319,7 @@ def reference_tool(shape: Any, points, normals, directions, tool: Tool, *, tol: 
     nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     dirs = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
     out = np.zeros((len(pts), len(dirs)), dtype=bool)
-    faces = _faces_compound(shape)
+    faces = faces_compound(shape)
 
     def dist(p0, p1) -> float:
         if np.allclose(p0, p1):

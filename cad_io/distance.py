@@ -20,7 +20,8 @@ import numpy as np
 
 from .part import Part
 
-__all__ = ["DEFLECTION", "distance_to_part", "occ_distance", "confirm_with_occ"]
+__all__ = ["DEFLECTION", "distance_to_part", "faces_compound", "occ_distance", "occ_distance_own_tolerance",
+           "confirm_with_occ"]
 
 #: default mesh deflection, mm: bounds the error where the mesh answers
 DEFLECTION = 0.002
@@ -208,16 +209,10 @@ def distance_to_part(part: Part, points: Any, *, deflection: float | None = None
     return (out, exact) if return_exact else out
 
 
-def occ_distance(shape: Any, points: Any) -> np.ndarray:
-    """Exact distance from each point to the faces of an OCP shape (BRepExtrema_DistShapeShape).
-
-    Measured to the faces, not the solid (a point inside a solid is at 0 from it). About a
-    millisecond a point: the reference for checks, not for 10^5 points.
-    """
+def faces_compound(shape: Any) -> Any:
+    """A compound of the faces of an OCP shape: distances to it are to the faces, not the
+    solid (a point inside a solid is at 0 from the solid)."""
     from OCP.BRep import BRep_Builder
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
-    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
-    from OCP.gp import gp_Pnt
     from OCP.TopAbs import TopAbs_FACE
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopoDS import TopoDS_Compound
@@ -229,6 +224,20 @@ def occ_distance(shape: Any, points: Any) -> np.ndarray:
     while ex.More():
         builder.Add(comp, ex.Current())
         ex.Next()
+    return comp
+
+
+def occ_distance(shape: Any, points: Any) -> np.ndarray:
+    """Exact distance from each point to the faces of an OCP shape (BRepExtrema_DistShapeShape).
+
+    Measured to the faces, not the solid (a point inside a solid is at 0 from it). About a
+    millisecond a point: the reference for checks, not for 10^5 points.
+    """
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.gp import gp_Pnt
+
+    comp = faces_compound(shape)
     out = []
     for p in np.asarray(points, dtype=np.float64).reshape(-1, 3):
         v = BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, p))).Vertex()
@@ -254,21 +263,14 @@ def occ_distance_own_tolerance(shape: Any, points: Any) -> tuple[np.ndarray, np.
     >>> round(float(d[0]), 9), bool(t[0] < 1e-3)
     (1.0, True)
     """
-    from OCP.BRep import BRep_Builder, BRep_Tool
+    from OCP.BRep import BRep_Tool
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
     from OCP.BRepExtrema import BRepExtrema_DistShapeShape
     from OCP.gp import gp_Pnt
     from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_VERTEX
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS, TopoDS_Compound
+    from OCP.TopoDS import TopoDS
 
-    comp = TopoDS_Compound()
-    builder = BRep_Builder()
-    builder.MakeCompound(comp)
-    ex = TopExp_Explorer(shape, TopAbs_FACE)
-    while ex.More():
-        builder.Add(comp, ex.Current())
-        ex.Next()
+    comp = faces_compound(shape)
     tol_of = {TopAbs_EDGE: lambda s: BRep_Tool.Tolerance_s(TopoDS.Edge_s(s)),
               TopAbs_VERTEX: lambda s: BRep_Tool.Tolerance_s(TopoDS.Vertex_s(s)),
               TopAbs_FACE: lambda s: BRep_Tool.Tolerance_s(TopoDS.Face_s(s))}
