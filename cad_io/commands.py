@@ -375,8 +375,7 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
         above = above[np.argsort(-d[above], kind="stable")][:2000]  # as confirm_with_occ, largest first
         own_tol = 0.0
         if name != "base" and above.size and part.shape is not None:
-            pts_all = np.c_[xs, ys, h]
-            do, to = occ_distance_own_tolerance(part.shape, pts_all[above])
+            do, to = occ_distance_own_tolerance(part.shape, np.c_[xs[above], ys[above], h[above]])
             d_own[above] = np.maximum(do - to, 0.0)
             moved = d[above] - d_own[above] > 1e-9
             own_tol = float(np.max(to[moved], initial=0.0))

@@ -59,8 +59,8 @@ def patch_levels(base: ZMap, tol: float, interval: float) -> tuple[int, ...]:
     sub-cell at least three e-map intervals long."""
     h = min(base.dx, base.dy)
     finest = h / (PATCH_SUBCELLS[-1] * tol)
-    # level 2 first: on the Ventilator (grid 0.5) it holds 786 of the 1,231 cells that miss,
-    # at 60 codes a cell against a level-4 patch's 79
+    # level 2 first: on the Ventilator (grid 0.5) it holds most of the cells that miss, at 60
+    # codes a cell against a level-4 patch's 79
     levels = [2]
     while 2 * levels[-1] <= finest * (1 + 1e-9):
         levels.append(2 * levels[-1])
