@@ -169,6 +169,11 @@ def _lattice_offsets(lo: np.ndarray, quantum: float) -> np.ndarray:
     return out
 
 
+def _bit_width(v: np.ndarray) -> int:
+    """Bits that hold the largest of the non-negative integers ``v`` (at least 1)."""
+    return max(1, int(np.max(v)).bit_length()) if np.size(v) else 1
+
+
 def _pack_bits(v: np.ndarray, w: int) -> np.ndarray:
     """Non-negative integers below ``2**w`` in ``w`` bits each, MSB first, packed."""
     v = np.asarray(v, dtype=np.int64)
@@ -197,19 +202,19 @@ def pack_offsets(lo: np.ndarray, quantum: float) -> dict[str, np.ndarray]:
     if k.max() >= 2.0 ** 31 or not np.array_equal((origin + k * quantum).astype(np.float32), lo):
         return {"lo": lo}
     k = k.astype(np.int64)
-    w = max(1, int(k.max()).bit_length())
+    w = _bit_width(k)
     return {"lo_lattice": np.array([origin, quantum, w], dtype=np.float64), "lo_k": _pack_bits(k, w)}
 
 
-def unpack_offsets(arrays: dict, count: int, prefix: str = "") -> np.ndarray:
-    """Inverse of :func:`pack_offsets` (keys with ``prefix``): ``count`` float32 offsets."""
-    if prefix + "lo_k" not in arrays:
-        lo = np.asarray(arrays[prefix + "lo"], dtype=np.float32)
+def unpack_offsets(arrays: dict, count: int) -> np.ndarray:
+    """Inverse of :func:`pack_offsets`: ``count`` float32 offsets."""
+    if "lo_k" not in arrays:
+        lo = np.asarray(arrays["lo"], dtype=np.float32)
         if lo.shape != (count,):
             raise ValueError(f"e-map arrays: {lo.size} offsets for {count} segments")
         return lo
-    origin, quantum, w = (float(v) for v in np.asarray(arrays[prefix + "lo_lattice"], dtype=np.float64).ravel())
-    k = _unpack_bits(arrays[prefix + "lo_k"], count, int(w), "offsets")
+    origin, quantum, w = (float(v) for v in np.asarray(arrays["lo_lattice"], dtype=np.float64).ravel())
+    k = _unpack_bits(arrays["lo_k"], count, int(w), "offsets")
     return (origin + k * quantum).astype(np.float32)
 
 
@@ -932,7 +937,6 @@ class EZMap:
         a = self._tables(base)
         return a["brk_kind"].copy(), a["brk_t"].copy()
 
-
     def coons_cells(self, base: ZMap, cells: np.ndarray) -> np.ndarray:
         """The ``cells`` (flat ids) that :meth:`evaluate` answers with a Coons patch (e-cells
         not split by a trace), sorted."""
@@ -1042,7 +1046,7 @@ class EZMap:
         """E-points stored per e-edge: in the bits the largest needs (``counts_b``, width
         ``counts_w``; format 6), or a byte each where that is no larger (``counts``)."""
         n = np.diff(self.offsets)
-        w = max(1, int(n.max()).bit_length()) if n.size else 8
+        w = _bit_width(n)
         if w >= 8 or n.size < 16:
             return {"counts": n.astype(np.uint8 if n.size == 0 or n.max() < 256 else np.uint16)}
         return {"counts_w": np.array([w], dtype=np.uint8), "counts_b": _pack_bits(n, w)}
@@ -1057,7 +1061,7 @@ class EZMap:
         if not np.array_equal(k * q, self.bub_h):
             raise ValueError("bubbles: heights must be whole quanta of QUANTUM_SHARE * tol")
         zz = np.where(k >= 0, 2 * k, -2 * k - 1)
-        w = max(1, int(zz.max()).bit_length())
+        w = _bit_width(zz)
         return {"bub_cells": _narrow(self.bub_cells), "bub_q": np.array([q, w], dtype=np.float64),
                 "bub_codes": _pack_bits(zz, w)}
 
@@ -1223,7 +1227,7 @@ def _pack_counts(counts: np.ndarray) -> dict[str, np.ndarray]:
         # longer sub-edges (level 2 at grid 0.5, finer sub-grids of a coarse base: up to 24
         # points): the non-zero counts minus one in the bits the largest needs (format 6)
         v = c[c > 0].astype(np.int64) - 1
-        w = max(1, int(v.max()).bit_length()) if v.size else 1
+        w = _bit_width(v)
         return {"counts_nz": np.packbits(c > 0), "counts_bw": np.array([w], dtype=np.uint8),
                 "countsbnz": _pack_bits(v, w)}
     return {"counts": c.astype(np.uint8 if c.size == 0 or int(c.max()) < 256 else np.uint16)}
@@ -1506,7 +1510,7 @@ class CellPatches:
             cells = {"cells": _narrow(self.cells)}
         else:
             gaps = np.diff(np.concatenate([[0], self.cells]))
-            w = max(1, int(gaps.max()).bit_length())
+            w = _bit_width(gaps)
             cells = {"cells_w": np.array([w], dtype=np.uint8), "cells_gaps": _pack_bits(gaps, w),
                      "node_rows": np.ones(1, dtype=np.uint8)}
         return (cells | {"level": level, "lo": lo, "codes_raw": np.packbits(raw)} | _pack_steps(step) | packed
