@@ -20,7 +20,7 @@ from numba import njit, prange
 from ._nurbs_kernels import _gauss_newton, _stack_f64, find_span
 
 __all__ = ["count_pairs", "count_pairs_xy", "eval_d1", "fill_pairs", "fill_pairs_xy", "in_tolerance", "mesh_distance",
-           "point_in_bands", "point_in_loops", "project_candidates", "reduce_pairs", "solve_pairs", "solve_pairs_xy"]
+           "point_in_bands", "point_in_loops", "points_in_loops", "project_candidates", "reduce_pairs", "solve_pairs", "solve_pairs_xy"]
 
 #: triangles whose xy area is below this share of their squared longest edge are treated
 #: as vertical (they cover no grid point)
@@ -153,6 +153,14 @@ def point_in_loops(u, v, loop_uv, loop_off, first, last, eps):
             if hit == 1:
                 inside = not inside
     return inside
+
+
+@njit(cache=True, parallel=True)
+def points_in_loops(us, vs, loop_uv, loop_off, eps, out):
+    """:func:`point_in_loops` of every ``(us[i], vs[i])`` against all loops, into ``out`` (bool)."""
+    n_loops = loop_off.shape[0] - 1
+    for i in prange(us.shape[0]):
+        out[i] = point_in_loops(us[i], vs[i], loop_uv, loop_off, 0, n_loops, eps)
 
 
 @njit(cache=True, _nrt=False)

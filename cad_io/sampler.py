@@ -563,6 +563,7 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
     without a (u, v) triangulation get a uv lattice; faces without a usable NURBS go to
     facets. ``msgs`` says which faces took which path.
     """
+    from .mesh import trimmed_grid_mesh
     from .nurbs import pack
 
     msgs: list[str] = []
@@ -623,8 +624,20 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
         # about twice the sag on a sound mesh: only a mesh off by more is taken at its error;
         # otherwise the margins grew by 9% of the die's pairs for nothing)
         md = m.deflection
+        regrid = False
         if errors.get(k, 0.0) > MESH_ERROR_SHARE * m.deflection:
             md = errors[k]
+            if m.uv is not None and f.loops is not None:
+                # BRepMesh missed the deflection (it meshes at about twice the edges'
+                # tolerance: trj8's faces 0.4-0.6 mm off at 10 um asked): a (u, v) grid of
+                # exact surface points instead, over the trimmed region and the edges'
+                # tolerance band beyond it. With BRepMesh's triangles and margins of twice
+                # their error, trj8's e-points paired 28 triangles each on its worst faces
+                # and Newton ran 55 us a pair
+                m = trimmed_grid_mesh(f, m.deflection, float(getattr(f, "tolerance", 0.0) or 0.0)
+                                      + BOUNDARY_MARGIN * m.deflection)
+                md = max(m.deflection, deflection * 1e-3)
+                regrid = True
         if surfaces[k] is not None and m.uv is not None:
             fs.face_mode[k] = 1
             fs.face_zgap[k] = np.inf if on_lattice else max(20.0 * max(md, deflection), 1e-6)
@@ -636,14 +649,18 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
         tris_l.append(tri + n_nodes)
         tface_l.append(np.full(len(tri), k, dtype=np.int64))
         # a lattice covers the untrimmed domain: every solution is tested against the loops
-        check = np.ones(len(tri), dtype=np.bool_) if on_lattice else _boundary_triangles(tri)
+        outline = _boundary_triangles(tri)
+        # a lattice or grid covers more than the trimmed face: every solution is tested
+        check = np.ones(len(tri), dtype=np.bool_) if on_lattice or regrid else outline.copy()
         if fs.face_mode[k] == 1 and not on_lattice:
             # a silhouette of the face seen from the view axis (a fold: the top of a torus
             # seen from the side, a fillet's tangent line) lies up to the deflection outside
             # the mesh's outline, where no triangle covers a grid row on it: steep triangles
             # by a fold pair with points that far outside too, and their solutions are
             # trim-tested
-            check |= _silhouette_triangles(np.asarray(m.nodes, dtype=np.float64), tri)
+            sil = _silhouette_triangles(np.asarray(m.nodes, dtype=np.float64), tri)
+            check |= sil
+            outline |= sil
         check_l.append(check)
         # a mesh's boundary polygon may cut up to its deflection inside a curved trim
         # boundary: boundary triangles of an exact face pair with points that far outside.
@@ -653,12 +670,13 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
         # with the same map
         md = md if md > 0 else deflection
         margin = BOUNDARY_MARGIN * md if fs.face_mode[k] == 1 else 0.0
-        if margin and f.topo is not None and float(getattr(f, "tolerance", 0.0)) > TRIM_SLACK_MM:
+        if margin and not regrid and f.topo is not None and float(getattr(f, "tolerance", 0.0)) > TRIM_SLACK_MM:
             # and as far as the edges' tolerance beyond the boundary, within which OCC's ray
             # cast still sees the face (:func:`_tolerance_band`; BRepMesh's error on such a
             # face, about twice the tolerance, mostly covers it already)
             margin = max(margin, md + float(f.tolerance))
-        margin_l.append(np.where(check, margin, 0.0))
+        # a grid reaches past the tolerance band itself: its own outline takes the margin
+        margin_l.append(np.where(outline if regrid else check, margin, 0.0))
         n_nodes += len(m.nodes)
     if tris_l:
         fs.nodes = np.ascontiguousarray(np.concatenate(nodes_l))
