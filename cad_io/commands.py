@@ -100,21 +100,39 @@ _NEEDS_PART = ("refinement needs the exact surface: pass --part PART.step, the S
 class _CountingHeights:
     """``heights(x, y)`` from the exact sampler that counts the points answered by facets."""
 
-    def __init__(self, part, deflection: float):
-        from cad_io.sampler import FACET, height_function
+    def __init__(self, part, deflection: float, *, base=None, tol: float = 0.0):
+        from cad_io.sampler import FACET
 
-        self._h = height_function(part, deflection=deflection)
+        self._part = part
+        self._deflection = deflection
         self._facet = FACET
+        self._base = base
+        self._tol = float(tol)
+        self._face_tol = np.array([float(getattr(f, "tolerance", 0.0) or 0.0) for f in part.faces])
         self.points = 0
         self.facet = 0
         self.empty = 0
+        self.bridged = 0
 
-    def __call__(self, x, y):
-        z = self._h(x, y)
-        m = self._h.last_method
+    def _sampled(self, x, y):
+        from cad_io.sampler import sample_points
+
+        z, face, m = sample_points(self._part, x, y, deflection=self._deflection)
         self.points += int(m.size)
         self.facet += int(np.count_nonzero(m == self._facet))
         self.empty += int(np.count_nonzero(m == 0))
+        return z, face
+
+    def __call__(self, x, y):
+        z, _face = self._sampled(x, y)
+        if self._base is not None and self._tol > 0:
+            # gaps between faces that meet within their edges' tolerance: the model spans
+            # them (:mod:`cad_io.cracks`)
+            from cad_io.cracks import bridge_cracks
+
+            xb, yb = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+            z, n = bridge_cracks(self._sampled, self._base, xb, yb, z, self._tol, self._face_tol)
+            self.bridged += n
         return z
 
 
@@ -174,7 +192,7 @@ def refine_models(part, base, tol: float, methods=("ez", "cz"), *, theta_x: floa
     eps_r = default_eps_r(tol, base.dx, base.dy)
     out = {}
     for method in methods:
-        h = _CountingHeights(part, deflection)
+        h = _CountingHeights(part, deflection, base=base if method == "ez" else None, tol=tol)
         t0 = time.perf_counter()
         if method == "ez":
             from zmap.refine.ez import build_ez
@@ -192,7 +210,7 @@ def refine_models(part, base, tol: float, methods=("ez", "cz"), *, theta_x: floa
                                                       "curves": len(curves)})
         else:
             raise ValueError(f"method={method!r} is not one of 'ez', 'cz'")
-        info = {"sampled": h.points, "facet": h.facet, "empty": h.empty,
+        info = {"sampled": h.points, "facet": h.facet, "empty": h.empty, "bridged": h.bridged,
                 "seconds": round(time.perf_counter() - t0, 3)}
         model.meta.update({"source": str(getattr(part, "source", "")), "facet_points": h.facet,
                            "deflection": deflection})
