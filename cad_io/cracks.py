@@ -27,8 +27,8 @@ __all__ = ["bridge_cracks"]
 
 
 def _cell_floor(base: ZMap, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Lowest node height of the base cell holding each point (NaN outside the map or where
-    a corner has no surface)."""
+    """Lowest node height of the base cell holding each point, over the corners with a
+    surface (NaN outside the map or where no corner has one)."""
     lx, ly = base.world_to_local(x, y) if base.has_frame else (x, y)
     fi = (lx - base.x0) / base.dx
     fj = (ly - base.y0) / base.dy
@@ -38,7 +38,8 @@ def _cell_floor(base: ZMap, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     z = base.z
     i1 = np.minimum(i + 1, base.nx - 1)
     j1 = np.minimum(j + 1, base.ny - 1)
-    floor = np.minimum(np.minimum(z[i, j], z[i1, j]), np.minimum(z[i, j1], z[i1, j1]))
+    # a corner without surface (the part's outline crosses the cell) does not count
+    floor = np.fmin(np.fmin(z[i, j], z[i1, j]), np.fmin(z[i, j1], z[i1, j1]))
     return np.where(inside, floor, np.nan)
 
 

@@ -111,3 +111,19 @@ def test_trj8_seam_crack_spanned():
     assert n == 2
     assert (np.abs(z[:2] - np.array([27.70, 27.55])) < 0.03).all(), z
     assert z[2] == z0[2]
+
+
+def test_crack_in_a_cell_by_the_outline_spanned():
+    """A cell with a corner off the part (the map's outline) still has its crack spanned:
+    trj8's faces 123 and 62 by the map's first row (y = -65.5 has no surface there)."""
+    h, sampler = _slot(1.2, 0.012)
+
+    def holed(x, y):
+        z, f = sampler(x, y)
+        return np.where(np.asarray(y) < 0.25, np.nan, z), f
+
+    base = ZMap.from_function(lambda x, y: holed(x, y)[0], (0, 0, 2, 2), 0.5)
+    assert np.isnan(base.z[:, 0]).all()
+    x, y = np.array([1.2]), np.array([0.4])
+    z, n = bridge_cracks(holed, base, x, y, holed(x, y)[0], TOL)
+    assert n == 1 and abs(z[0] - 1.12) < 1e-9
