@@ -195,10 +195,15 @@ def refine_models(part, base, tol: float, methods=("ez", "cz"), *, theta_x: floa
         h = _CountingHeights(part, deflection, base=base if method == "ez" else None, tol=tol)
         t0 = time.perf_counter()
         if method == "ez":
+            from cad_io.cracks import span_node_cracks
             from zmap.refine.ez import build_ez
 
-            ez = build_ez(base, h, tol=tol, eps_r=eps_r, se_curves=se)
-            model = PrecisionModel(base, ez=ez, meta={"method": "ez", "tol": tol, "eps_r": eps_r})
+            # nodes in cracks between faces take the surface across them in the model's own
+            # base (the master z-map keeps OCC's heights): a crack through a node made a funnel
+            base_ez, h.bridged = span_node_cracks(h._sampled, base, tol, h._face_tol)
+            h._base = base_ez
+            ez = build_ez(base_ez, h, tol=tol, eps_r=eps_r, se_curves=se)
+            model = PrecisionModel(base_ez, ez=ez, meta={"method": "ez", "tol": tol, "eps_r": eps_r})
         elif method == "cz":
             from zmap.refine.cz import build_cz
 

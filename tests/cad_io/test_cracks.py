@@ -127,3 +127,35 @@ def test_crack_in_a_cell_by_the_outline_spanned():
     x, y = np.array([1.2]), np.array([0.4])
     z, n = bridge_cracks(holed, base, x, y, holed(x, y)[0], TOL)
     assert n == 1 and abs(z[0] - 1.12) < 1e-9
+
+
+def test_node_in_a_crack_spanned_in_a_copy():
+    """A crack through a base node: the copy's node takes the plane across it, the master
+    map is left as it is; a node at the bottom of a real slot keeps its height."""
+    from cad_io.cracks import span_node_cracks
+
+    h, sampler = _slot(1.0, 0.012)
+    base = ZMap.from_function(h, (0, 0, 2, 2), 0.5)
+    assert (base.z[2] < -18).all()
+    spanned, n = span_node_cracks(sampler, base, TOL)
+    assert n == base.ny and np.allclose(spanned.z[2], 1.1) and (base.z[2] < -18).all()
+    h2, sampler2 = _slot(1.0, 0.3)
+    base2 = ZMap.from_function(h2, (0, 0, 2, 2), 0.5)
+    same, n2 = span_node_cracks(sampler2, base2, TOL)
+    assert n2 == 0 and same is base2
+
+
+def test_probe_falling_into_the_crack_elsewhere_does_not_span():
+    """One probe on a rim, the other in the crack (a crack bending back): no span from that
+    pair, whose heights differ more than either stands above the point."""
+    def sampler(x, y):
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        z = np.where((np.abs(x - 1.2) < 0.006) | ((x > 1.215) & (x < 1.23)), -20.0, 1.0)
+        z = np.where(np.abs(x - 1.22) < 0.0001, -18.0, z)
+        return z, np.zeros(z.shape, dtype=int)
+
+    base = ZMap.from_function(lambda x, y: sampler(x, y)[0], (0, 0, 2, 2), 0.5)
+    x, y = np.array([1.2]), np.array([0.3])
+    # along x: 1.18 is a rim (1.0), 1.22 is at -18: that pair does not span; the others do
+    z, n = bridge_cracks(sampler, base, x, y, sampler(x, y)[0], TOL)
+    assert n == 1 and z[0] == 1.0
