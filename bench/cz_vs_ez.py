@@ -64,10 +64,10 @@ def curve_length(curves) -> float:
 
 def one_part(path: Path, grid: float, tol: float, with_ez: bool) -> dict:
     """CZ plan, CZ floor and (optionally) EZ bytes of one part."""
-    from cad_io.commands import CZ_DELTA_Y_SHARE
+    from cad_io.commands import CZ_DELTA_Y_SHARE, cz_curves
     from cad_io.sampler import sample
     from cad_io.step import read_step
-    from zmap.features import default_eps_r, sharp_edge_curves, vertical_wall_curves
+    from zmap.features import default_eps_r, sharp_edge_curves
     from zmap.refine.cz import cz_intervals, cz_layout
 
     t0 = time.perf_counter()
@@ -75,8 +75,7 @@ def one_part(path: Path, grid: float, tol: float, with_ez: bool) -> dict:
     base = sample(part, grid, progress=False)
     base_bytes = int(base.z.nbytes)  # the heights, as PrecisionModel.nbytes counts the base
     eps_r = default_eps_r(tol, base.dx, base.dy)
-    # the curves of refine_models' CZ model (and of bench/table2.py's plan)
-    curves = vertical_wall_curves(base, max(eps_r, 1.0)) + list(sharp_edge_curves(part.edges))
+    curves = cz_curves(base, eps_r, sharp_edge_curves(part.edges))  # refine_models' CZ curves
     length = curve_length(curves)
     lay = cz_layout(base, tol=CZ_DELTA_Y_SHARE * tol, curves=curves, theta_x=THETA_X)
     paper_bytes = 8 * int(lay.prod(axis=1).sum()) if lay.size else 0

@@ -180,12 +180,12 @@ def _cz_plan(part, base, tol: float) -> dict:
     domain layout (:func:`zmap.refine.cz.cz_layout`), without sampling: points, KB, domains."""
     import math
 
-    from cad_io.commands import CZ_DELTA_Y_SHARE
-    from zmap.features import default_eps_r, sharp_edge_curves, vertical_wall_curves
+    from cad_io.commands import CZ_DELTA_Y_SHARE, cz_curves
+    from zmap.features import default_eps_r, sharp_edge_curves
     from zmap.refine.cz import cz_layout
 
     eps_r = default_eps_r(tol, base.dx, base.dy)
-    curves = vertical_wall_curves(base, max(eps_r, 1.0)) + list(sharp_edge_curves(part.edges))
+    curves = cz_curves(base, eps_r, sharp_edge_curves(part.edges))
     lay = cz_layout(base, tol=CZ_DELTA_Y_SHARE * tol, curves=curves, theta_x=math.radians(20.0))
     n = int(lay.prod(axis=1).sum()) if lay.size else 0
     return {"points": n, "kb": round(8 * n / 1024, 1), "domains": int(lay.shape[0])}

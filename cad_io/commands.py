@@ -123,6 +123,15 @@ class _CountingHeights:
         self.empty += int(np.count_nonzero(m == 0))
         return z, face
 
+    def span_base(self):
+        """The base with its nodes in cracks spanned (:func:`cad_io.cracks.span_node_cracks`);
+        the later heights' cells are this copy's. The nodes spanned count in ``bridged``."""
+        from cad_io.cracks import span_node_cracks
+
+        self._base, n = span_node_cracks(self._sampled, self._base, self._tol, self._face_tol)
+        self.bridged += n
+        return self._base
+
     def __call__(self, x, y):
         z, _face = self._sampled(x, y)
         if self._base is not None and self._tol > 0:
@@ -169,6 +178,14 @@ def _check_tol(tol: float, base) -> None:
 CZ_DELTA_Y_SHARE = 0.8
 
 
+def cz_curves(base, eps_r: float, se_curves) -> list:
+    """The feature curves CZ domains are laid along: the VW curves of ``base`` (slope at
+    least ``max(eps_r, 1)``, the walls) and the SE curves ``se_curves``."""
+    from zmap.features import vertical_wall_curves
+
+    return vertical_wall_curves(base, max(eps_r, 1.0)) + list(se_curves)
+
+
 def refine_models(part, base, tol: float, methods=("ez", "cz"), *, theta_x: float = math.radians(20.0),
                   deflection: float | None = None) -> dict:
     """Build the EZ and/or CZ precision models of ``base`` from the exact ``part``.
@@ -184,7 +201,7 @@ def refine_models(part, base, tol: float, methods=("ez", "cz"), *, theta_x: floa
     """
     import time
 
-    from zmap.features import default_eps_r, sharp_edge_curves, vertical_wall_curves
+    from zmap.features import default_eps_r, sharp_edge_curves
     from zmap.model import PrecisionModel
 
     deflection = tol / 2.0 if deflection is None else float(deflection)
@@ -195,19 +212,17 @@ def refine_models(part, base, tol: float, methods=("ez", "cz"), *, theta_x: floa
         h = _CountingHeights(part, deflection, base=base if method == "ez" else None, tol=tol)
         t0 = time.perf_counter()
         if method == "ez":
-            from cad_io.cracks import span_node_cracks
             from zmap.refine.ez import build_ez
 
             # nodes in cracks between faces take the surface across them in the model's own
             # base (the master z-map keeps OCC's heights): a crack through a node made a funnel
-            base_ez, h.bridged = span_node_cracks(h._sampled, base, tol, h._face_tol)
-            h._base = base_ez
+            base_ez = h.span_base()
             ez = build_ez(base_ez, h, tol=tol, eps_r=eps_r, se_curves=se)
             model = PrecisionModel(base_ez, ez=ez, meta={"method": "ez", "tol": tol, "eps_r": eps_r})
         elif method == "cz":
             from zmap.refine.cz import build_cz
 
-            curves = vertical_wall_curves(base, max(eps_r, 1.0)) + list(se)
+            curves = cz_curves(base, eps_r, se)
             # delta_y = CZ_DELTA_Y_SHARE * tol: at the paper's delta_y = tol the ramp across a
             # wall inside one CZ cell measured 0.0102 (pocket) and 0.0105 mm (boss) at tol 0.01
             cz = build_cz(base, h, tol=CZ_DELTA_Y_SHARE * tol, curves=curves, theta_x=theta_x)
