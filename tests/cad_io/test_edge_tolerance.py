@@ -104,6 +104,26 @@ def test_trj8_heights_within_edge_tolerance_are_occs():
     assert face[0] == 355 and face[3] == 390 and face[4] == 37 and face[8] == 27
 
 
+#: (x, y) on trj8's steep faces 361, 352 and 316 (edges 1e-3 and 3e-3 mm, within the 5 um
+#: deflection): BRepMesh meshes 361 in 66 triangles up to 0.06 mm off its surface, the layer
+#: check refused Newton's answers 0.18 mm above the facet (|n_z| 0.32, not a wall), and the
+#: facets answered 0.07 mm off the face in 3D
+TIGHT_FACE_POINTS = [(133.99063, -27.52550), (133.97269, -27.54371), (182.46046, -23.83661),
+                     (182.88922, 23.62616), (183.61004, -23.79480)]
+
+
+def test_trj8_faces_brepmesh_misses_with_tight_edges_are_exact():
+    """The mesh error is measured on every face, not only on those whose edges carry more
+    than the deflection: a face BRepMesh misses by over 3x gets the exact (u, v) grid."""
+    part, caster = _trj8()
+    x, y = np.array(TIGHT_FACE_POINTS).T
+    z, face, how = sample_points(part, x, y, deflection=0.005)
+    zr, fr = caster(x, y)
+    assert face.tolist() == fr.tolist() == [361, 361, 352, 316, 352]
+    assert (how == 1).all(), how
+    np.testing.assert_allclose(z, zr, rtol=0, atol=1e-6)
+
+
 def test_trj8_converted_plane_band_seen_from_the_side():
     """Seen along -y, trj8's planes 135 and 52 (edges 0.17 and 0.11 mm) hold points 0.14 and
     0.11 mm outside their loops, as OCC's ray cast has them: OCC classifies on the plane,
