@@ -360,9 +360,12 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
         wall (an overhang, a hole through to a face far below). A z-map holds that surface,
         not the faces under an overhang; on a height field (a die) the two agree.
         ``max_dist_own_tolerance`` (refined models) measures to the shape as valid within the
-        file's tolerances (:func:`cad_io.distance.occ_distance_own_tolerance`: a face reaches
-        its edges' tolerance beyond their curves, where the sampler and OCC's ray cast answer),
-        ``largest_tolerance_used`` the largest edge tolerance that moved a point's distance.
+        file's tolerances (:func:`cad_io.distance.occ_distance_own_tolerance`: a point within
+        the tolerance of its nearest edge is on it; :func:`cad_io.distance.occ_band_distance`:
+        a face's surface reaches its edges' tolerance beyond its trim curves, where the sampler
+        and OCC's ray cast answer), ``largest_tolerance_used`` the largest edge tolerance that
+        moved a point's distance, ``max_dist_topmost_own_tolerance`` the top-most surface of
+        that shape (the smaller of the two distances).
 
     Examples
     --------
@@ -373,7 +376,7 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
     >>> sorted(rep["rows"]), rep["deflection"], rep["reference_facet_points"]
     (['base', 'ez'], 0.025, 0)
     """
-    from cad_io.distance import confirm_with_occ, distance_to_part, occ_distance_own_tolerance
+    from cad_io.distance import confirm_with_occ, distance_to_part, occ_band_distance, occ_distance_own_tolerance
     from cad_io.sampler import FACET, sample, sample_points
     from zmap.model import PrecisionModel
 
@@ -413,10 +416,17 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
         above = above[np.argsort(-d[above], kind="stable")][:2000]  # as confirm_with_occ, largest first
         own_tol = 0.0
         if name != "base" and above.size and part.shape is not None:
-            do, to = occ_distance_own_tolerance(part.shape, np.c_[xs[above], ys[above], h[above]])
+            p_above = np.c_[xs[above], ys[above], h[above]]
+            do, to = occ_distance_own_tolerance(part.shape, p_above)
             d_own[above] = np.maximum(do - to, 0.0)
+            # or on a face's surface within the band its edges' tolerance gives it beyond
+            # its trim curves, where OCC's ray cast and the sampler still answer on it
+            # (trj8: up to 0.27 mm past a trim curve whose nearest edge carries 0.12 mm)
+            db, tb = occ_band_distance(part.shape, p_above, d_own[above])
+            banded = db < d_own[above]
+            d_own[above] = np.where(banded, db, d_own[above])
             moved = d[above] - d_own[above] > 1e-9
-            own_tol = float(np.max(to[moved], initial=0.0))
+            own_tol = float(np.max(np.where(banded, tb, to)[moved], initial=0.0))
         flat = ok & np.isfinite(zex) & ~steep
         nb = model.nbytes
         dtop = d.copy()
@@ -433,6 +443,7 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
                "largest_tolerance_used": own_tol,
                "p999_dist": float(np.nanpercentile(d, 99.9)) if ok.any() else None,
                "max_dist_topmost": float(np.nanmax(dtop)) if ok.any() else None,
+               "max_dist_topmost_own_tolerance": float(np.nanmax(np.fmin(dtop, d_own))) if ok.any() else None,
                "p999_dist_topmost": float(np.nanpercentile(dtop, 99.9)) if ok.any() else None,
                "points_with_height": int(ok.sum()), "points_flat": int(flat.sum()),
                "occ_confirmed": n_occ, "above_half_tol_unconfirmed": n_unchecked,

@@ -112,3 +112,44 @@ def test_own_tolerance_is_the_nearest_edges_in_the_file():
     assert np.allclose(d2, d, rtol=0, atol=1e-12)
     assert t2[0] == pytest.approx(0.3) and d2[0] - t2[0] < 0  # within the edge's tolerance: on the shape
     assert np.all(t2[1:] < 1e-3)  # nearest a face's interior: the face's own tolerance
+
+
+def test_band_distance_is_to_the_face_past_its_trim_curve_within_its_edges_tolerance():
+    """A face whose edges carry 0.3 mm in the file holds the points on its surface up to
+    0.3 mm past its trim curves (OCC's ray cast answers there, and so does the sampler),
+    even beyond an edge of its own whose tolerance is tight: trj8 has points 0.27 mm past
+    face 351's curve whose nearest edge carries 0.12 mm. The nearest sub-shape's tolerance
+    alone does not count them."""
+    from OCP.BRep import BRep_Tool
+    from OCP.ShapeFix import ShapeFix_ShapeTolerance
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE
+    from OCP.TopExp import TopExp, TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+    from OCP.TopTools import TopTools_IndexedMapOfShape
+
+    from cad_io.distance import occ_band_distance, occ_distance_own_tolerance
+
+    part = read_step(DATA / "pocket.step")
+    fmap = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(part.shape, TopAbs_FACE, fmap)
+    top = TopoDS.Face_s(fmap.FindKey(3))  # face 2: z = 30, x -50 .. 50, y -40 .. 40
+    ex = TopExp_Explorer(top, TopAbs_EDGE)
+    while ex.More():  # 0.3 mm on its edge at x = -50 only
+        edge = TopoDS.Edge_s(ex.Current())
+        p0 = BRep_Tool.Pnt_s(TopExp.FirstVertex_s(edge))
+        p1 = BRep_Tool.Pnt_s(TopExp.LastVertex_s(edge))
+        if abs(p0.X() + 50) < 1e-9 and abs(p1.X() + 50) < 1e-9:
+            ShapeFix_ShapeTolerance().SetTolerance(edge, 0.3, TopAbs_EDGE)
+        ex.Next()
+    # on the top plane 0.2 mm past its edge at x = 50 (tolerance 1e-7); 0.05 above that;
+    # 0.4 mm past it (beyond the band); over the pocket's floor (inside a face)
+    pts = [[50.2, 0.0, 30.0], [50.2, 0.0, 30.05], [50.4, 0.0, 30.0], [0.0, 0.0, 16.0]]
+    do, to = occ_distance_own_tolerance(part.shape, pts)
+    assert np.allclose(np.maximum(do - to, 0.0)[:3], [0.2, np.hypot(0.2, 0.05), 0.4], atol=1e-9)
+    d, w = occ_band_distance(part.shape, pts, do + 1e-3)
+    # 0.4 mm past: not on the top face; the side face x = 50, 0.4 mm away, is the nearest
+    np.testing.assert_allclose(d, [0.0, 0.05, 0.4, 1.0], atol=1e-9)
+    np.testing.assert_allclose(w, [0.3, 0.3, 1e-7, 1e-7], rtol=1e-6)
+    # only faces nearer than the reach given are looked for
+    d0, w0 = occ_band_distance(part.shape, pts, do)
+    assert np.isinf(d0[2:]).all() and (w0[2:] == 0).all()
