@@ -152,6 +152,11 @@ class Pieces:
         ``V'_l`` of the piece's samples: the casting's query for the piece's own visibility
         (:func:`global_visibility` with ``pieces=True``), which a point of that face in the
         voxel has, rather than the voxel's (the AND over all its faces).
+    octant : ndarray of shape (np,), int64, optional
+        Only in ``VoxelMap.fine`` (the half-voxel pieces): the half-voxel cell of the piece in
+        its voxel, ``(2 a + b) 2 + c`` for the cell's offsets (a, b, c) in {0, 1} along x, y, z;
+        ``lo``, ``hi`` are then clipped to that cell, and ``light`` has no words (the fine
+        pieces are queries, never blockers).
     """
 
     voxel: np.ndarray
@@ -163,6 +168,7 @@ class Pieces:
     slab: np.ndarray
     face: np.ndarray | None = None
     vl: np.ndarray | None = None
+    octant: np.ndarray | None = None
 
 
 @dataclass
@@ -205,6 +211,9 @@ class VoxelMap:
         to at least d' within the voxel, the casting's cylinders.
     pieces : Pieces
         Where several faces cross a voxel, the casting's blockers: one per face.
+    fine : Pieces
+        One piece per face and half-voxel cell (edge d / 2) of every boundary voxel, with
+        ``octant``: the queries of the refinement of :func:`global_visibility` (``refine=True``).
     slab : ndarray of shape (mb,), float64
         Half-thickness of the surface patch about the plane through ``point`` with normal
         ``normal``: every patch point x has ``(x - point) . normal >= -slab`` (inf: unknown).
@@ -237,6 +246,7 @@ class VoxelMap:
     tight_lo: np.ndarray | None = None
     tight_hi: np.ndarray | None = None
     pieces: Pieces | None = None
+    fine: Pieces | None = None
 
     @property
     def directions(self) -> DirectionSet:
@@ -276,7 +286,7 @@ class VoxelMap:
     @classmethod
     def from_samples(cls, points, normals, curvature, face, weight, *, d: float, q: int,
                      step: float | None = None, exact: bool = True, crease_deg: float = 10.0,
-                     pad: int = 2, check: bool = True) -> "VoxelMap":
+                     pad: int = 2, check: bool = True, fine: bool = True) -> "VoxelMap":
         """Build the map from surface samples (paper 002 §4.3 and §4.4).
 
         Parameters
@@ -306,6 +316,9 @@ class VoxelMap:
             a crease (condition 3 of the accessibility map).
         check : bool
             Apply the model checks (raise :class:`AccessModelError` on failure).
+        fine : bool
+            Also build ``fine``, the half-voxel pieces that :func:`global_visibility` casts with
+            ``refine=True`` (default True).
         """
         from ._access_kernels import (accumulate, orientation_votes, paint_exterior, patch_slab,
                                       piece_accumulate)
@@ -426,12 +439,13 @@ class VoxelMap:
         pieces = Pieces(voxel=pvox, lo=np.maximum(pmn - pgrow, vlo[pvox]), hi=np.minimum(pmx + pgrow, vlo[pvox] + d),
                         light=plight, point=ppoint, normal=pnormal, slab=pslab,
                         face=(ukey % (int(fid.max()) + 1)).astype(np.int64), vl=pvl)
+        fine_pieces = _fine_pieces(vox, pts, nrm, fid, origin, d, bijk, step_, ds, exact) if fine else None
         return cls(origin=origin, d=d, state=state, index=index, ijk=bijk, vl=vl, light=light,
                    curvature=curv, surface=surf, crease=crease.astype(bool), point=point,
                    normal=normal, area=area, q=ds.q, flipped=flipped,
                    step=float(step) if step is not None else float("nan"), n_samples=n,
                    box_lo=box_lo, box_hi=box_hi, slab=slab, tight_lo=tight_lo, tight_hi=tight_hi,
-                   pieces=pieces)
+                   pieces=pieces, fine=fine_pieces)
 
     def skin(self) -> np.ndarray:
         """Centres (ms, 3) of the interior voxels 26-adjacent to a non-interior voxel: every
@@ -483,6 +497,44 @@ class VoxelMap:
         out = np.full(len(p), -1, dtype=np.int64)
         out[inside] = self.index[ijk[inside, 0], ijk[inside, 1], ijk[inside, 2]]
         return out
+
+
+def _fine_pieces(vox, pts, nrm, fid, origin, d, bijk, step, ds, exact) -> Pieces:
+    """One piece per face and half-voxel cell of each boundary voxel (``VoxelMap.fine``): its
+    samples' V'_l, mean point and normal, slab (:func:`~zmap.access._access_kernels.patch_slab`)
+    and box grown as the pieces' are, clipped to the half-voxel cell; sorted by voxel, then
+    cell, then face."""
+    from ._access_kernels import piece_accumulate, patch_slab
+
+    W = ds.words
+    ijk = bijk[vox]
+    half = np.floor(2.0 * (pts - origin) / d).astype(np.int64) - 2 * ijk
+    half = np.clip(half, 0, 1)  # a sample on the voxel's far plane rounds into it
+    octant = (half[:, 0] * 2 + half[:, 1]) * 2 + half[:, 2]
+    nf = int(fid.max()) + 1
+    key = (vox.astype(np.int64) * 8 + octant) * nf + fid
+    ukey, inv = np.unique(key, return_inverse=True)
+    inv = np.ascontiguousarray(inv.ravel(), dtype=np.int64)
+    n = len(ukey)
+    vl = np.full((n, W), np.uint64(0xFFFFFFFFFFFFFFFF), dtype=np.uint64)
+    if ds.k % 64:
+        vl[:, -1] = np.uint64((1 << (ds.k % 64)) - 1)
+    light = np.zeros((n, W), dtype=np.uint64)
+    ps, ns = np.zeros((n, 3)), np.zeros((n, 3))
+    pmn, pmx = np.full((n, 3), np.inf), np.full((n, 3), -np.inf)
+    piece_accumulate(inv, pts, nrm, ds._centres, ds._frames, ds.q, ds.hv, ds.hl, 1 if exact else 0, ds.normals,
+                     vl, light, ps, ns, pmn, pmx)
+    point = ps / np.bincount(inv, minlength=n)[:, None]
+    ln = np.linalg.norm(ns, axis=1)
+    normal = np.where(ln[:, None] > 0, ns / np.maximum(ln, 1e-300)[:, None], 0.0)
+    slab, grow = np.empty(n), np.empty((n, 3))
+    patch_slab(inv, pts, nrm, point, normal, step, slab, grow)
+    voxel = ukey // nf // 8
+    octant = (ukey // nf) % 8
+    clo = origin + d * bijk[voxel] + 0.5 * d * np.stack([octant // 4, (octant // 2) % 2, octant % 2], axis=1)
+    return Pieces(voxel=voxel, lo=np.maximum(pmn - grow, clo), hi=np.minimum(pmx + grow, clo + 0.5 * d),
+                  light=np.zeros((n, 0), dtype=np.uint64), point=point, normal=normal, slab=slab,
+                  face=(ukey % nf).astype(np.int64), vl=vl, octant=octant.astype(np.int64))
 
 
 def _direction_set(q) -> DirectionSet:
@@ -614,11 +666,19 @@ def _hide_masks(normals: np.ndarray, tiny: float = 1e-9) -> np.ndarray:
     return out
 
 
-def _query_boxes(vm: VoxelMap, pieces: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def _query_boxes(vm: VoxelMap, pieces: bool = False, fine: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Centres and half extents (mb, 3) of the casting's cylinders: the tight boxes grown to at
     least d' on each axis (a flat box seen at a grazing angle holds no line), within the voxel
-    (``pieces``: the pieces' boxes, within their voxels)."""
-    if pieces:
+    (``pieces``: the pieces' boxes, within their voxels; ``fine``: the half-voxel pieces' of
+    ``vm.fine``, within their half-voxel cells)."""
+    size = vm.d
+    if fine:
+        p = vm.fine
+        c, h = 0.5 * (p.lo + p.hi), 0.5 * (p.hi - p.lo)
+        o = p.octant
+        size = 0.5 * vm.d
+        vlo = vm.origin + vm.d * vm.ijk[p.voxel] + size * np.stack([o // 4, (o // 2) % 2, o % 2], axis=1)
+    elif pieces:
         p = vm.pieces
         c, h = 0.5 * (p.lo + p.hi), 0.5 * (p.hi - p.lo)
         vlo = vm.origin + vm.d * vm.ijk[p.voxel]
@@ -626,7 +686,7 @@ def _query_boxes(vm: VoxelMap, pieces: bool = False) -> tuple[np.ndarray, np.nda
         c, h = vm.boxes(tight=True)
         vlo = vm.origin + vm.d * vm.ijk
     t = np.maximum(0.5 * vm.sampling_step - h, 0.0)
-    lo, hi = np.maximum(c - h - t, vlo), np.minimum(c + h + t, vlo + vm.d)
+    lo, hi = np.maximum(c - h - t, vlo), np.minimum(c + h + t, vlo + size)
     return np.ascontiguousarray(0.5 * (lo + hi)), np.ascontiguousarray(0.5 * (hi - lo))
 
 
@@ -740,8 +800,8 @@ def _self_blocking(vm: VoxelMap) -> np.ndarray:
     return out.astype(bool)
 
 
-def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True,
-                      pieces: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True, pieces: bool = False,
+                      refine: bool = False) -> np.ndarray | tuple[np.ndarray, ...]:
     """``V'_g`` of every boundary voxel by cylinder casting (paper 002 §4.5).
 
     A direction n stays in ``V'_g(v)`` when no line parallel to n through v's surface box
@@ -768,15 +828,28 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True,
     (the voxel's ``V'_l`` is the AND over all its faces: at a convex edge, few directions).
     The voxels' bits are the same either way.
 
+    ``refine=True`` decides finer than a voxel where the voxel-wide cylinder is blocked. Each
+    half-voxel piece of ``vm.fine`` (one face's samples in one of the voxel's eight cells of
+    edge d / 2) starts with the bits of its voxel, or of its face's piece where several faces
+    meet, and is cast again as a query of its own (its own box, slab and ``V'_l``) on depth
+    buffers of half the pitch (d / (2 rays), the blockers grown half as much), for only the
+    directions of its ``V'_l`` that its voxel's cylinder lost: the same casting, a thinner
+    cylinder. A half-voxel piece keeps the directions either cast finds free. A voxel (a
+    piece) then also keeps the directions that all its half-voxel pieces (of its face) keep:
+    its patch is their union, and each is cast from its own part of it. Neither adds a
+    direction that a cylinder of the casting finds blocked, so the map stays as
+    conservative as the paper's casting; on featuretype.STEP at d = 0.5, q = 4 this took the
+    agreement with the OCC thin rays on 300 points from 98.46 % to 99.3 %.
+
     Returns
     -------
-    ndarray of shape (mb, words), uint64; with ``pieces``, also the pieces' (np, words)
+    ndarray of shape (mb, words), uint64; with ``pieces``, also the pieces' (np, words); with
+    ``refine`` (and ``pieces``), the voxels', the pieces' and the half-voxel pieces' (nf, words)
     """
-    from ._access_kernels import cast_directions, pack_columns, skin_masks
+    from ._access_kernels import pack_columns, skin_masks
 
     ds = vm.directions
     blockers = _merged_blockers(vm, tuple(np.ascontiguousarray(a) for a in vm.blockers()))
-    bx, bh, bvox, blight, bplane = blockers
     qx, qh = _query_boxes(vm)
     sijk = vm.skin_ijk()
     skin = np.ascontiguousarray(vm.origin + vm.d * (sijk + 0.5))
@@ -787,10 +860,11 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True,
     lo_, hi_ = allc.min(axis=0), allc.max(axis=0)
     centre = 0.5 * (lo_ + hi_)
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d
+    hide = _hide_masks(ds.normals) if cull else np.full(ds.k, 1 << 27, dtype=np.int64)  # bit 27: never set
     mb = vm.n_boundary
     qid = np.arange(mb, dtype=np.int64)
     light, vl, ppt, pnrm, slab = vm.light, vm.vl, vm.point, vm.normal, vm.slabs()
-    extra = pieces and vm.pieces is not None and vm.pieces.vl is not None
+    extra = (pieces or refine) and vm.pieces is not None and vm.pieces.vl is not None
     if extra:
         p = vm.pieces
         px, ph = _query_boxes(vm, pieces=True)
@@ -798,19 +872,94 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True,
         qid = np.concatenate([qid, -3 - np.arange(len(p.voxel), dtype=np.int64)])  # skip nothing as itself
         light, vl = np.concatenate([light, p.light]), np.concatenate([vl, p.vl])
         ppt, pnrm, slab = np.concatenate([ppt, p.point]), np.concatenate([pnrm, p.normal]), np.concatenate([slab, p.slab])
-    out = np.zeros((ds.k, len(qx)), dtype=np.uint8)
-    hide = _hide_masks(ds.normals) if cull else np.full(ds.k, 1 << 27, dtype=np.int64)  # bit 27: never set
-    cast_directions(ds.normals, _opposite(ds), bx, bh, bvox, blight, bplane, np.ascontiguousarray(qx),
-                    np.ascontiguousarray(qh), qid, skin, shalf, hide, smask, np.ascontiguousarray(light),
-                    np.ascontiguousarray(vl), np.ascontiguousarray(ppt), np.ascontiguousarray(pnrm),
-                    np.ascontiguousarray(slab), vm.d, vm.d / rays, radius, centre, out)
+    cast = (blockers, skin, shalf, smask, hide, radius, centre)
+    out = _cast(vm, cast, qx, qh, qid, light, vl, ppt, pnrm, slab, vm.d / rays)
     bits = np.empty((len(qx), ds.words), dtype=np.uint64)
     pack_columns(out, bits)
+    del out
+    if refine and vm.fine is not None and vm.fine.octant is not None:
+        vb, pb = bits[:mb], (bits[mb:] if extra else np.zeros((0, ds.words), dtype=np.uint64))
+        vb, pb, fb = _refine(vm, cast, vb, pb, rays)
+        return (vb, pb, fb) if pieces else vb
+    if refine and pieces:
+        nofine = np.zeros((0, ds.words), dtype=np.uint64)
+        return (bits[:mb], bits[mb:], nofine) if extra else (bits, np.zeros((0, ds.words), dtype=np.uint64), nofine)
     if not pieces:
-        return bits
+        return bits[:mb]
     if not extra:
         return bits, np.zeros((0, ds.words), dtype=np.uint64)
     return bits[:mb], bits[mb:]
+
+
+def _cast(vm: VoxelMap, cast: tuple, qx, qh, qid, light, vl, ppt, pnrm, slab, cell: float) -> np.ndarray:
+    """One run of :func:`~zmap.access._access_kernels.cast_directions` on the queries given:
+    ``out`` (k, nq) uint8."""
+    from ._access_kernels import cast_directions
+
+    ds = vm.directions
+    (bx, bh, bvox, blight, bplane), skin, shalf, smask, hide, radius, centre = cast
+    out = np.zeros((ds.k, len(qx)), dtype=np.uint8)
+    cast_directions(ds.normals, _opposite(ds), bx, bh, bvox, blight, bplane, np.ascontiguousarray(qx),
+                    np.ascontiguousarray(qh), np.ascontiguousarray(qid), skin, shalf, hide, smask,
+                    np.ascontiguousarray(light), np.ascontiguousarray(vl), np.ascontiguousarray(ppt),
+                    np.ascontiguousarray(pnrm), np.ascontiguousarray(slab), vm.d, cell, radius, centre, out)
+    return out
+
+
+def _piece_index(vm: VoxelMap, voxel: np.ndarray, face: np.ndarray) -> np.ndarray:
+    """Index into ``vm.pieces`` of each (voxel, face), -1 where there is none."""
+    p = vm.pieces
+    out = np.full(len(voxel), -1, dtype=np.int64)
+    if p is None or p.face is None or not len(p.voxel) or not len(voxel):
+        return out
+    nf = int(max(p.face.max(), np.max(face))) + 1
+    keys = p.voxel.astype(np.int64) * nf + p.face
+    order = np.argsort(keys, kind="stable")
+    want = np.asarray(voxel, dtype=np.int64) * nf + np.asarray(face, dtype=np.int64)
+    at = np.clip(np.searchsorted(keys[order], want), 0, len(keys) - 1)
+    hit = keys[order][at] == want
+    out[hit] = order[at[hit]]
+    return out
+
+
+def _refine(vm: VoxelMap, cast: tuple, vb: np.ndarray, pb: np.ndarray, rays: int):
+    """The refinement of :func:`global_visibility` (``refine=True``): the half-voxel pieces
+    cast at half the pitch for the directions of their V'_l their voxel (piece) lost; then
+    the voxels and pieces keep what all their half-voxel pieces keep."""
+    from ._access_kernels import pack_columns
+
+    ds = vm.directions
+    f = vm.fine
+    nfine = len(f.voxel)
+    # each half-voxel piece starts from its voxel's bits, or its face's piece's
+    parent = vb[f.voxel].copy()
+    pi = _piece_index(vm, f.voxel, f.face) if len(pb) else np.full(nfine, -1, dtype=np.int64)
+    has = pi >= 0
+    parent[has] = pb[pi[has]]
+    need = f.vl & ~parent
+    todo = np.flatnonzero(need.any(axis=1))
+    fb = parent
+    if len(todo):
+        qx, qh = _query_boxes(vm, fine=True)
+        qid = -3 - np.arange(len(todo), dtype=np.int64)
+        out = _cast(vm, cast, qx[todo], qh[todo], qid, np.zeros((len(todo), ds.words), dtype=np.uint64), need[todo],
+                    f.point[todo], f.normal[todo], f.slab[todo], vm.d / (2 * rays))
+        got = np.empty((len(todo), ds.words), dtype=np.uint64)
+        pack_columns(out, got)
+        fb[todo] |= got
+    # a voxel keeps what all its half-voxel pieces keep (they are sorted by voxel)
+    start = np.flatnonzero(np.r_[True, f.voxel[1:] != f.voxel[:-1]])
+    vb = vb.copy()
+    vb[f.voxel[start]] |= np.bitwise_and.reduceat(fb, start, axis=0)
+    if len(pb):
+        # a piece keeps what all the half-voxel pieces of its face in its voxel keep
+        sel = np.flatnonzero(has)
+        order = sel[np.argsort(pi[sel], kind="stable")]
+        ps = pi[order]
+        st = np.flatnonzero(np.r_[True, ps[1:] != ps[:-1]])
+        pb = pb.copy()
+        pb[ps[st]] |= np.bitwise_and.reduceat(fb[order], st, axis=0)
+    return vb, pb, fb
 
 
 def _disc_rows(rad: float, *, outer: bool) -> np.ndarray:
@@ -1052,6 +1201,9 @@ class AccessResult:
     nodes: dict = field(default_factory=dict)
     #: ``V'_g`` of each piece of ``vm.pieces`` (a face in a voxel where several meet), or None
     vg_pieces: np.ndarray | None = None
+    #: ``V'_g`` of each half-voxel piece of ``vm.fine`` (:func:`global_visibility` with
+    #: ``refine=True``), or None
+    vg_fine: np.ndarray | None = None
 
     def summary(self) -> str:
         """A markdown table of the verdict and the set-ups."""
@@ -1106,6 +1258,9 @@ class AccessResult:
                       header=np.frombuffer(json.dumps(header).encode(), dtype=np.uint8))
         if self.vg_pieces is not None and vm.pieces is not None and vm.pieces.face is not None:
             arrays.update(piece_voxel=vm.pieces.voxel, piece_face=vm.pieces.face, piece_vg=self.vg_pieces)
+        if self.vg_fine is not None and vm.fine is not None:
+            arrays.update(fine_voxel=vm.fine.voxel, fine_octant=vm.fine.octant, fine_face=vm.fine.face,
+                          fine_vg=self.vg_fine)
         for key, val in self.nodes.items():
             if isinstance(val, np.ndarray):
                 arrays[key] = val
