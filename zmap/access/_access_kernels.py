@@ -11,7 +11,7 @@ from numba import njit, prange
 
 from ._direction_kernels import lookup_one
 
-__all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "pack_columns", "row_hash", "patch_slab", "piece_accumulate", "cast_directions",
+__all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "pack_columns", "row_hash", "patch_slab", "piece_accumulate", "cast_directions", "dilate_bits",
            "ball_neighbours", "local_conditions", "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
@@ -433,7 +433,7 @@ def patch_slab(vox, pts, nrm, point, normal, step, slab, grow):
 
 @njit(cache=True, parallel=True)
 def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid, skin, shalf, hide, skin_mask, light,
-                    vl, ppt, pnrm, slab, d, cell, radius, lo, out):
+                    vl, ppt, pnrm, slab, d, cell, radius, lo, tile, out):
     """Cylinder casting of paper 002 §4.5 for every direction at once, one depth buffer each.
 
     For direction n, the lines parallel to n through the cell centres of a plane grid of
@@ -474,6 +474,11 @@ def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, q
     skin, shalf : (ms, 3) centres and half extents of boxes of interior skin voxels, each box
     of voxels with one neighbour mask ``skin_mask`` (:func:`merge_runs`; single cubes: half d);
     radius : half the diagonal of the part's box; lo : (3,) centre of the part's box.
+
+    ``tile`` > 0: a buffer cell matters only under a query that asks for direction i, so the
+    buffer is split into tiles of tile x tile cells, the tiles under such queries are marked,
+    and a blocker whose cells lie in no marked tile is not drawn (the same bits; worth it where
+    few queries ask, as in the refinement of ``global_visibility``). 0: every blocker is drawn.
     """
     k = dirs.shape[0]
     nb = bxyz.shape[0]
@@ -500,7 +505,7 @@ def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, q
             gmax[c] = max(gmax[c], x1 - lo[c])
     for i in prange(k):  # the body is a call: parfor lowering of a big body compiles for minutes
         _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid, skin, shalf, hide, skin_mask, light,
-                  vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, out)
+                  vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, tile, out)
 
 
 @njit(cache=True)
@@ -595,7 +600,7 @@ def _pair_cut(a, pa, b, pb, vlo, vhi):
 
 @njit(cache=True)
 def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid, skin, shalf, hide, skin_mask, light,
-              vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, out):
+              vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, tile, out):
     """Direction i of :func:`cast_directions`: its depth buffer, then ``out[i, :]``."""
     nb = bxyz.shape[0]
     mb = qxyz.shape[0]
@@ -625,6 +630,25 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
     gy = 0.5 * cell * (abs(ey) + abs(fy))
     gz = 0.5 * cell * (abs(ez) + abs(fz))
     req = hide[i]
+    # the tiles under the queries that ask for i (tile > 0): only blockers over them are drawn
+    ta = (A1 - A0) // tile + 1 if tile > 0 else 1
+    tb = (B1 - B0) // tile + 1 if tile > 0 else 1
+    mark = np.zeros((ta, tb), dtype=np.uint8)
+    if tile > 0:
+        for m in range(mb):
+            if (vl[m, wi] >> bi) & np.uint64(1) == 0:
+                continue
+            pu, pv, ae, af, ia, ib, ja, jb, lxa, lxb, lya, lyb, lza, lzb = _span(
+                qxyz[m, 0] - lo[0], qxyz[m, 1] - lo[1], qxyz[m, 2] - lo[2], qhalf[m, 0], qhalf[m, 1], qhalf[m, 2],
+                geo, u0, cell, A0, A1, B0, B1)
+            # the cell under the centre too (the fallback of a box no centre line crosses)
+            ia = min(ia, max(A0, min(A1, int(np.floor((pu - u0) / cell)))))
+            ib = max(ib, max(A0, min(A1, int(np.floor((pu - u0) / cell)))))
+            ja = min(ja, max(B0, min(B1, int(np.floor((pv - u0) / cell)))))
+            jb = max(jb, max(B0, min(B1, int(np.floor((pv - u0) / cell)))))
+            for p in range((ia - A0) // tile, (ib - A0) // tile + 1):
+                for r in range((ja - B0) // tile, (jb - B0) // tile + 1):
+                    mark[p, r] = 1
     for m in range(nb + ms):
         # the back plane of a blocker piece: its exit on a line is no later than where the
         # line passes behind the piece's slab by as much as a ray of the cell can be off the
@@ -654,6 +678,17 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
         rx, ry, rz = cx - lo[0], cy - lo[1], cz - lo[2]
         pu, pv, ae, af, ia, ib, ja, jb, lxa, lxb, lya, lyb, lza, lzb = _span(rx, ry, rz, hx, hy, hz, geo, u0, cell,
                                                                             A0, A1, B0, B1)
+        if tile > 0 and ia <= ib and ja <= jb:
+            over = False
+            for p in range((ia - A0) // tile, (ib - A0) // tile + 1):
+                for r in range((ja - B0) // tile, (jb - B0) // tile + 1):
+                    if mark[p, r]:
+                        over = True
+                        break
+                if over:
+                    break
+            if not over:
+                continue
         wide = jb - ja > 8
         for a in range(ia, ib + 1):
             uc = u0 + (a + 0.5) * cell
@@ -734,6 +769,25 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
             if top > s0 + eps:
                 ok = 0
         out[i, m] = ok
+
+
+@njit(cache=True, parallel=True)
+def dilate_bits(index, ijk, bits, rad, out):
+    """out[b] = OR of bits[w] over the boundary voxels w within ``rad`` voxels of b along each
+    axis (b itself included): the directions some voxel near b keeps."""
+    nx, ny, nz = index.shape
+    W = bits.shape[1]
+    for b in prange(ijk.shape[0]):
+        for w in range(W):
+            out[b, w] = np.uint64(0)
+        i0, j0, l0 = ijk[b, 0], ijk[b, 1], ijk[b, 2]
+        for i in range(max(0, i0 - rad), min(nx, i0 + rad + 1)):
+            for j in range(max(0, j0 - rad), min(ny, j0 + rad + 1)):
+                for l in range(max(0, l0 - rad), min(nz, l0 + rad + 1)):
+                    m = index[i, j, l]
+                    if m >= 0:
+                        for w in range(W):
+                            out[b, w] |= bits[m, w]
 
 
 @njit(cache=True)

@@ -891,9 +891,11 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True, pieces:
     return bits[:mb], bits[mb:]
 
 
-def _cast(vm: VoxelMap, cast: tuple, qx, qh, qid, light, vl, ppt, pnrm, slab, cell: float) -> np.ndarray:
+def _cast(vm: VoxelMap, cast: tuple, qx, qh, qid, light, vl, ppt, pnrm, slab, cell: float,
+          tile: int = 0) -> np.ndarray:
     """One run of :func:`~zmap.access._access_kernels.cast_directions` on the queries given:
-    ``out`` (k, nq) uint8."""
+    ``out`` (k, nq) uint8 (``tile``: draw only the blockers over tiles of that many cells under
+    a query that asks, the same bits)."""
     from ._access_kernels import cast_directions
 
     ds = vm.directions
@@ -902,7 +904,7 @@ def _cast(vm: VoxelMap, cast: tuple, qx, qh, qid, light, vl, ppt, pnrm, slab, ce
     cast_directions(ds.normals, _opposite(ds), bx, bh, bvox, blight, bplane, np.ascontiguousarray(qx),
                     np.ascontiguousarray(qh), np.ascontiguousarray(qid), skin, shalf, hide, smask,
                     np.ascontiguousarray(light), np.ascontiguousarray(vl), np.ascontiguousarray(ppt),
-                    np.ascontiguousarray(pnrm), np.ascontiguousarray(slab), vm.d, cell, radius, centre, out)
+                    np.ascontiguousarray(pnrm), np.ascontiguousarray(slab), vm.d, cell, radius, centre, int(tile), out)
     return out
 
 
@@ -922,11 +924,18 @@ def _piece_index(vm: VoxelMap, voxel: np.ndarray, face: np.ndarray) -> np.ndarra
     return out
 
 
-def _refine(vm: VoxelMap, cast: tuple, vb: np.ndarray, pb: np.ndarray, rays: int):
+#: the last refinement's figures (:func:`global_visibility` with ``refine=True``), for benches:
+#: half-voxel pieces, those cast again, (piece, direction) pairs cast again, pairs it freed,
+#: voxel and piece pairs it freed
+_LAST_REFINE_STATS: dict = {}
+
+
+def _refine(vm: VoxelMap, cast: tuple, vb: np.ndarray, pb: np.ndarray, rays: int, near: int = 1, tile: int = 8):
     """The refinement of :func:`global_visibility` (``refine=True``): the half-voxel pieces
-    cast at half the pitch for the directions of their V'_l their voxel (piece) lost; then
-    the voxels and pieces keep what all their half-voxel pieces keep."""
-    from ._access_kernels import pack_columns
+    cast at half the pitch for the directions of their V'_l their voxel (piece) lost and some
+    boundary voxel within ``near`` voxels keeps (itself or one of its pieces); then the voxels
+    and pieces keep what all their half-voxel pieces keep."""
+    from ._access_kernels import dilate_bits, pack_columns
 
     ds = vm.directions
     f = vm.fine
@@ -937,16 +946,28 @@ def _refine(vm: VoxelMap, cast: tuple, vb: np.ndarray, pb: np.ndarray, rays: int
     has = pi >= 0
     parent[has] = pb[pi[has]]
     need = f.vl & ~parent
+    if near >= 0:
+        # only near a direction's shadow edge: some voxel within `near` keeps it (in deep
+        # shadow the thinner cylinder is blocked too; leaving it out only keeps a block)
+        anyf = vb.copy()
+        if len(pb):
+            np.bitwise_or.at(anyf, vm.pieces.voxel, pb)
+        dil = np.empty_like(anyf)
+        dilate_bits(vm.index, np.ascontiguousarray(vm.ijk, dtype=np.int64), anyf, int(near), dil)
+        need &= dil[f.voxel]
     todo = np.flatnonzero(need.any(axis=1))
     fb = parent
     if len(todo):
         qx, qh = _query_boxes(vm, fine=True)
         qid = -3 - np.arange(len(todo), dtype=np.int64)
         out = _cast(vm, cast, qx[todo], qh[todo], qid, np.zeros((len(todo), ds.words), dtype=np.uint64), need[todo],
-                    f.point[todo], f.normal[todo], f.slab[todo], vm.d / (2 * rays))
+                    f.point[todo], f.normal[todo], f.slab[todo], vm.d / (2 * rays), tile=tile)
         got = np.empty((len(todo), ds.words), dtype=np.uint64)
         pack_columns(out, got)
         fb[todo] |= got
+    else:
+        got = np.zeros((0, ds.words), dtype=np.uint64)
+    vb0, pb0 = count(vb).sum(), count(pb).sum() if len(pb) else 0
     # a voxel keeps what all its half-voxel pieces keep (they are sorted by voxel)
     start = np.flatnonzero(np.r_[True, f.voxel[1:] != f.voxel[:-1]])
     vb = vb.copy()
@@ -959,6 +980,10 @@ def _refine(vm: VoxelMap, cast: tuple, vb: np.ndarray, pb: np.ndarray, rays: int
         st = np.flatnonzero(np.r_[True, ps[1:] != ps[:-1]])
         pb = pb.copy()
         pb[ps[st]] |= np.bitwise_and.reduceat(fb[order], st, axis=0)
+    _LAST_REFINE_STATS.clear()
+    _LAST_REFINE_STATS.update(pieces=int(nfine), cast=int(len(todo)), pairs=int(count(need).sum()),
+                              freed=int(count(got).sum()), voxel_pairs_freed=int(count(vb).sum() - vb0),
+                              piece_pairs_freed=int((count(pb).sum() if len(pb) else 0) - pb0))
     return vb, pb, fb
 
 
