@@ -106,6 +106,10 @@ def test_tiles_and_the_near_filter_only_skip_work(small_bowl, monkeypatch):
     f = vm.fine
     args = (qx, qh, -3 - np.arange(len(qx)), np.zeros_like(f.vl), f.vl, f.point, f.normal, f.slab, vm.d / 4)
     assert (V._cast(vm, cast, *args, tile=0) == V._cast(vm, cast, *args, tile=3)).all()
+    plain = global_visibility(vm, pieces=True)
+    monkeypatch.setattr(V, "_TILE", 2)  # the voxels' cast with tiles too
+    assert all((a == b).all() for a, b in zip(plain, global_visibility(vm, pieces=True)))
+    monkeypatch.setattr(V, "_TILE", 0)
     vb0, pb0 = global_visibility(vm, pieces=True)
     monkeypatch.setattr(V, "_REFINE_NEAR", -1)
     full = global_visibility(vm, pieces=True, refine=True)
@@ -175,10 +179,14 @@ def test_refinement_frees_what_every_ray_of_the_piece_frees_on_a_bowl(bowl3):
 
 @settings(max_examples=8, deadline=None)
 @given(shift=st.tuples(*[st.floats(-0.3, 0.3, allow_nan=False)] * 3), r=st.floats(1.6, 2.4))
-def test_refinement_stays_conservative_on_shifted_bowls(shift, r):
+def test_strict_refinement_adds_no_far_miss_on_shifted_bowls(shift, r):
     """Whatever the cavity's place in the voxel grid and its radius: the refined pieces keep
-    every direction their voxel or piece keeps, no direction outside their V'_l, and none that
-    the closed form finds blocked farther than a voxel diagonal from one of their samples."""
+    every direction their voxel or piece keeps and none outside their V'_l; cast strictly
+    (every cell under the piece's box, from the lowest start of a ray of the cell) they add no
+    direction that the closed form finds blocked farther than a voxel diagonal from one of
+    their samples, beyond those the voxels' own cast already keeps (the paper's casting,
+    lines through cell centres, keeps such a pair on some cavities: r = 1.707, shift
+    (-0.06, -0.18, -0.14) is one)."""
     P, N, K, F, W = bowl_samples(r=r, half=3.0, depth=2.6, step=0.12)
     P = P + np.asarray(shift)
     vm = VoxelMap.from_samples(P, N, K, F, W, d=0.5, q=2, step=0.12)
@@ -189,6 +197,12 @@ def test_refinement_stays_conservative_on_shifted_bowls(shift, r):
     parent = _parents(vm, vb0, pb0)
     assert not (parent & ~fb).any() and not (fb & ~(f.vl | parent)).any()
     assert not (vb0 & ~vb).any() and not (vb & ~vm.vl).any()
+    old, V._FINE_STRICT = V._FINE_STRICT, 1
+    try:
+        vbs, pbs, fbs = global_visibility(vm, pieces=True, refine=True)
+    finally:
+        V._FINE_STRICT = old
+    assert not (parent & ~fbs).any() and not (fbs & ~fb).any()  # strict frees a subset
     cav = np.flatnonzero(F == 6)
     v = vm.voxel_of(P[cav])
     nf = int(F.max()) + 1
@@ -197,8 +211,49 @@ def test_refinement_stays_conservative_on_shifted_bowls(shift, r):
                          (v * 8 + (half[:, 0] * 2 + half[:, 1]) * 2 + half[:, 2]) * nf + F[cav])
     hit = bowl_hit(P[cav] - np.asarray(shift), ds.normals, r)
     far = np.isfinite(hit) & (hit > np.sqrt(3.0) * vm.d)
-    assert not (to_bool(fb[at], ds.k) & far).any()
-    assert not (to_bool(vb[v], ds.k) & far).any()
+    assert not (to_bool(fbs[at] & ~parent[at], ds.k) & far).any()
+    assert not (to_bool(vbs[v] & ~vb0[v], ds.k) & far).any()
+
+
+def test_default_refinement_misses_on_a_cavity_that_strict_catches():
+    """The known limit of the default refinement (lines through cell centres, as the paper's
+    casting): on this cavity a half-voxel piece keeps a direction whose ray from two of its
+    samples passes 0.007 mm under the far rim (blocked 3.2 mm away); the voxels' cast and the
+    strict refinement do not keep it."""
+    r = 1.8125
+    P, N, K, F, W = bowl_samples(r=r, half=3.0, depth=2.6, step=0.12)
+    vm = VoxelMap.from_samples(P, N, K, F, W, d=0.5, q=2, step=0.12)
+    ds = vm.directions
+    vb0, pb0 = global_visibility(vm, pieces=True)
+    parent = _parents(vm, vb0, pb0)
+    fb = global_visibility(vm, pieces=True, refine=True)[2]
+    old, V._FINE_STRICT = V._FINE_STRICT, 1
+    try:
+        fbs = global_visibility(vm, pieces=True, refine=True)[2]
+    finally:
+        V._FINE_STRICT = old
+    f = vm.fine
+    cav = np.flatnonzero(F == 6)
+    v = vm.voxel_of(P[cav])
+    nf = int(F.max()) + 1
+    half = np.clip(np.floor(2 * (P[cav] - vm.origin) / vm.d).astype(int) - 2 * vm.ijk[v], 0, 1)
+    at = np.searchsorted((f.voxel * 8 + f.octant) * nf + f.face,
+                         (v * 8 + (half[:, 0] * 2 + half[:, 1]) * 2 + half[:, 2]) * nf + F[cav])
+    hit = bowl_hit(P[cav], ds.normals, r)
+    far = np.isfinite(hit) & (hit > np.sqrt(3.0) * vm.d)
+    assert (to_bool(fb[at], ds.k) & far).sum() == 2
+    assert not (to_bool(fbs[at], ds.k) & far).any() and not (to_bool(parent[at], ds.k) & far).any()
+
+
+def test_bitsets_folded_from_the_fine_pieces_are_the_samples(bowl3):
+    """With half-voxel pieces the voxels' and pieces' V'_l and L' are folded from theirs: the
+    same bits as folding the samples directly (``fine=False``)."""
+    vm, _ = bowl3
+    P, N, K, F, W = bowl_samples(r=3.0, half=4.0, depth=3.5, step=0.1)
+    bare = VoxelMap.from_samples(P, N, K, F, W, d=0.5, q=3, step=0.1, fine=False)
+    for a, b in ((vm.vl, bare.vl), (vm.light, bare.light), (vm.pieces.vl, bare.pieces.vl),
+                 (vm.pieces.light, bare.pieces.light)):
+        assert (a == b).all()
 
 
 def test_convex_box_gains_directions_and_no_fine_map_without_refine():
