@@ -11,7 +11,7 @@ from numba import njit, prange
 
 from ._direction_kernels import lookup_one
 
-__all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "pack_columns", "row_hash", "patch_slab", "piece_accumulate", "cast_directions", "dilate_bits",
+__all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "pack_columns", "row_hash", "patch_slab", "piece_accumulate", "cast_directions", "dilate_bits", "bit_lists",
            "ball_neighbours", "local_conditions", "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
@@ -438,7 +438,7 @@ def patch_slab(vox, pts, nrm, point, normal, step, slab, grow):
 
 @njit(cache=True, parallel=True)
 def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid, skin, shalf, hide, skin_mask, light,
-                    vl, ppt, pnrm, slab, d, cell, radius, lo, tile, strict, out):
+                    vl, ppt, pnrm, slab, d, cell, radius, lo, tile, strict, qptr, qidx, out):
     """Cylinder casting of paper 002 §4.5 for every direction at once, one depth buffer each.
 
     For direction n, the lines parallel to n through the cell centres of a plane grid of
@@ -497,6 +497,10 @@ def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, q
     ray of its patch that meets a boundary blocker, not only for the cells' lines (the skin
     cubes are not grown: a ray that reaches one has entered the part through the surface).
     The refinement of ``global_visibility`` casts so with ``_FINE_STRICT``.
+
+    ``qptr`` (k + 1), ``qidx``: where not empty, the queries that ask for each direction
+    (:func:`bit_lists` of ``vl``; ``out`` must then come zeroed): the loops over the queries
+    visit only those, not every query's bit.
     """
     k = dirs.shape[0]
     nb = bxyz.shape[0]
@@ -523,7 +527,7 @@ def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, q
             gmax[c] = max(gmax[c], x1 - lo[c])
     for i in prange(k):  # the body is a call: parfor lowering of a big body compiles for minutes
         _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid, skin, shalf, hide, skin_mask, light,
-                  vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, tile, strict, out)
+                  vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, tile, strict, qptr, qidx, out)
 
 
 @njit(cache=True)
@@ -618,8 +622,11 @@ def _pair_cut(a, pa, b, pb, vlo, vhi):
 
 @njit(cache=True)
 def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid, skin, shalf, hide, skin_mask, light,
-              vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, tile, strict, out):
+              vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, tile, strict, qptr, qidx, out):
     """Direction i of :func:`cast_directions`: its depth buffer, then ``out[i, :]``."""
+    listed = qptr.shape[0] > 0
+    nq = qptr[i + 1] - qptr[i] if listed else qxyz.shape[0]
+    q0 = qptr[i] if listed else 0
     nb = bxyz.shape[0]
     mb = qxyz.shape[0]
     ms = skin.shape[0]
@@ -636,7 +643,8 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
     if tile > 0:
         # only the cells under the queries that ask for i are read: the window shrinks to them
         a0, a1, c0_, c1_ = A1 + 1, A0 - 1, B1 + 1, B0 - 1
-        for m in range(mb):
+        for t in range(nq):
+            m = qidx[q0 + t] if listed else t
             if (vl[m, wi] >> bi) & np.uint64(1) == 0:
                 continue
             pu, pv, ae, af, ia, ib, ja, jb, lxa, lxb, lya, lyb, lza, lzb = _span(
@@ -653,7 +661,8 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
         A0, A1, B0, B1 = a0, a1, c0_, c1_
     # the top-two bookkeeping is needed only where a query of i is also a blocker of i
     two = False
-    for m in range(mb):
+    for t in range(nq):
+        m = qidx[q0 + t] if listed else t
         if (vl[m, wi] >> bi) & (light[m, ow] >> ob) & np.uint64(1):
             two = True
             break
@@ -672,7 +681,8 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
     tb = (B1 - B0) // tile + 1 if tile > 0 else 1
     tmin = np.full((ta, tb), 1.0e300)
     if tile > 0:
-        for m in range(mb):
+        for t in range(nq):
+            m = qidx[q0 + t] if listed else t
             if (vl[m, wi] >> bi) & np.uint64(1) == 0:
                 continue
             rx, ry, rz = qxyz[m, 0] - lo[0], qxyz[m, 1] - lo[1], qxyz[m, 2] - lo[2]
@@ -761,7 +771,8 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
                 elif s1 > b2[ra, rb] and id1[ra, rb] != who:
                     b2[ra, rb] = s1
     eps = 1e-9 * d
-    for m in range(mb):
+    for t in range(nq):
+        m = qidx[q0 + t] if listed else t
         if (vl[m, wi] >> bi) & np.uint64(1) == 0:
             out[i, m] = 0
             continue
@@ -860,6 +871,27 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
             if top > s0 + eps:
                 ok = 0
         out[i, m] = ok
+
+
+@njit(cache=True)
+def bit_lists(bits, k, ptr, idx):
+    """Per direction i < k, the rows of ``bits`` (rows, words) with bit i set, as CSR:
+    ``idx[ptr[i]:ptr[i + 1]]`` (``ptr`` (k + 1); ``idx`` as long as the bits set)."""
+    n = bits.shape[0]
+    for i in range(k + 1):
+        ptr[i] = 0
+    for r in range(n):
+        for i in range(k):
+            if (bits[r, i >> 6] >> np.uint64(i & 63)) & np.uint64(1):
+                ptr[i + 1] += 1
+    for i in range(k):
+        ptr[i + 1] += ptr[i]
+    fill = ptr[:k].copy()
+    for r in range(n):
+        for i in range(k):
+            if (bits[r, i >> 6] >> np.uint64(i & 63)) & np.uint64(1):
+                idx[fill[i]] = r
+                fill[i] += 1
 
 
 @njit(cache=True, parallel=True)

@@ -944,20 +944,27 @@ def _casting(vm: VoxelMap, *, cull: bool = True) -> tuple:
 
 
 def _cast(vm: VoxelMap, cast: tuple, qx, qh, qid, light, vl, ppt, pnrm, slab, cell: float,
-          tile: int = 0, strict: bool = False) -> np.ndarray:
+          tile: int = 0, strict: bool = False, lists: bool = False) -> np.ndarray:
     """One run of :func:`~zmap.access._access_kernels.cast_directions` on the queries given:
     ``out`` (k, nq) uint8 (``tile``: draw only the blockers over tiles of that many cells under
     a query that asks, the same bits; ``strict``: every cell under a query's box, from the
-    lowest start of a ray of the cell)."""
-    from ._access_kernels import cast_directions
+    lowest start of a ray of the cell; ``lists``: hand the kernel the queries of each direction,
+    worth it where few ask)."""
+    from ._access_kernels import bit_lists, cast_directions
 
     ds = vm.directions
     (bx, bh, bvox, blight, bplane), skin, shalf, smask, hide, radius, centre = cast
     out = np.zeros((ds.k, len(qx)), dtype=np.uint8)
+    vl = np.ascontiguousarray(vl)
+    qptr, qidx = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    if lists:
+        qptr = np.zeros(ds.k + 1, dtype=np.int64)
+        qidx = np.empty(int(count(vl).sum()), dtype=np.int64)
+        bit_lists(vl, ds.k, qptr, qidx)
     cast_directions(ds.normals, _opposite(ds), bx, bh, bvox, blight, bplane, np.ascontiguousarray(qx),
                     np.ascontiguousarray(qh), np.ascontiguousarray(qid), skin, shalf, hide, smask,
                     np.ascontiguousarray(light), np.ascontiguousarray(vl), np.ascontiguousarray(ppt),
-                    np.ascontiguousarray(pnrm), np.ascontiguousarray(slab), vm.d, cell, radius, centre, int(tile), int(strict), out)
+                    np.ascontiguousarray(pnrm), np.ascontiguousarray(slab), vm.d, cell, radius, centre, int(tile), int(strict), qptr, qidx, out)
     return out
 
 
@@ -1022,7 +1029,7 @@ def _refine(vm: VoxelMap, cast: tuple, vb: np.ndarray, pb: np.ndarray, rays: int
         qid = -3 - np.arange(len(todo), dtype=np.int64)
         out = _cast(vm, cast, qx[todo], qh[todo], qid, np.zeros((len(todo), ds.words), dtype=np.uint64), need[todo],
                     f.point[todo], f.normal[todo], f.slab[todo], vm.d / (_FINE_RAYS * rays),
-                    tile=_FINE_TILE if tile is None else tile, strict=_FINE_STRICT)
+                    tile=_FINE_TILE if tile is None else tile, strict=_FINE_STRICT, lists=True)
         got = np.empty((len(todo), ds.words), dtype=np.uint64)
         pack_columns(out, got)
         fb[todo] |= got

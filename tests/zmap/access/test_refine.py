@@ -105,7 +105,10 @@ def test_tiles_and_the_near_filter_only_skip_work(small_bowl, monkeypatch):
     qx, qh = V._query_boxes(vm, fine=True)
     f = vm.fine
     args = (qx, qh, -3 - np.arange(len(qx)), np.zeros_like(f.vl), f.vl, f.point, f.normal, f.slab, vm.d / 4)
-    assert (V._cast(vm, cast, *args, tile=0) == V._cast(vm, cast, *args, tile=3)).all()
+    plain_fine = V._cast(vm, cast, *args, tile=0)
+    assert (plain_fine == V._cast(vm, cast, *args, tile=3)).all()
+    assert (plain_fine == V._cast(vm, cast, *args, tile=3, lists=True)).all()
+    assert (plain_fine == V._cast(vm, cast, *args, lists=True)).all()
     plain = global_visibility(vm, pieces=True)
     monkeypatch.setattr(V, "_TILE", 2)  # the voxels' cast with tiles too
     assert all((a == b).all() for a, b in zip(plain, global_visibility(vm, pieces=True)))
@@ -117,6 +120,22 @@ def test_tiles_and_the_near_filter_only_skip_work(small_bowl, monkeypatch):
     near = global_visibility(vm, pieces=True, refine=True)
     for a, b, c in zip((vb0, pb0, _parents(vm, vb0, pb0)), near, full):
         assert not (a & ~b).any() and not (b & ~c).any()
+
+
+def test_bit_lists_are_the_rows_of_each_direction():
+    from zmap.access._access_kernels import bit_lists
+
+    rng = np.random.default_rng(4)
+    bits = rng.integers(0, 2**63, size=(50, 2), dtype=np.int64).view(np.uint64)
+    bits[rng.random(50) < 0.3] = 0
+    k = 100
+    bits[:, 1] &= np.uint64((1 << (k - 64)) - 1)
+    ptr = np.zeros(k + 1, dtype=np.int64)
+    idx = np.empty(int(count(bits).sum()), dtype=np.int64)
+    bit_lists(bits, k, ptr, idx)
+    dense = to_bool(bits, k)
+    for i in range(k):
+        assert (idx[ptr[i]:ptr[i + 1]] == np.flatnonzero(dense[:, i])).all()
 
 
 def test_dilated_bits_are_the_or_over_the_neighbours(small_bowl):
@@ -202,7 +221,7 @@ def test_strict_refinement_adds_no_far_miss_on_shifted_bowls(shift, r):
         vbs, pbs, fbs = global_visibility(vm, pieces=True, refine=True)
     finally:
         V._FINE_STRICT = old
-    assert not (parent & ~fbs).any() and not (fbs & ~fb).any()  # strict frees a subset
+    assert not (parent & ~fbs).any() and not (fbs & ~(f.vl | parent)).any()
     cav = np.flatnonzero(F == 6)
     v = vm.voxel_of(P[cav])
     nf = int(F.max()) + 1
