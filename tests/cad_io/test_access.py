@@ -217,6 +217,7 @@ def test_command_end_to_end(slot, tmp_path):
         has = z["node_voxel"] >= 0
         assert has.mean() > 0.95  # nodes on the box's far edges may fall just outside the voxels
         assert (z["node_count"][has] == z["n_access"][z["node_voxel"][has]]).all()
+        assert z["fine_vg"].shape == (len(z["fine_voxel"]), 2) and len(z["fine_octant"]) == len(z["fine_face"]) > 0
     assert not list(tmp_path.glob(".tmp-*"))
 
 

@@ -1352,8 +1352,8 @@ class AccessResult:
         if self.vg_pieces is not None and vm.pieces is not None and vm.pieces.face is not None:
             arrays.update(piece_voxel=vm.pieces.voxel, piece_face=vm.pieces.face, piece_vg=self.vg_pieces)
         if self.vg_fine is not None and vm.fine is not None:
-            arrays.update(fine_voxel=vm.fine.voxel, fine_octant=vm.fine.octant, fine_face=vm.fine.face,
-                          fine_vg=self.vg_fine)
+            arrays.update(fine_voxel=vm.fine.voxel.astype(np.int32), fine_octant=vm.fine.octant.astype(np.uint8),
+                          fine_face=vm.fine.face.astype(np.int32), fine_vg=self.vg_fine)
         for key, val in self.nodes.items():
             if isinstance(val, np.ndarray):
                 arrays[key] = val
