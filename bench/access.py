@@ -11,8 +11,10 @@ visibility and access stages; comparable to the anchor's Embree rays/s, which le
 building the scene); ``pairs_per_s_pipeline``: the same pairs per second of the whole pipeline
 (``seconds``: sampling, voxel map, visibility, access, set-ups). ``tool_stats``: shank and
 holder tests decided by the dilated buffers as clear, as blocked, and by a disc scan.
-``agree_share``: share of (point, direction) pairs where the map's V'_g (a point's face's
-piece's in a voxel where several faces meet, ``cad_io.access.point_visibility``) agrees with OCC thin
+``refine``: the refinement's figures (``global_visibility(refine=True)``: half-voxel pieces,
+those cast again, the (piece, direction) pairs cast again and freed, voxel and piece pairs
+freed). ``agree_share``: share of (point, direction) pairs where the map's V'_g (the point's
+half-voxel piece's, ``cad_io.access.point_visibility``) agrees with OCC thin
 rays (``cad_io.access.reference_visibility``) on ``--points`` random surface points x all k
 directions (the same answer for the same pair; nothing is counted as agreeing for being near
 a silhouette); ``voxel_only_far``: pairs the map calls free that OCC finds blocked more than a
@@ -65,7 +67,7 @@ def main() -> None:
     part = read_step(args.part)
     read_s = time.perf_counter() - t
     res = analyse(part, d=args.voxel, q=args.q, tool=tool, rays=args.rays)
-    from zmap.access.voxelmap import _LAST_TOOL_STATS
+    from zmap.access.voxelmap import _LAST_REFINE_STATS, _LAST_TOOL_STATS
     vm = res.vm
     pairs = vm.n_boundary * vm.directions.k
     ag = agreement(part, res, n_points=args.points, seed=args.seed, explain=True)
@@ -80,6 +82,7 @@ def main() -> None:
         "pairs_per_s": round(pairs / (res.seconds["visibility"] + res.seconds["access"])),
         "pairs_per_s_pipeline": round(pairs / res.seconds["total"]),
         "tool_stats": dict(zip(("clear", "blocked", "scanned"), _LAST_TOOL_STATS)),
+        "refine": dict(_LAST_REFINE_STATS),
         "agree_share": round(ag["agree_share"], 5), "agree_pairs": ag["pairs"],
         "voxel_only_near": ag["voxel_only_near"], "voxel_only_far": ag["voxel_only_far"],
         "reference_only": ag["reference_only"],

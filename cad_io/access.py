@@ -200,10 +200,13 @@ def voxelize(part: Part, d: float, *, step: float | None = None, q: int = 4, exa
 
 
 def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float | None = None,
-            cone: float | None = None, exact: bool = True, rays: int = 2, progress=None) -> AccessResult:
+            cone: float | None = None, exact: bool = True, rays: int = 2, refine: bool = True,
+            progress=None) -> AccessResult:
     """The whole pipeline: voxel map, V'_g, A', 3-axis verdict and set-ups, with timings.
 
-    ``rays``: lines per voxel edge of the cylinder casting (:func:`global_visibility`).
+    ``rays``: lines per voxel edge of the cylinder casting (:func:`global_visibility`);
+    ``refine``: cast the half-voxel pieces again where the voxel's cylinder is blocked (the
+    refinement of :func:`global_visibility`; False: the paper's casting alone).
     ``progress(message)`` is called at each stage (the CLI prints it).
     """
     say = progress or (lambda msg: None)
@@ -221,11 +224,11 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     t = time.perf_counter()
     say(f"{len(s):,} samples; voxel map at d = {d:g} mm, q = {q} (k = {20 * q * q})")
     vm = VoxelMap.from_samples(s.points, s.normals, s.curvature, s.face, s.weight, d=d, q=q, step=step,
-                               exact=exact)
+                               exact=exact, fine=refine)
     sec["voxelize"] = time.perf_counter() - t
     t = time.perf_counter()
     say(f"{vm.n_boundary:,} boundary, {vm.n_interior:,} interior voxels; cylinder casting")
-    vg, vg_pieces = global_visibility(vm, rays=rays, pieces=True)
+    vg, vg_pieces, vg_fine = global_visibility(vm, rays=rays, pieces=True, refine=refine)
     sec["visibility"] = time.perf_counter() - t
     t = time.perf_counter()
     say("accessibility for the tool")
@@ -237,7 +240,7 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     sec["setups"] = time.perf_counter() - t
     sec["total"] = time.perf_counter() - t0
     return AccessResult(vm=vm, vg=vg, amap=amap, tool=tool, verdict=verdict, setups=setups, seconds=sec,
-                        source=str(part.source or ""), vg_pieces=vg_pieces)
+                        source=str(part.source or ""), vg_pieces=vg_pieces, vg_fine=vg_fine if refine else None)
 
 
 def read_part(path) -> Part:
@@ -345,22 +348,35 @@ def reference_tool(shape: Any, points, normals, directions, tool: Tool, *, tol: 
     return out
 
 
-def point_visibility(result: AccessResult, voxel: np.ndarray, face: np.ndarray) -> np.ndarray:
+def point_visibility(result: AccessResult, voxel: np.ndarray, face: np.ndarray,
+                     points: np.ndarray | None = None) -> np.ndarray:
     """``V'_g`` (n, words) that the map gives surface points of ``face`` in boundary voxels
-    ``voxel``: their face's piece's where several faces meet in the voxel (and the pieces
-    were cast), else the voxel's."""
+    ``voxel``: with ``points`` (n, 3) and a refined map (``result.vg_fine``), their half-voxel
+    piece's (the face's samples in the point's half-voxel cell of the voxel); else their
+    face's piece's where several faces meet in the voxel (and the pieces were cast); else the
+    voxel's."""
+    from zmap.access.voxelmap import _piece_index
+
+    vm = result.vm
+    voxel = np.asarray(voxel, dtype=np.int64)
+    face = np.asarray(face, dtype=np.int64)
     out = result.vg[voxel].copy()
-    p = result.vm.pieces
     vp = result.vg_pieces
-    if p is None or vp is None or not len(vp) or p.face is None:
+    if vm.pieces is not None and vp is not None and len(vp) and vm.pieces.face is not None:
+        pi = _piece_index(vm, voxel, face)
+        out[pi >= 0] = vp[pi[pi >= 0]]
+    f = vm.fine
+    if points is None or result.vg_fine is None or f is None or not len(f.voxel):
         return out
-    nf = int(max(p.face.max(), np.max(face))) + 1
-    keys = p.voxel.astype(np.int64) * nf + p.face
-    order = np.argsort(keys)
-    want = np.asarray(voxel, dtype=np.int64) * nf + np.asarray(face, dtype=np.int64)
-    at = np.clip(np.searchsorted(keys[order], want), 0, len(keys) - 1)
-    hit = keys[order][at] == want
-    out[hit] = vp[order[at[hit]]]
+    half = np.floor(2.0 * (np.asarray(points, dtype=np.float64).reshape(-1, 3) - vm.origin) / vm.d).astype(np.int64)
+    half = np.clip(half - 2 * vm.ijk[voxel], 0, 1)
+    octant = (half[:, 0] * 2 + half[:, 1]) * 2 + half[:, 2]
+    nf = int(max(f.face.max(), face.max())) + 1
+    keys = (f.voxel.astype(np.int64) * 8 + f.octant) * nf + f.face  # sorted (see VoxelMap.fine)
+    want = (voxel * 8 + octant) * nf + face
+    at = np.clip(np.searchsorted(keys, want), 0, len(keys) - 1)
+    hit = keys[at] == want
+    out[hit] = result.vg_fine[at[hit]]
     return out
 
 
@@ -396,7 +412,7 @@ def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int
         hit = np.where(ref, np.inf, 0.0)
     else:
         ref, hit = reference_visibility(part.shape, pts, ds.normals)
-        mine = to_bool(point_visibility(result, vb, s.face[pick]), ds.k)
+        mine = to_bool(point_visibility(result, vb, s.face[pick], pts), ds.k)
     diag = np.sqrt(3.0) * vm.d
     vo = mine & ~ref
     near_sil = 0

@@ -11,7 +11,7 @@ from numba import njit, prange
 
 from ._direction_kernels import lookup_one
 
-__all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "pack_columns", "row_hash", "patch_slab", "piece_accumulate", "cast_directions",
+__all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "pack_columns", "row_hash", "patch_slab", "piece_accumulate", "cast_directions", "dilate_bits", "bit_lists",
            "ball_neighbours", "local_conditions", "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
@@ -33,14 +33,17 @@ def accumulate(vox, pts, nrm, kmax, face, weight, centres, frames, q, hv, hl, ex
     """Fold each sample into its boundary voxel: V' &= H_V(t), L' |= H_L(t), curvature, surface.
 
     ``vox[s]`` is the boundary voxel of sample s; ``exact`` = 1 replaces H_V / H_L of the tessel
-    by the exact hemisphere of the sample's normal (bit i set where dirs[i] . n > 0).
+    by the exact hemisphere of the sample's normal (bit i set where dirs[i] . n > 0); 2 leaves
+    ``vl`` and ``light`` alone (the caller folds them from the half-voxel pieces').
     """
     W = vl.shape[1]
     k = dirs.shape[0]
     for s in range(vox.shape[0]):
         b = vox[s]
         nx, ny, nz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
-        if exact:
+        if exact == 2:  # the caller folds the bitsets itself
+            pass
+        elif exact:
             for w in range(W):
                 acc = _hemisphere_word(dirs, k, w, nx, ny, nz)
                 vl[b, w] &= acc
@@ -355,13 +358,15 @@ def _zcols(uc, e, f, r, h, u0, cell, jlo, jhi):
 def piece_accumulate(piece, pts, nrm, centres, frames, q, hv, hl, exact, dirs, vl, light, psum, nsum, pmin, pmax):
     """Fold samples into pieces (one face's samples in one voxel): V'_l (AND) and L' (OR) of
     each sample's exact hemisphere, or of H_V / H_L of its tessel, as :func:`accumulate` does
-    for voxels; point and normal sums, samples' box."""
+    for voxels (``exact`` = 2: neither); point and normal sums, samples' box."""
     W = light.shape[1]
     k = dirs.shape[0]
     for s in range(piece.shape[0]):
         p = piece[s]
         nx, ny, nz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
-        if exact:
+        if exact == 2:  # the caller folds the bitsets itself
+            pass
+        elif exact:
             for w in range(W):
                 acc = _hemisphere_word(dirs, k, w, nx, ny, nz)
                 vl[p, w] &= acc
@@ -433,7 +438,7 @@ def patch_slab(vox, pts, nrm, point, normal, step, slab, grow):
 
 @njit(cache=True, parallel=True)
 def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid, skin, shalf, hide, skin_mask, light,
-                    vl, ppt, pnrm, slab, d, cell, radius, lo, out):
+                    vl, ppt, pnrm, slab, d, cell, radius, lo, tile, strict, qptr, qidx, out):
     """Cylinder casting of paper 002 §4.5 for every direction at once, one depth buffer each.
 
     For direction n, the lines parallel to n through the cell centres of a plane grid of
@@ -474,6 +479,28 @@ def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, q
     skin, shalf : (ms, 3) centres and half extents of boxes of interior skin voxels, each box
     of voxels with one neighbour mask ``skin_mask`` (:func:`merge_runs`; single cubes: half d);
     radius : half the diagonal of the part's box; lo : (3,) centre of the part's box.
+
+    ``tile`` > 0: a buffer cell matters only under a query that asks for direction i, and only
+    where it ends later than that query's start, so the buffer covers only the rectangle of
+    cells under such queries, split into tiles of tile x tile cells each holding the lowest
+    point along n of the queries' boxes over it; a blocker is drawn only where its latest exit
+    (the far corner of its grown box along n) lies beyond that in one of its tiles. A blocker
+    left out ends no later than the start of every line it shares with a query, so every
+    answer is the same (the same bits, tested). 0: every blocker is drawn.
+
+    ``strict`` = 1 tests a query on every cell some line of which meets its box, not only
+    those whose centre line crosses it, each from the lowest start a ray of the cell from a
+    patch point can have (bounds over the cell of the box's entry, its lowest point along n,
+    the slab's lowest over the cell): a
+    ray of the patch lies in one of those cells and starts no lower, and a blocker it meets
+    shows on its cell's line (grown as above) no earlier, so a query kept is free for every
+    ray of its patch that meets a boundary blocker, not only for the cells' lines (the skin
+    cubes are not grown: a ray that reaches one has entered the part through the surface).
+    The refinement of ``global_visibility`` casts so with ``_FINE_STRICT``.
+
+    ``qptr`` (k + 1), ``qidx``: where not empty, the queries that ask for each direction
+    (:func:`bit_lists` of ``vl``; ``out`` must then come zeroed): the loops over the queries
+    visit only those, not every query's bit.
     """
     k = dirs.shape[0]
     nb = bxyz.shape[0]
@@ -500,7 +527,7 @@ def cast_directions(dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, q
             gmax[c] = max(gmax[c], x1 - lo[c])
     for i in prange(k):  # the body is a call: parfor lowering of a big body compiles for minutes
         _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid, skin, shalf, hide, skin_mask, light,
-                  vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, out)
+                  vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, tile, strict, qptr, qidx, out)
 
 
 @njit(cache=True)
@@ -595,8 +622,11 @@ def _pair_cut(a, pa, b, pb, vlo, vhi):
 
 @njit(cache=True)
 def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid, skin, shalf, hide, skin_mask, light,
-              vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, out):
+              vl, ppt, pnrm, slab, d, cell, lo, g, u0, nc, gmin, gmax, tile, strict, qptr, qidx, out):
     """Direction i of :func:`cast_directions`: its depth buffer, then ``out[i, :]``."""
+    listed = qptr.shape[0] > 0
+    nq = qptr[i + 1] - qptr[i] if listed else qxyz.shape[0]
+    q0 = qptr[i] if listed else 0
     nb = bxyz.shape[0]
     mb = qxyz.shape[0]
     ms = skin.shape[0]
@@ -610,9 +640,29 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
     o = opp[i]
     ow = o >> 6
     ob = np.uint64(o & 63)
+    if tile > 0:
+        # only the cells under the queries that ask for i are read: the window shrinks to them
+        a0, a1, c0_, c1_ = A1 + 1, A0 - 1, B1 + 1, B0 - 1
+        for t in range(nq):
+            m = qidx[q0 + t] if listed else t
+            if (vl[m, wi] >> bi) & np.uint64(1) == 0:
+                continue
+            pu, pv, ae, af, ia, ib, ja, jb, lxa, lxb, lya, lyb, lza, lzb = _span(
+                qxyz[m, 0] - lo[0], qxyz[m, 1] - lo[1], qxyz[m, 2] - lo[2], qhalf[m, 0], qhalf[m, 1], qhalf[m, 2],
+                geo, u0, cell, A0, A1, B0, B1)
+            a0 = min(a0, min(ia, max(A0, min(A1, int(np.floor((pu - u0) / cell))))))
+            a1 = max(a1, max(ib, max(A0, min(A1, int(np.floor((pu - u0) / cell))))))
+            c0_ = min(c0_, min(ja, max(B0, min(B1, int(np.floor((pv - u0) / cell))))))
+            c1_ = max(c1_, max(jb, max(B0, min(B1, int(np.floor((pv - u0) / cell))))))
+        if a0 > a1 or c0_ > c1_:
+            for m in range(mb):
+                out[i, m] = 0
+            return
+        A0, A1, B0, B1 = a0, a1, c0_, c1_
     # the top-two bookkeeping is needed only where a query of i is also a blocker of i
     two = False
-    for m in range(mb):
+    for t in range(nq):
+        m = qidx[q0 + t] if listed else t
         if (vl[m, wi] >> bi) & (light[m, ow] >> ob) & np.uint64(1):
             two = True
             break
@@ -625,6 +675,31 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
     gy = 0.5 * cell * (abs(ey) + abs(fy))
     gz = 0.5 * cell * (abs(ez) + abs(fz))
     req = hide[i]
+    # per tile (tile > 0) the lowest start of the queries over it that ask for i (1e300: none);
+    # a blocker that ends, on every line of its tiles, no later than that changes no answer
+    ta = (A1 - A0) // tile + 1 if tile > 0 else 1
+    tb = (B1 - B0) // tile + 1 if tile > 0 else 1
+    tmin = np.full((ta, tb), 1.0e300)
+    if tile > 0:
+        for t in range(nq):
+            m = qidx[q0 + t] if listed else t
+            if (vl[m, wi] >> bi) & np.uint64(1) == 0:
+                continue
+            rx, ry, rz = qxyz[m, 0] - lo[0], qxyz[m, 1] - lo[1], qxyz[m, 2] - lo[2]
+            hx, hy, hz = qhalf[m, 0], qhalf[m, 1], qhalf[m, 2]
+            pu, pv, ae, af, ia, ib, ja, jb, lxa, lxb, lya, lyb, lza, lzb = _span(rx, ry, rz, hx, hy, hz, geo, u0, cell,
+                                                                                A0, A1, B0, B1)
+            # the cell under the centre too (the fallback of a box no centre line crosses)
+            ia = min(ia, max(A0, min(A1, int(np.floor((pu - u0) / cell)))))
+            ib = max(ib, max(A0, min(A1, int(np.floor((pu - u0) / cell)))))
+            ja = min(ja, max(B0, min(B1, int(np.floor((pv - u0) / cell)))))
+            jb = max(jb, max(B0, min(B1, int(np.floor((pv - u0) / cell)))))
+            # no line's start lies below the box's lowest point along n
+            low = rx * nx + ry * ny + rz * nz - (hx * abs(nx) + hy * abs(ny) + hz * abs(nz))
+            for p in range((ia - A0) // tile, (ib - A0) // tile + 1):
+                for r in range((ja - B0) // tile, (jb - B0) // tile + 1):
+                    if low < tmin[p, r]:
+                        tmin[p, r] = low
     for m in range(nb + ms):
         # the back plane of a blocker piece: its exit on a line is no later than where the
         # line passes behind the piece's slab by as much as a ray of the cell can be off the
@@ -654,6 +729,19 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
         rx, ry, rz = cx - lo[0], cy - lo[1], cz - lo[2]
         pu, pv, ae, af, ia, ib, ja, jb, lxa, lxb, lya, lyb, lza, lzb = _span(rx, ry, rz, hx, hy, hz, geo, u0, cell,
                                                                             A0, A1, B0, B1)
+        if tile > 0 and ia <= ib and ja <= jb:
+            # its latest exit on any line: the far corner of the (grown) box along n
+            top = rx * nx + ry * ny + rz * nz + hx * abs(nx) + hy * abs(ny) + hz * abs(nz)
+            over = False
+            for p in range((ia - A0) // tile, (ib - A0) // tile + 1):
+                for r in range((ja - B0) // tile, (jb - B0) // tile + 1):
+                    if tmin[p, r] < top:
+                        over = True
+                        break
+                if over:
+                    break
+            if not over:
+                continue
         wide = jb - ja > 8
         for a in range(ia, ib + 1):
             uc = u0 + (a + 0.5) * cell
@@ -683,7 +771,8 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
                 elif s1 > b2[ra, rb] and id1[ra, rb] != who:
                     b2[ra, rb] = s1
     eps = 1e-9 * d
-    for m in range(mb):
+    for t in range(nq):
+        m = qidx[q0 + t] if listed else t
         if (vl[m, wi] >> bi) & np.uint64(1) == 0:
             out[i, m] = 0
             continue
@@ -700,6 +789,54 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
             cu = (ex * mx + ey * my + ez * mz) / nm
             cv = (fx * mx + fy * my + fz * mz) / nm
         ok = 1
+        if strict:
+            # every cell some line of which meets the box, from the lowest start a ray of the
+            # cell from a patch point can have. Per axis c the line's entry into the box's slab
+            # is linear in the line's place, so over the cell it is no lower than its value
+            # at the centre less half a cell times its slopes; so is each entry less another
+            # axis' exit (a line meets the box where every such difference is <= 0). The start:
+            # the largest of those entry bounds, the box's lowest point along n and the slab's
+            # lowest over the cell.
+            low = rx * nx + ry * ny + rz * nz - (hx * abs(nx) + hy * abs(ny) + hz * abs(nz))
+            sc = 0.5 * cell * (abs(cu) + abs(cv))
+            pex, pey, pez = geo[9], geo[10], geo[11]
+            gxh = 0.5 * cell * (abs(pex) + abs(pfx))
+            gyh = 0.5 * cell * (abs(pey) + abs(pfy))
+            gzh = 0.5 * cell * (abs(pez) + abs(pfz))
+            dxy = 0.5 * cell * (abs(pex - pey) + abs(pfx - pfy))
+            dxz = 0.5 * cell * (abs(pex - pez) + abs(pfx - pfz))
+            dyz = 0.5 * cell * (abs(pey - pez) + abs(pfy - pfz))
+            for a in range(ia, ib + 1):
+                if ok == 0:
+                    break
+                uc = u0 + (a + 0.5) * cell
+                xa, xb = lxa - uc * pex, lxb - uc * pex
+                ya, yb = lya - uc * pey, lyb - uc * pey
+                za, zb = lza - uc * pez, lzb - uc * pez
+                cr = c0 - uc * cu - sc
+                ra = a - A0
+                for b in range(ja, jb + 1):
+                    vc = u0 + (b + 0.5) * cell
+                    ea, eb = xa - vc * pfx, xb - vc * pfx
+                    fa, fb_ = ya - vc * pfy, yb - vc * pfy
+                    ga, gb = za - vc * pfz, zb - vc * pfz
+                    if (ea - fb_ > dxy or ea - gb > dxz or fa - eb > dxy or fa - gb > dyz or ga - eb > dxz
+                            or ga - fb_ > dyz):
+                        continue
+                    if geo[18] and abs(uc * ex + vc * fx - rx) - 0.5 * cell * (abs(ex) + abs(fx)) > hx:
+                        continue
+                    if geo[19] and abs(uc * ey + vc * fy - ry) - 0.5 * cell * (abs(ey) + abs(fy)) > hy:
+                        continue
+                    if geo[20] and abs(uc * ez + vc * fz - rz) - 0.5 * cell * (abs(ez) + abs(fz)) > hz:
+                        continue
+                    s0 = max(max(low, cr - vc * cv), max(ea - gxh, max(fa - gyh, ga - gzh)))
+                    rb = b - B0
+                    top = b2[ra, rb] if two and id1[ra, rb] == qid[m] else b1[ra, rb]
+                    if top > s0 + eps:
+                        ok = 0
+                        break
+            out[i, m] = ok
+            continue
         hits = 0
         for a in range(ia, ib + 1):
             if ok == 0:
@@ -734,6 +871,46 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
             if top > s0 + eps:
                 ok = 0
         out[i, m] = ok
+
+
+@njit(cache=True)
+def bit_lists(bits, k, ptr, idx):
+    """Per direction i < k, the rows of ``bits`` (rows, words) with bit i set, as CSR:
+    ``idx[ptr[i]:ptr[i + 1]]`` (``ptr`` (k + 1); ``idx`` as long as the bits set)."""
+    n = bits.shape[0]
+    for i in range(k + 1):
+        ptr[i] = 0
+    for r in range(n):
+        for i in range(k):
+            if (bits[r, i >> 6] >> np.uint64(i & 63)) & np.uint64(1):
+                ptr[i + 1] += 1
+    for i in range(k):
+        ptr[i + 1] += ptr[i]
+    fill = ptr[:k].copy()
+    for r in range(n):
+        for i in range(k):
+            if (bits[r, i >> 6] >> np.uint64(i & 63)) & np.uint64(1):
+                idx[fill[i]] = r
+                fill[i] += 1
+
+
+@njit(cache=True, parallel=True)
+def dilate_bits(index, ijk, bits, rad, out):
+    """out[b] = OR of bits[w] over the boundary voxels w within ``rad`` voxels of b along each
+    axis (b itself included): the directions some voxel near b keeps."""
+    nx, ny, nz = index.shape
+    W = bits.shape[1]
+    for b in prange(ijk.shape[0]):
+        for w in range(W):
+            out[b, w] = np.uint64(0)
+        i0, j0, l0 = ijk[b, 0], ijk[b, 1], ijk[b, 2]
+        for i in range(max(0, i0 - rad), min(nx, i0 + rad + 1)):
+            for j in range(max(0, j0 - rad), min(ny, j0 + rad + 1)):
+                for l in range(max(0, l0 - rad), min(nz, l0 + rad + 1)):
+                    m = index[i, j, l]
+                    if m >= 0:
+                        for w in range(W):
+                            out[b, w] |= bits[m, w]
 
 
 @njit(cache=True)

@@ -48,18 +48,21 @@ def _clip(base, n, c, h):
     return s0, s1
 
 
-def global_visibility_reference(vm, *, rays: int = 2, pieces: bool = False) -> np.ndarray:
+def global_visibility_reference(vm, *, rays: int = 2, pieces: bool = False, fine: bool = False) -> np.ndarray:
     """V'_g (mb, words) computed plainly; small maps only (O(k mb^2)). ``pieces``: the bits of
-    the pieces' own queries (np, words) instead (:func:`zmap.access.voxelmap.global_visibility`)."""
+    the pieces' own queries (np, words) instead (:func:`zmap.access.voxelmap.global_visibility`);
+    ``fine``: those of the half-voxel pieces of ``vm.fine`` cast on their own, every direction
+    of their V'_l (what the refinement of ``global_visibility`` casts at ``rays`` = twice its
+    own, for the directions it needs)."""
     from .voxelmap import _query_boxes
 
     ds = vm.directions
     bc, bh, bvox, blight, bplane = vm.blockers()
     qc, qh_ = _query_boxes(vm)
     q_point, q_normal, q_slab, q_vl, q_self = vm.point, vm.normal, vm.slabs(), vm.vl, np.arange(vm.n_boundary)
-    if pieces:
-        pc = vm.pieces
-        pqc, pqh = _query_boxes(vm, pieces=True)
+    if pieces or fine:
+        pc = vm.fine if fine else vm.pieces
+        pqc, pqh = _query_boxes(vm, pieces=True, fine=fine)
         q_point, q_normal, q_slab, q_vl, q_self = pc.point, pc.normal, pc.slab, pc.vl, np.full(len(pc.voxel), -3)
     skin = vm.skin()
     allc = np.concatenate([qc, skin]) if len(skin) else qc
@@ -71,7 +74,7 @@ def global_visibility_reference(vm, *, rays: int = 2, pieces: bool = False) -> n
     nc = int(np.ceil(2.0 * (radius + 2 * vm.d) / cell)) + 1
     light = to_bool(blight, ds.k)
     vl = to_bool(q_vl, ds.k)
-    if pieces:
+    if pieces or fine:
         qc, qh_ = pqc, pqh
     opp = ds.lookup(-ds.normals)
     sc = skin - mid
