@@ -196,6 +196,27 @@ def test_refinement_frees_what_every_ray_of_the_piece_frees_on_a_bowl(bowl3):
     assert (count(vb) >= count(vb0)).all() and (count(vb) > count(vb0)).any()
 
 
+def _strict_refinement(vm):
+    """``global_visibility(vm, pieces=True, refine=True)`` with ``_FINE_STRICT`` on."""
+    old, V._FINE_STRICT = V._FINE_STRICT, 1
+    try:
+        return global_visibility(vm, pieces=True, refine=True)
+    finally:
+        V._FINE_STRICT = old
+
+
+def _cavity_pieces(vm, P, F):
+    """The cavity's samples (face 6), their voxels and the index of each one's half-voxel piece."""
+    f = vm.fine
+    cav = np.flatnonzero(F == 6)
+    v = vm.voxel_of(P[cav])
+    nf = int(F.max()) + 1
+    half = np.clip(np.floor(2 * (P[cav] - vm.origin) / vm.d).astype(int) - 2 * vm.ijk[v], 0, 1)
+    at = np.searchsorted((f.voxel * 8 + f.octant) * nf + f.face,
+                         (v * 8 + (half[:, 0] * 2 + half[:, 1]) * 2 + half[:, 2]) * nf + F[cav])
+    return cav, v, at
+
+
 @settings(max_examples=8, deadline=None)
 @given(shift=st.tuples(*[st.floats(-0.3, 0.3, allow_nan=False)] * 3), r=st.floats(1.6, 2.4))
 def test_strict_refinement_adds_no_far_miss_on_shifted_bowls(shift, r):
@@ -216,18 +237,9 @@ def test_strict_refinement_adds_no_far_miss_on_shifted_bowls(shift, r):
     parent = _parents(vm, vb0, pb0)
     assert not (parent & ~fb).any() and not (fb & ~(f.vl | parent)).any()
     assert not (vb0 & ~vb).any() and not (vb & ~vm.vl).any()
-    old, V._FINE_STRICT = V._FINE_STRICT, 1
-    try:
-        vbs, pbs, fbs = global_visibility(vm, pieces=True, refine=True)
-    finally:
-        V._FINE_STRICT = old
+    vbs, pbs, fbs = _strict_refinement(vm)
     assert not (parent & ~fbs).any() and not (fbs & ~(f.vl | parent)).any()
-    cav = np.flatnonzero(F == 6)
-    v = vm.voxel_of(P[cav])
-    nf = int(F.max()) + 1
-    half = np.clip(np.floor(2 * (P[cav] - vm.origin) / vm.d).astype(int) - 2 * vm.ijk[v], 0, 1)
-    at = np.searchsorted((f.voxel * 8 + f.octant) * nf + f.face,
-                         (v * 8 + (half[:, 0] * 2 + half[:, 1]) * 2 + half[:, 2]) * nf + F[cav])
+    cav, v, at = _cavity_pieces(vm, P, F)
     hit = bowl_hit(P[cav] - np.asarray(shift), ds.normals, r)
     far = np.isfinite(hit) & (hit > np.sqrt(3.0) * vm.d)
     assert not (to_bool(fbs[at] & ~parent[at], ds.k) & far).any()
@@ -246,18 +258,8 @@ def test_default_refinement_misses_on_a_cavity_that_strict_catches():
     vb0, pb0 = global_visibility(vm, pieces=True)
     parent = _parents(vm, vb0, pb0)
     fb = global_visibility(vm, pieces=True, refine=True)[2]
-    old, V._FINE_STRICT = V._FINE_STRICT, 1
-    try:
-        fbs = global_visibility(vm, pieces=True, refine=True)[2]
-    finally:
-        V._FINE_STRICT = old
-    f = vm.fine
-    cav = np.flatnonzero(F == 6)
-    v = vm.voxel_of(P[cav])
-    nf = int(F.max()) + 1
-    half = np.clip(np.floor(2 * (P[cav] - vm.origin) / vm.d).astype(int) - 2 * vm.ijk[v], 0, 1)
-    at = np.searchsorted((f.voxel * 8 + f.octant) * nf + f.face,
-                         (v * 8 + (half[:, 0] * 2 + half[:, 1]) * 2 + half[:, 2]) * nf + F[cav])
+    fbs = _strict_refinement(vm)[2]
+    cav, v, at = _cavity_pieces(vm, P, F)
     hit = bowl_hit(P[cav], ds.normals, r)
     far = np.isfinite(hit) & (hit > np.sqrt(3.0) * vm.d)
     assert (to_bool(fb[at], ds.k) & far).sum() == 2
