@@ -327,40 +327,26 @@ def occ_band_distance(shape: Any, points: Any, within: Any) -> tuple[np.ndarray,
     >>> round(float(d[0]), 9), bool(t[0] < 1e-3)
     (1.0, True)
     """
-    from OCP.Bnd import Bnd_Box
     from OCP.BRep import BRep_Tool
-    from OCP.BRepBndLib import BRepBndLib
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
     from OCP.BRepExtrema import BRepExtrema_DistShapeShape
     from OCP.GeomAPI import GeomAPI_ProjectPointOnSurf
     from OCP.gp import gp_Pnt
-    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE
-    from OCP.TopExp import TopExp, TopExp_Explorer
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp
     from OCP.TopoDS import TopoDS
     from OCP.TopTools import TopTools_IndexedMapOfShape
+
+    from .step import _bbox, _edge_tolerance
 
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     reach = np.broadcast_to(np.asarray(within, dtype=np.float64), (len(pts),))
     fmap = TopTools_IndexedMapOfShape()
     TopExp.MapShapes_s(shape, TopAbs_FACE, fmap)
-    faces, boxes, bands = [], [], []
-    for i in range(1, fmap.Extent() + 1):
-        face = TopoDS.Face_s(fmap.FindKey(i))
-        band = 0.0
-        ex = TopExp_Explorer(face, TopAbs_EDGE)
-        while ex.More():
-            band = max(band, BRep_Tool.Tolerance_s(TopoDS.Edge_s(ex.Current())))
-            ex.Next()
-        box = Bnd_Box()
-        BRepBndLib.Add_s(face, box)
-        if box.IsVoid():
-            continue
-        faces.append(face)
-        boxes.append(box.Get())
-        bands.append(band)
-    lo = np.array([b[:3] for b in boxes]).reshape(-1, 3)
-    hi = np.array([b[3:] for b in boxes]).reshape(-1, 3)
-    band = np.array(bands)
+    faces = [TopoDS.Face_s(fmap.FindKey(i)) for i in range(1, fmap.Extent() + 1)]
+    boxes = np.array([_bbox(f) for f in faces]).reshape(-1, 6)  # NaN for a void box: never near
+    lo, hi = boxes[:, :3], boxes[:, 3:]
+    band = np.array([_edge_tolerance(f) for f in faces])
     surfaces: dict[int, Any] = {}
     dist = np.full(len(pts), np.inf)
     width = np.zeros(len(pts))
