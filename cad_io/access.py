@@ -355,7 +355,7 @@ def point_visibility(result: AccessResult, voxel: np.ndarray, face: np.ndarray,
     piece's (the face's samples in the point's half-voxel cell of the voxel); else their
     face's piece's where several faces meet in the voxel (and the pieces were cast); else the
     voxel's."""
-    from zmap.access.voxelmap import _piece_index
+    from zmap.access.voxelmap import _octant, _piece_index
 
     vm = result.vm
     voxel = np.asarray(voxel, dtype=np.int64)
@@ -368,9 +368,7 @@ def point_visibility(result: AccessResult, voxel: np.ndarray, face: np.ndarray,
     f = vm.fine
     if points is None or result.vg_fine is None or f is None or not len(f.voxel):
         return out
-    half = np.floor(2.0 * (np.asarray(points, dtype=np.float64).reshape(-1, 3) - vm.origin) / vm.d).astype(np.int64)
-    half = np.clip(half - 2 * vm.ijk[voxel], 0, 1)
-    octant = (half[:, 0] * 2 + half[:, 1]) * 2 + half[:, 2]
+    octant = _octant(points, vm.origin, vm.d, vm.ijk[voxel])
     nf = int(max(f.face.max(), face.max())) + 1
     keys = (f.voxel.astype(np.int64) * 8 + f.octant) * nf + f.face  # sorted (see VoxelMap.fine)
     want = (voxel * 8 + octant) * nf + face

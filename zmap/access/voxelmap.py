@@ -516,6 +516,20 @@ class VoxelMap:
         return out
 
 
+def _octant(points: np.ndarray, origin: np.ndarray, d: float, ijk: np.ndarray) -> np.ndarray:
+    """The half-voxel cell ``(2 a + b) 2 + c`` (offsets a, b, c in {0, 1} along x, y, z) of
+    each point in its voxel ``ijk`` (a point on the voxel's far plane rounds into it)."""
+    half = np.floor(2.0 * (np.asarray(points, dtype=np.float64).reshape(-1, 3) - origin) / d).astype(np.int64)
+    half = np.clip(half - 2 * np.asarray(ijk, dtype=np.int64), 0, 1)
+    return (half[:, 0] * 2 + half[:, 1]) * 2 + half[:, 2]
+
+
+def _octant_lo(origin: np.ndarray, d: float, ijk: np.ndarray, octant: np.ndarray) -> np.ndarray:
+    """Low corner (n, 3) of half-voxel cell ``octant`` of voxel ``ijk`` (see :func:`_octant`)."""
+    o = np.asarray(octant, dtype=np.int64)
+    return origin + d * ijk + 0.5 * d * np.stack([o // 4, (o // 2) % 2, o % 2], axis=1)
+
+
 def _fine_pieces(vox, pts, nrm, fid, origin, d, bijk, step, ds, exact) -> tuple[Pieces, np.ndarray]:
     """One piece per face and half-voxel cell of each boundary voxel (``VoxelMap.fine``): its
     samples' V'_l, mean point and normal, slab (:func:`~zmap.access._access_kernels.patch_slab`)
@@ -525,10 +539,7 @@ def _fine_pieces(vox, pts, nrm, fid, origin, d, bijk, step, ds, exact) -> tuple[
     from ._access_kernels import piece_accumulate, patch_slab
 
     W = ds.words
-    ijk = bijk[vox]
-    half = np.floor(2.0 * (pts - origin) / d).astype(np.int64) - 2 * ijk
-    half = np.clip(half, 0, 1)  # a sample on the voxel's far plane rounds into it
-    octant = (half[:, 0] * 2 + half[:, 1]) * 2 + half[:, 2]
+    octant = _octant(pts, origin, d, bijk[vox])
     nf = int(fid.max()) + 1
     key = (vox.astype(np.int64) * 8 + octant) * nf + fid
     ukey, inv = np.unique(key, return_inverse=True)
@@ -549,7 +560,7 @@ def _fine_pieces(vox, pts, nrm, fid, origin, d, bijk, step, ds, exact) -> tuple[
     patch_slab(inv, pts, nrm, point, normal, step, slab, grow)
     voxel = ukey // nf // 8
     octant = (ukey // nf) % 8
-    clo = origin + d * bijk[voxel] + 0.5 * d * np.stack([octant // 4, (octant // 2) % 2, octant % 2], axis=1)
+    clo = _octant_lo(origin, d, bijk[voxel], octant)
     return Pieces(voxel=voxel, lo=np.maximum(pmn - grow, clo), hi=np.minimum(pmx + grow, clo + 0.5 * d),
                   light=np.zeros((n, 0), dtype=np.uint64), point=point, normal=normal, slab=slab,
                   face=(ukey % nf).astype(np.int64), vl=vl, octant=octant.astype(np.int64)), light
@@ -693,9 +704,8 @@ def _query_boxes(vm: VoxelMap, pieces: bool = False, fine: bool = False) -> tupl
     if fine:
         p = vm.fine
         c, h = 0.5 * (p.lo + p.hi), 0.5 * (p.hi - p.lo)
-        o = p.octant
         size = 0.5 * vm.d
-        vlo = vm.origin + vm.d * vm.ijk[p.voxel] + size * np.stack([o // 4, (o // 2) % 2, o % 2], axis=1)
+        vlo = _octant_lo(vm.origin, vm.d, vm.ijk[p.voxel], p.octant)
     elif pieces:
         p = vm.pieces
         c, h = 0.5 * (p.lo + p.hi), 0.5 * (p.hi - p.lo)
