@@ -228,7 +228,10 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     sec["voxelize"] = time.perf_counter() - t
     t = time.perf_counter()
     say(f"{vm.n_boundary:,} boundary, {vm.n_interior:,} interior voxels; cylinder casting")
-    vg, vg_pieces, vg_fine = global_visibility(vm, rays=rays, pieces=True, refine=refine)
+    if refine:
+        vg, vg_pieces, vg_fine = global_visibility(vm, rays=rays, pieces=True, refine=True)
+    else:
+        (vg, vg_pieces), vg_fine = global_visibility(vm, rays=rays, pieces=True), None
     sec["visibility"] = time.perf_counter() - t
     t = time.perf_counter()
     say("accessibility for the tool")
@@ -240,7 +243,7 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     sec["setups"] = time.perf_counter() - t
     sec["total"] = time.perf_counter() - t0
     return AccessResult(vm=vm, vg=vg, amap=amap, tool=tool, verdict=verdict, setups=setups, seconds=sec,
-                        source=str(part.source or ""), vg_pieces=vg_pieces, vg_fine=vg_fine if refine else None)
+                        source=str(part.source or ""), vg_pieces=vg_pieces, vg_fine=vg_fine)
 
 
 def read_part(path) -> Part:

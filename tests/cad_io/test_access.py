@@ -194,6 +194,19 @@ def test_bad_input(slot, tmp_path):
         voxelize(tess, 1.0)
 
 
+def test_analyse_without_refinement_is_the_voxels_cast(slot):
+    """``analyse(refine=False)`` runs the paper's casting alone (no half-voxel maps), and the
+    refined map holds every direction it keeps (the refinement only frees)."""
+    from cad_io.access import analyse
+
+    part = slot[0]
+    plain = analyse(part, d=1.0, q=2, tool=Tool(4.0), refine=False)
+    fine = analyse(part, d=1.0, q=2, tool=Tool(4.0))
+    assert plain.vg_fine is None and fine.vg_fine is not None
+    assert np.array_equal(plain.vg & fine.vg, plain.vg)
+    assert np.array_equal(plain.amap & fine.amap, plain.amap)
+
+
 @pytest.mark.slow
 def test_command_end_to_end(slot, tmp_path):
     import json

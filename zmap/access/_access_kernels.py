@@ -12,7 +12,7 @@ from numba import njit, prange
 from ._direction_kernels import lookup_one
 
 __all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "pack_columns", "row_hash", "patch_slab", "piece_accumulate", "cast_directions", "dilate_bits", "bit_lists",
-           "ball_neighbours", "local_conditions", "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
+           "ball_conditions", "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
 
@@ -914,72 +914,79 @@ def dilate_bits(index, ijk, bits, rad, out):
 
 
 @njit(cache=True)
-def ball_neighbours(centre, origin, d, index, state, r_in, r_out, ptr, nb, inside):
-    """Per boundary voxel b: the boundary voxels whose centres lie within [r_in, r_out] of the
-    ball centre ``centre[b]`` (the shell the eraser's surface may meet: E(v) before the
-    half-space test), as CSR (ptr, nb); ``inside[b]`` = 1 where a boundary or interior voxel
-    centre lies closer than r_in (the ball would cut material). ``nb`` must be large enough;
-    returns the number of entries written (or -1 when nb overflowed)."""
+def _shell_conditions(b, vg, bxyz, centre, origin, d, index, state, r_in, r_out, bad, cap, centres, frames, q, out):
+    """Conditions 1-3 of :func:`ball_conditions` for voxel b, ANDed into ``out[b]`` (which holds
+    ``V'_g(b)``); False as soon as a boundary or interior voxel centre lies closer than
+    ``r_in`` to the ball's centre (the ball would cut material). Only the columns of the
+    voxel grid and the stretch of each column that the sphere of radius ``r_out`` meets are
+    visited (a cell of slack; each centre is still tested against both radii)."""
     nx, ny, nz = index.shape
-    mb = centre.shape[0]
+    W = vg.shape[1]
     reach = int(np.ceil(r_out / d)) + 1
-    pos = 0
-    for b in range(mb):
-        ptr[b] = pos
-        cx = (centre[b, 0] - origin[0]) / d - 0.5
-        cy = (centre[b, 1] - origin[1]) / d - 0.5
-        cz = (centre[b, 2] - origin[2]) / d - 0.5
-        ic, jc, lc = int(np.round(cx)), int(np.round(cy)), int(np.round(cz))
-        for i in range(max(0, ic - reach), min(nx, ic + reach + 1)):
-            dx = (i - cx) * d
-            for j in range(max(0, jc - reach), min(ny, jc + reach + 1)):
-                dy = (j - cy) * d
-                for l in range(max(0, lc - reach), min(nz, lc + reach + 1)):
-                    st = state[i, j, l]
-                    if st == EXTERIOR:
-                        continue
-                    dz = (l - cz) * d
-                    r = np.sqrt(dx * dx + dy * dy + dz * dz)
-                    if r < r_in:
-                        inside[b] = 1
-                    if st == BOUNDARY and r <= r_out:
-                        if pos >= nb.shape[0]:
-                            return -1
-                        nb[pos] = index[i, j, l]
-                        pos += 1
-    ptr[mb] = pos
-    return pos
+    cx = (centre[b, 0] - origin[0]) / d - 0.5
+    cy = (centre[b, 1] - origin[1]) / d - 0.5
+    cz = (centre[b, 2] - origin[2]) / d - 0.5
+    ic, jc, lc = int(np.round(cx)), int(np.round(cy)), int(np.round(cz))
+    r2 = (r_out / d) ** 2
+    px, py, pz = centre[b, 0], centre[b, 1], centre[b, 2]
+    for i in range(max(0, ic - reach), min(nx, ic + reach + 1)):
+        dx = (i - cx) * d
+        for j in range(max(0, jc - reach), min(ny, jc + reach + 1)):
+            dy = (j - cy) * d
+            rest = r2 - (i - cx) ** 2 - (j - cy) ** 2
+            if rest < -1.0:  # the column misses the sphere (by more than rounding)
+                continue
+            t = np.sqrt(max(rest, 0.0)) + 1.0
+            l0 = max(0, lc - reach, int(np.floor(cz - t)))
+            l1 = min(nz, lc + reach + 1, int(np.ceil(cz + t)) + 1)
+            for l in range(l0, l1):
+                st = state[i, j, l]
+                if st == EXTERIOR:
+                    continue
+                dz = (l - cz) * d
+                r = np.sqrt(dx * dx + dy * dy + dz * dz)
+                if r < r_in:
+                    return False
+                if st != BOUNDARY or r > r_out:
+                    continue
+                m = index[i, j, l]
+                tt = lookup_one(bxyz[m, 0] - px, bxyz[m, 1] - py, bxyz[m, 2] - pz, centres, frames, q)
+                if tt < 0:  # w's centre on the ball's centre: the ball cannot be there (conservative)
+                    for w in range(W):
+                        out[b, w] = np.uint64(0)
+                elif bad[m]:
+                    for w in range(W):
+                        out[b, w] &= cap[tt, w]
+                else:
+                    for w in range(W):
+                        out[b, w] &= vg[m, w] | cap[tt, w]
+    return True
 
 
 @njit(cache=True, parallel=True)
-def local_conditions(vg, bxyz, centre, ptr, nb, inside, bad, cap, centres, frames, q, out):
+def ball_conditions(vg, bxyz, centre, origin, d, index, state, r_in, r_out, bad, cap, centres, frames, q, out):
     """Conditions 1-3 of paper 002 §4.6 as bitsets, for all directions at once.
 
-    w of the shell list of v belongs to E_n(v) unless n lies in ``cap[t]`` (t: the tessel of
-    x_w - c_v), the directions for which w lies beyond the eraser's equator. So
+    The boundary voxels w whose centres lie within [r_in, r_out] of the ball's centre
+    ``centre[b]`` form the shell the eraser's surface may meet (E(v) before the half-space
+    test). w belongs to E_n(v) unless n lies in ``cap[t]`` (t: the tessel of x_w - c_v), the
+    directions for which w lies beyond the eraser's equator. So
     ``A(v) = V'_g(v) & AND_w (V'_g(w) | cap[t_w])`` with ``V'_g(w)`` replaced by nothing where
-    w is bad (curvature above 1/a, crease); v itself must not be bad, and the ball must fit.
+    w is bad (curvature above 1/a, crease); v itself must not be bad, and the ball must fit:
+    no boundary or interior voxel centre closer than r_in. One pass over the sphere per
+    voxel, in parallel, with no neighbour lists.
     """
     mb = bxyz.shape[0]
     W = vg.shape[1]
     for b in prange(mb):
         for w in range(W):
-            out[b, w] = np.uint64(0) if (inside[b] or bad[b]) else vg[b, w]
-        if inside[b] or bad[b]:
+            out[b, w] = np.uint64(0) if bad[b] else vg[b, w]
+        if bad[b]:
             continue
-        cx, cy, cz = centre[b, 0], centre[b, 1], centre[b, 2]
-        for e in range(ptr[b], ptr[b + 1]):
-            m = nb[e]
-            t = lookup_one(bxyz[m, 0] - cx, bxyz[m, 1] - cy, bxyz[m, 2] - cz, centres, frames, q)
-            if t < 0:  # w's centre on the ball's centre: the ball cannot be there (conservative)
-                for w in range(W):
-                    out[b, w] = np.uint64(0)
-            elif bad[m]:
-                for w in range(W):
-                    out[b, w] &= cap[t, w]
-            else:
-                for w in range(W):
-                    out[b, w] &= vg[m, w] | cap[t, w]
+        if not _shell_conditions(b, vg, bxyz, centre, origin, d, index, state, r_in, r_out, bad, cap, centres,
+                                 frames, q, out):
+            for w in range(W):
+                out[b, w] = np.uint64(0)
 
 
 @njit(cache=True)

@@ -1118,7 +1118,7 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     -------
     ndarray of shape (mb, words), uint64
     """
-    from ._access_kernels import ball_neighbours, local_conditions
+    from ._access_kernels import ball_conditions
 
     from .directions import from_bool
 
@@ -1130,19 +1130,6 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     ds = vm.directions
     hd = np.sqrt(3.0) * 0.5 * vm.d
     centre = np.ascontiguousarray(vm.point + a * vm.normal)
-    mb = vm.n_boundary
-    ptr = np.zeros(mb + 1, dtype=np.int64)
-    inside = np.zeros(mb, dtype=np.uint8)
-    cap = max(1024, mb * 64)
-    while True:
-        nb = np.empty(cap, dtype=np.int64)
-        got = ball_neighbours(centre, vm.origin, vm.d, vm.index, vm.state, a - hd, a + hd, ptr, nb,
-                              inside)
-        if got >= 0:
-            break
-        cap *= 4
-        inside[:] = 0
-    nb = nb[:got]
     # the directions for which a shell voxel lies beyond the eraser's equator, per tessel of
     # x_w - c: n . v_j > hd / (a - hd) for the tessel's three vertices (conservative)
     thr = hd / (a - hd) if a > hd else np.inf
@@ -1150,8 +1137,8 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     cap = from_bool(capm)
     bad = ((vm.curvature > (1.0 / a) * (1 + 1e-9)) | vm.crease).astype(np.uint8)
     local = np.empty_like(vg)
-    local_conditions(np.ascontiguousarray(vg), np.ascontiguousarray(vm.centres), centre, ptr, nb, inside,
-                     bad, cap, ds._centres, ds._frames, ds.q, local)
+    ball_conditions(np.ascontiguousarray(vg), np.ascontiguousarray(vm.centres), centre, vm.origin, vm.d, vm.index,
+                    vm.state, a - hd, a + hd, bad, cap, ds._centres, ds._frames, ds.q, local)
     return tool_clearance(vm, local, tool, cell=cell, cell_holder=cell_holder)
 
 

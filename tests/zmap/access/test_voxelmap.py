@@ -172,6 +172,52 @@ def test_bowl_access_shrinks_as_the_ball_grows(bowl):
     assert (vm.curvature[cav] == pytest.approx(1 / 6.0))
 
 
+def _ball_conditions_brute(vm, vg, a):
+    """Conditions 1-3 of the ball-end map by plain numpy over every voxel: the shell from all
+    boundary centres, the fit test from all boundary and interior centres (no grid search)."""
+    from zmap.access.directions import from_bool
+
+    ds = vm.directions
+    hd = np.sqrt(3.0) * 0.5 * vm.d
+    r_in, r_out = a - hd, a + hd
+    centre = vm.point + a * vm.normal
+    solid = vm.origin + vm.d * (np.argwhere(vm.state != 0) + 0.5)
+    bad = (vm.curvature > (1.0 / a) * (1 + 1e-9)) | vm.crease
+    capm = (np.einsum("tjx,nx->tjn", ds.vertices, ds.normals) > hd / (a - hd)).all(axis=1)
+    cap = from_bool(capm)
+    out = np.where(bad[:, None], np.uint64(0), vg)
+    for b in np.flatnonzero(~bad):
+        if (np.linalg.norm(solid - centre[b], axis=1) < r_in).any():
+            out[b] = 0
+            continue
+        off = vm.centres - centre[b]
+        for m in np.flatnonzero(np.linalg.norm(off, axis=1) <= r_out):
+            t = int(ds.lookup(off[m][None])[0])
+            out[b] &= cap[t] if bad[m] else (vg[m] | cap[t])
+    return out
+
+
+def test_ball_conditions_match_a_plain_search(bowl):
+    """The shell scan (columns cut to the sphere, in parallel, no neighbour lists) gives the
+    bits of a plain search over every voxel centre."""
+    from zmap.access._access_kernels import ball_conditions
+
+    vm, vg = bowl
+    ds = vm.directions
+    a = 2.0
+    hd = np.sqrt(3.0) * 0.5 * vm.d
+    centre = np.ascontiguousarray(vm.point + a * vm.normal)
+    bad = ((vm.curvature > (1.0 / a) * (1 + 1e-9)) | vm.crease).astype(np.uint8)
+    from zmap.access.directions import from_bool
+    cap = from_bool((np.einsum("tjx,nx->tjn", ds.vertices, ds.normals) > hd / (a - hd)).all(axis=1))
+    got = np.empty_like(vg)
+    ball_conditions(np.ascontiguousarray(vg), np.ascontiguousarray(vm.centres), centre, vm.origin, vm.d, vm.index,
+                    vm.state, a - hd, a + hd, bad, cap, ds._centres, ds._frames, ds.q, got)
+    want = _ball_conditions_brute(vm, vg, a)
+    assert np.array_equal(got, want)
+    assert count(got).sum() > 0 and (count(got) < count(vg)).any()  # the conditions bite
+
+
 def test_open_surface_and_pieces_are_reported():
     p, n, k, f, w = box_samples(np.zeros(3), np.array([6.0, 6.0, 6.0]), 0.2)
     keep = f != 5  # no top face: the paint leaks in
