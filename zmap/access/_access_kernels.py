@@ -997,10 +997,10 @@ def _rasterise_max(buf, A0, B0, u0, cell, pu, pv, ae, af, top):
     ib = min(A0 + na - 1, int(np.floor((pu + ae - u0) / cell)))
     ja = max(B0, int(np.floor((pv - af - u0) / cell)))
     jb = min(B0 + nb - 1, int(np.floor((pv + af - u0) / cell)))
-    for p in range(ia, ib + 1):
-        for r in range(ja, jb + 1):
-            if top > buf[p - A0, r - B0]:
-                buf[p - A0, r - B0] = top
+    for p in range(ia - A0, ib - A0 + 1):
+        row = buf[p]
+        for r in range(ja - B0, jb - B0 + 1):
+            row[r] = max(row[r], top)  # branch-free: half the stores would mispredict
 
 
 @njit(cache=True)
