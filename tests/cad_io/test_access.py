@@ -207,6 +207,41 @@ def test_analyse_without_refinement_is_the_voxels_cast(slot):
     assert np.array_equal(plain.amap & fine.amap, plain.amap)
 
 
+def test_command_checks_its_options_before_the_analysis(tmp_path, capsys):
+    """A bad --grid or --rays is refused before the part is read (not after minutes of
+    analysis), and nothing is written."""
+    from zmap.cli import main
+
+    src = tmp_path / "block.step"
+    cq.exporters.export(cq.Workplane("XY").box(10, 10, 5), str(src))
+    out = tmp_path / "block.access.npz"
+    for opt, val, msg in (("--grid", "0", "--grid must be a positive number of mm, got 0.0"),
+                          ("--rays", "0", "--rays must be an integer >= 1, got 0")):
+        assert main(["access", str(src), opt, val, "-o", str(out), "--no-png"]) != 0
+        err = capsys.readouterr().err
+        assert msg in err and "reading" not in err  # refused before the part was read
+    assert not list(tmp_path.glob("*.npz")) and not list(tmp_path.glob(".tmp-*"))
+
+
+def test_command_without_refinement(slot, tmp_path):
+    """``--no-refine --rays 1``: the paper's casting alone, at a line per voxel edge; the map
+    is written without half-voxel maps."""
+    import json
+
+    from zmap.cli import main
+
+    src = tmp_path / "slot.step"
+    cq.exporters.export(cq.Workplane("XY").box(LX, LY, H).translate((0, 0, -H / 2))
+                        .cut(cq.Workplane("XY").box(W, LY + 10, D).translate((0, 0, -D / 2))), str(src))
+    out = tmp_path / "slot.access.npz"
+    rc = main(["access", str(src), "--voxel", "1", "--q", "2", "--tool", "ball:4", "--no-refine", "--rays", "1",
+               "--no-png", "-o", str(out)])
+    assert rc == 0
+    with np.load(out) as z:
+        assert "fine_vg" not in z.files and z["amap"].shape[1] == 2
+        assert 0 < json.loads(bytes(z["header"]).decode())["verdict"]["share"] < 1
+
+
 @pytest.mark.slow
 def test_command_end_to_end(slot, tmp_path):
     import json
