@@ -38,16 +38,23 @@ def accumulate(vox, pts, nrm, kmax, face, weight, centres, frames, q, hv, hl, ex
     """
     W = vl.shape[1]
     k = dirs.shape[0]
+    # the last sample's hemisphere: a planar face's samples share one normal, so most are
+    # made once per face rather than once per sample (k dot products each)
+    words = np.zeros(W, dtype=np.uint64)
+    lx, ly, lz = np.nan, np.nan, np.nan
     for s in range(vox.shape[0]):
         b = vox[s]
         nx, ny, nz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
         if exact == 2:  # the caller folds the bitsets itself
             pass
         elif exact:
+            if not (nx == lx and ny == ly and nz == lz):
+                for w in range(W):
+                    words[w] = _hemisphere_word(dirs, k, w, nx, ny, nz)
+                lx, ly, lz = nx, ny, nz
             for w in range(W):
-                acc = _hemisphere_word(dirs, k, w, nx, ny, nz)
-                vl[b, w] &= acc
-                light[b, w] |= acc
+                vl[b, w] &= words[w]
+                light[b, w] |= words[w]
         else:
             t = lookup_one(nx, ny, nz, centres, frames, q)
             for w in range(W):
@@ -361,16 +368,21 @@ def piece_accumulate(piece, pts, nrm, centres, frames, q, hv, hl, exact, dirs, v
     for voxels (``exact`` = 2: neither); point and normal sums, samples' box."""
     W = light.shape[1]
     k = dirs.shape[0]
+    words = np.zeros(W, dtype=np.uint64)  # the last sample's hemisphere (see accumulate)
+    lx, ly, lz = np.nan, np.nan, np.nan
     for s in range(piece.shape[0]):
         p = piece[s]
         nx, ny, nz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
         if exact == 2:  # the caller folds the bitsets itself
             pass
         elif exact:
+            if not (nx == lx and ny == ly and nz == lz):
+                for w in range(W):
+                    words[w] = _hemisphere_word(dirs, k, w, nx, ny, nz)
+                lx, ly, lz = nx, ny, nz
             for w in range(W):
-                acc = _hemisphere_word(dirs, k, w, nx, ny, nz)
-                vl[p, w] &= acc
-                light[p, w] |= acc
+                vl[p, w] &= words[w]
+                light[p, w] |= words[w]
         else:
             t = lookup_one(nx, ny, nz, centres, frames, q)
             for w in range(W):
