@@ -6,6 +6,8 @@ Voxel (i, j, l) covers ``origin + d * [i, i + 1) x [j, j + 1) x [l, l + 1)``; it
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit, prange
 
@@ -18,13 +20,28 @@ EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
 
 
 @njit(cache=True)
-def _hemisphere_word(dirs, k, w, nx, ny, nz):
-    """Word ``w`` of the bitset of the directions strictly above the plane of normal n."""
-    acc = np.uint64(0)
-    for i in range(w * 64, min(k, w * 64 + 64)):
-        if dirs[i, 0] * nx + dirs[i, 1] * ny + dirs[i, 2] * nz > 0.0:
-            acc |= np.uint64(1) << np.uint64(i - w * 64)
-    return acc
+def _hemisphere_words(dirs, k, nx, ny, nz, words):
+    """The bitset of the directions strictly above the plane of normal n (bit i set where
+    dirs[i] . n > 0) into ``words``; returns the margin min_i |dirs[i] . n|: a normal n' with |n' - n| below it (less
+    rounding) sets the same bits, since no dot product can change sign."""
+    margin = np.inf
+    for w in range(words.shape[0]):
+        acc = np.uint64(0)
+        for i in range(w * 64, min(k, w * 64 + 64)):
+            t = dirs[i, 0] * nx + dirs[i, 1] * ny + dirs[i, 2] * nz
+            margin = min(margin, abs(t))
+            if t > 0.0:
+                acc |= np.uint64(1) << np.uint64(i - w * 64)
+        words[w] = acc
+    return margin
+
+
+@njit(cache=True)
+def _same_hemisphere(nx, ny, nz, lx, ly, lz, margin):
+    """True when normal n sets the bits of the last normal l, whose margin is given: |n - l|
+    is below the margin by far more than the dot products' rounding (1e-12)."""
+    dx, dy, dz = nx - lx, ny - ly, nz - lz
+    return math.sqrt(dx * dx + dy * dy + dz * dz) + 1e-12 < margin
 
 
 @njit(cache=True)
@@ -38,19 +55,19 @@ def accumulate(vox, pts, nrm, kmax, face, weight, centres, frames, q, hv, hl, ex
     """
     W = vl.shape[1]
     k = dirs.shape[0]
-    # the last sample's hemisphere: a planar face's samples share one normal, so most are
-    # made once per face rather than once per sample (k dot products each)
+    # the last hemisphere made, kept while the samples' normals stay within its margin (a
+    # planar face's samples, neighbours on a curved one): the same bits, a fraction of the k
+    # dot products a sample
     words = np.zeros(W, dtype=np.uint64)
-    lx, ly, lz = np.nan, np.nan, np.nan
+    lx, ly, lz, margin = np.nan, np.nan, np.nan, -1.0
     for s in range(vox.shape[0]):
         b = vox[s]
         nx, ny, nz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
         if exact == 2:  # the caller folds the bitsets itself
             pass
         elif exact:
-            if not (nx == lx and ny == ly and nz == lz):
-                for w in range(W):
-                    words[w] = _hemisphere_word(dirs, k, w, nx, ny, nz)
+            if not _same_hemisphere(nx, ny, nz, lx, ly, lz, margin):
+                margin = _hemisphere_words(dirs, k, nx, ny, nz, words)
                 lx, ly, lz = nx, ny, nz
             for w in range(W):
                 vl[b, w] &= words[w]
@@ -368,17 +385,16 @@ def piece_accumulate(piece, pts, nrm, centres, frames, q, hv, hl, exact, dirs, v
     for voxels (``exact`` = 2: neither); point and normal sums, samples' box."""
     W = light.shape[1]
     k = dirs.shape[0]
-    words = np.zeros(W, dtype=np.uint64)  # the last sample's hemisphere (see accumulate)
-    lx, ly, lz = np.nan, np.nan, np.nan
+    words = np.zeros(W, dtype=np.uint64)  # the last hemisphere made (see accumulate)
+    lx, ly, lz, margin = np.nan, np.nan, np.nan, -1.0
     for s in range(piece.shape[0]):
         p = piece[s]
         nx, ny, nz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
         if exact == 2:  # the caller folds the bitsets itself
             pass
         elif exact:
-            if not (nx == lx and ny == ly and nz == lz):
-                for w in range(W):
-                    words[w] = _hemisphere_word(dirs, k, w, nx, ny, nz)
+            if not _same_hemisphere(nx, ny, nz, lx, ly, lz, margin):
+                margin = _hemisphere_words(dirs, k, nx, ny, nz, words)
                 lx, ly, lz = nx, ny, nz
             for w in range(W):
                 vl[p, w] &= words[w]
