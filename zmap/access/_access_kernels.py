@@ -20,10 +20,17 @@ EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
 
 
 @njit(cache=True)
-def _hemisphere_words(dirs, k, nx, ny, nz, words):
+def _hemisphere(dirs, nx, ny, nz, words, last):
     """The bitset of the directions strictly above the plane of normal n (bit i set where
-    dirs[i] . n > 0) into ``words``; returns the margin min_i |dirs[i] . n|: a normal n' with |n' - n| below it (less
-    rounding) sets the same bits, since no dot product can change sign."""
+    dirs[i] . n > 0) in ``words``, made again only when n leaves the margin of the normal it
+    was made for. ``last`` holds that normal and its margin min_i |dirs[i] . n| (start: NaN,
+    NaN, NaN, -1): a normal within the margin, less 1e-12 of rounding, sets the same bits,
+    since no dot product can change sign. A planar face's samples, and neighbours on a curved
+    one, so cost a fraction of the k dot products each."""
+    dx, dy, dz = nx - last[0], ny - last[1], nz - last[2]
+    if math.sqrt(dx * dx + dy * dy + dz * dz) + 1e-12 < last[3]:
+        return
+    k = dirs.shape[0]
     margin = np.inf
     for w in range(words.shape[0]):
         acc = np.uint64(0)
@@ -33,15 +40,7 @@ def _hemisphere_words(dirs, k, nx, ny, nz, words):
             if t > 0.0:
                 acc |= np.uint64(1) << np.uint64(i - w * 64)
         words[w] = acc
-    return margin
-
-
-@njit(cache=True)
-def _same_hemisphere(nx, ny, nz, lx, ly, lz, margin):
-    """True when normal n sets the bits of the last normal l, whose margin is given: |n - l|
-    is below the margin by far more than the dot products' rounding (1e-12)."""
-    dx, dy, dz = nx - lx, ny - ly, nz - lz
-    return math.sqrt(dx * dx + dy * dy + dz * dz) + 1e-12 < margin
+    last[0], last[1], last[2], last[3] = nx, ny, nz, margin
 
 
 @njit(cache=True)
@@ -54,21 +53,15 @@ def accumulate(vox, pts, nrm, kmax, face, weight, centres, frames, q, hv, hl, ex
     ``vl`` and ``light`` alone (the caller folds them from the half-voxel pieces').
     """
     W = vl.shape[1]
-    k = dirs.shape[0]
-    # the last hemisphere made, kept while the samples' normals stay within its margin (a
-    # planar face's samples, neighbours on a curved one): the same bits, a fraction of the k
-    # dot products a sample
-    words = np.zeros(W, dtype=np.uint64)
-    lx, ly, lz, margin = np.nan, np.nan, np.nan, -1.0
+    words = np.zeros(W, dtype=np.uint64)  # the last hemisphere made (:func:`_hemisphere`)
+    last = np.array([np.nan, np.nan, np.nan, -1.0])
     for s in range(vox.shape[0]):
         b = vox[s]
         nx, ny, nz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
         if exact == 2:  # the caller folds the bitsets itself
             pass
         elif exact:
-            if not _same_hemisphere(nx, ny, nz, lx, ly, lz, margin):
-                margin = _hemisphere_words(dirs, k, nx, ny, nz, words)
-                lx, ly, lz = nx, ny, nz
+            _hemisphere(dirs, nx, ny, nz, words, last)
             for w in range(W):
                 vl[b, w] &= words[w]
                 light[b, w] |= words[w]
@@ -384,18 +377,15 @@ def piece_accumulate(piece, pts, nrm, centres, frames, q, hv, hl, exact, dirs, v
     each sample's exact hemisphere, or of H_V / H_L of its tessel, as :func:`accumulate` does
     for voxels (``exact`` = 2: neither); point and normal sums, samples' box."""
     W = light.shape[1]
-    k = dirs.shape[0]
-    words = np.zeros(W, dtype=np.uint64)  # the last hemisphere made (see accumulate)
-    lx, ly, lz, margin = np.nan, np.nan, np.nan, -1.0
+    words = np.zeros(W, dtype=np.uint64)  # the last hemisphere made (:func:`_hemisphere`)
+    last = np.array([np.nan, np.nan, np.nan, -1.0])
     for s in range(piece.shape[0]):
         p = piece[s]
         nx, ny, nz = nrm[s, 0], nrm[s, 1], nrm[s, 2]
         if exact == 2:  # the caller folds the bitsets itself
             pass
         elif exact:
-            if not _same_hemisphere(nx, ny, nz, lx, ly, lz, margin):
-                margin = _hemisphere_words(dirs, k, nx, ny, nz, words)
-                lx, ly, lz = nx, ny, nz
+            _hemisphere(dirs, nx, ny, nz, words, last)
             for w in range(W):
                 vl[p, w] &= words[w]
                 light[p, w] |= words[w]
