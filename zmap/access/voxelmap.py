@@ -1095,6 +1095,22 @@ def _disc_rows(rad: float, *, outer: bool) -> np.ndarray:
 _LAST_TOOL_STATS = [0, 0, 0]
 
 
+def _ball_inputs(vm: VoxelMap, a: float) -> tuple[float, np.ndarray, np.ndarray]:
+    """What the ball's conditions (:func:`accessibility`) take besides the maps, for a ball of
+    radius ``a``: half a voxel diagonal ``hd``; ``bad`` (mb,) uint8, the voxels with a concave
+    curvature above 1/a or a crease; ``cap`` (k, words), per tessel of x_w - c the directions
+    for which a shell voxel lies beyond the eraser's equator (n . v_j > hd / (a - hd) for the
+    tessel's three vertices: conservative)."""
+    from .directions import from_bool
+
+    ds = vm.directions
+    hd = float(np.sqrt(3.0) * 0.5 * vm.d)
+    thr = hd / (a - hd) if a > hd else np.inf
+    cap = from_bool((np.einsum("tjx,nx->tjn", ds.vertices, ds.normals) > thr).all(axis=1))
+    bad = ((vm.curvature > (1.0 / a) * (1 + 1e-9)) | vm.crease).astype(np.uint8)
+    return hd, bad, cap
+
+
 def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | None = None,
                   cell_holder: float | None = None) -> np.ndarray:
     """Ball-end accessibility map ``A'`` (paper 002 §4.6) with shank and holder.
@@ -1120,22 +1136,14 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     """
     from ._access_kernels import ball_conditions
 
-    from .directions import from_bool
-
     a = tool.radius
     bbox = vm.centres.max(axis=0) - vm.centres.min(axis=0)
     if 2 * a > float(bbox.max()) + vm.d:
         raise AccessModelError(f"tool diameter {tool.diameter:g} mm is larger than the part "
                                f"({bbox[0]:.1f} x {bbox[1]:.1f} x {bbox[2]:.1f} mm)")
     ds = vm.directions
-    hd = np.sqrt(3.0) * 0.5 * vm.d
+    hd, bad, cap = _ball_inputs(vm, a)
     centre = np.ascontiguousarray(vm.point + a * vm.normal)
-    # the directions for which a shell voxel lies beyond the eraser's equator, per tessel of
-    # x_w - c: n . v_j > hd / (a - hd) for the tessel's three vertices (conservative)
-    thr = hd / (a - hd) if a > hd else np.inf
-    capm = (np.einsum("tjx,nx->tjn", ds.vertices, ds.normals) > thr).all(axis=1)
-    cap = from_bool(capm)
-    bad = ((vm.curvature > (1.0 / a) * (1 + 1e-9)) | vm.crease).astype(np.uint8)
     local = np.empty_like(vg)
     ball_conditions(np.ascontiguousarray(vg), np.ascontiguousarray(vm.centres), centre, vm.origin, vm.d, vm.index,
                     vm.state, a - hd, a + hd, bad, cap, ds._centres, ds._frames, ds.q, local)

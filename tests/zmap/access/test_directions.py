@@ -132,10 +132,10 @@ def test_folded_hemispheres_equal_the_direct_ones(seed, q, jitter):
     # grazing normals sit on a sign)
     dots = nrm[:, 0, None] * D[None, :, 0] + nrm[:, 1, None] * D[None, :, 1] + nrm[:, 2, None] * D[None, :, 2]
     above = from_bool(dots > 0.0)
+    k_mask = from_bool(np.ones((1, ds.k), dtype=bool))[0]
     for p in range(5):
         mine = above[piece == p]
         want_vl = np.bitwise_and.reduce(mine, axis=0) if len(mine) else vl[p]
         want_l = np.bitwise_or.reduce(mine, axis=0) if len(mine) else light[p]
-        k_mask = from_bool(np.ones((1, ds.k), dtype=bool))[0]
         assert np.array_equal(vl[p] & k_mask, want_vl & k_mask)
         assert np.array_equal(light[p], want_l)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from zmap.access.directions import count, to_bool
-from zmap.access.voxelmap import (AccessModelError, Tool, VoxelMap, accessibility, global_visibility,
+from zmap.access.voxelmap import (AccessModelError, Tool, VoxelMap, _ball_inputs, accessibility, global_visibility,
                                   node_directions, paint, parse_holder, parse_tool, set_cover, three_axis)
 
 
@@ -175,15 +175,12 @@ def test_bowl_access_shrinks_as_the_ball_grows(bowl):
 def _ball_conditions_brute(vm, vg, a, voxels):
     """Conditions 1-3 of the ball-end map for ``voxels`` by plain numpy: the shell from all
     boundary centres, the fit test from all boundary and interior centres (no grid search)."""
-    from zmap.access.directions import from_bool
-
     ds = vm.directions
-    hd = np.sqrt(3.0) * 0.5 * vm.d
+    hd, bad, cap = _ball_inputs(vm, a)
+    bad = bad.astype(bool)
     r_in, r_out = a - hd, a + hd
     centre = vm.point + a * vm.normal
     solid = vm.origin + vm.d * (np.argwhere(vm.state != 0) + 0.5)
-    bad = (vm.curvature > (1.0 / a) * (1 + 1e-9)) | vm.crease
-    cap = from_bool((np.einsum("tjx,nx->tjn", ds.vertices, ds.normals) > hd / (a - hd)).all(axis=1))
     out = np.where(bad[voxels, None], np.uint64(0), vg[voxels])
     for row, b in enumerate(voxels):
         if bad[b] or (np.linalg.norm(solid - centre[b], axis=1) < r_in).any():
@@ -205,11 +202,8 @@ def test_ball_conditions_match_a_plain_search(bowl):
     vm, vg = bowl
     ds = vm.directions
     a = 2.0
-    hd = np.sqrt(3.0) * 0.5 * vm.d
+    hd, bad, cap = _ball_inputs(vm, a)
     centre = np.ascontiguousarray(vm.point + a * vm.normal)
-    bad = ((vm.curvature > (1.0 / a) * (1 + 1e-9)) | vm.crease).astype(np.uint8)
-    from zmap.access.directions import from_bool
-    cap = from_bool((np.einsum("tjx,nx->tjn", ds.vertices, ds.normals) > hd / (a - hd)).all(axis=1))
     got = np.empty_like(vg)
     ball_conditions(np.ascontiguousarray(vg), np.ascontiguousarray(vm.centres), centre, vm.origin, vm.d, vm.index,
                     vm.state, a - hd, a + hd, bad, cap, ds._centres, ds._frames, ds.q, got)
