@@ -308,15 +308,18 @@ def reference_tool(shape: Any, points, normals, directions, tool: Tool, *, tol: 
     """Ball-end tool clearance by OCC: (n, k) bool, True where the tool fits.
 
     The ball of radius a touches each point from outside (centre ``p + a n``); along direction
-    t the tool is the capsule of radius a around the segment from the centre to ``reach`` mm
-    up, and the holder the capsule of its radius from the stick-out up. The tool fits when the
-    part keeps ``a - tol`` from the first segment and ``R - tol`` from the second
-    (``BRepExtrema_DistShapeShape``), and the ball's centre lies outside the solid.
+    t the ball and shank are the capsule of radius a around the segment from the centre to
+    ``reach`` mm up, and the holder the flat-bottomed cylinder of its radius R from the
+    stick-out up. The tool fits when the part keeps ``a - tol`` from the segment
+    (``BRepExtrema_DistShapeShape``), no face meets the holder's cylinder shrunk by ``tol``
+    (tested only where the part comes within ``R - tol`` of the holder's axis: the capsule
+    around it holds the cylinder), and the ball's centre lies outside the solid.
     """
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeVertex
     from OCP.BRepClass3d import BRepClass3d_SolidClassifier
     from OCP.BRepExtrema import BRepExtrema_DistShapeShape
-    from OCP.gp import gp_Pnt
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeCylinder
+    from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
     from OCP.TopAbs import TopAbs_OUT
 
     shape = getattr(shape, "wrapped", shape)
@@ -335,6 +338,12 @@ def reference_tool(shape: Any, points, normals, directions, tool: Tool, *, tol: 
         ext = BRepExtrema_DistShapeShape(faces, shp)
         return ext.Value() if ext.IsDone() else -np.inf
 
+    def meets_cylinder(p0, t, r) -> bool:
+        # a face inside the solid counts too (DistShapeShape's inner solution: distance 0)
+        cyl = BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(*map(float, p0)), gp_Dir(*map(float, t))), r, reach).Solid()
+        ext = BRepExtrema_DistShapeShape(faces, cyl)
+        return not ext.IsDone() or ext.Value() <= 0.0
+
     for i, (p, n) in enumerate(zip(pts, nrm)):
         c = p + a * n
         cls = BRepClass3d_SolidClassifier(shape, gp_Pnt(*map(float, c)), 1e-7)
@@ -345,7 +354,8 @@ def reference_tool(shape: Any, points, normals, directions, tool: Tool, *, tol: 
                 continue
             if tool.holder_diameter > 0:
                 h0 = c + (tool.stickout - a) * t
-                if dist(h0, h0 + reach * t) < tool.holder_diameter / 2 - tol:
+                rh = tool.holder_diameter / 2 - tol
+                if dist(h0, h0 + reach * t) < rh and meets_cylinder(h0, t, rh):
                     continue
             out[i, j] = True
     return out

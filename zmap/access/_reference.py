@@ -145,60 +145,155 @@ def global_visibility_reference(vm, *, rays: int = 2, pieces: bool = False, fine
     return from_bool(out)
 
 
-def _disc_blocked(buf, u0, cell, pu, pv, rr, h0) -> bool:
-    nc = buf.shape[0]
+def _exits(c, h, plane, n, e, f, u0, cell, nc):
+    """The latest exit along n of each cell's centre line (cells of pitch ``cell`` from u0 along
+    e and f, nc x nc) from each box (c, h) (arrays of boxes) grown by (cell / 2)(|e_x| + |f_x|)
+    per axis x and cut at its slab's far side (``plane``: point, unit normal, slab; the cell's
+    offset along the normal added): ``(m, p, q, s)`` over the cells (p, q) under each grown
+    box m's projection that its line meets."""
+    g = h + 0.5 * cell * (np.abs(e) + np.abs(f))
+    pu, pv, au, av = c @ e, c @ f, g @ np.abs(e), g @ np.abs(f)
+    ia = np.maximum(0, np.floor((pu - au - u0) / cell).astype(int) - 1)
+    ib = np.minimum(nc - 1, np.floor((pu + au - u0) / cell).astype(int) + 1)
+    ja = np.maximum(0, np.floor((pv - av - u0) / cell).astype(int) - 1)
+    jb = np.minimum(nc - 1, np.floor((pv + av - u0) / cell).astype(int) + 1)
+    na, nb = np.maximum(ib - ia + 1, 0), np.maximum(jb - ja + 1, 0)
+    m = np.repeat(np.arange(len(c)), na * nb)
+    k = np.arange(len(m)) - np.repeat(np.cumsum(na * nb) - na * nb, na * nb)  # cell number within its box
+    p = ia[m] + k // nb[m]
+    q = ja[m] + k % nb[m]
+    base = (u0 + (p + 0.5) * cell)[:, None] * e + (u0 + (q + 0.5) * cell)[:, None] * f
+    s0 = np.full(len(m), -np.inf)
+    s1 = np.full(len(m), np.inf)
+    for x in range(3):
+        if abs(n[x]) < 1e-12:
+            out = np.abs(base[:, x] - c[m, x]) > g[m, x]
+            s0[out], s1[out] = 1.0, -1.0
+            continue
+        a0 = (c[m, x] - g[m, x] - base[:, x]) / n[x]
+        a1 = (c[m, x] + g[m, x] - base[:, x]) / n[x]
+        s0 = np.maximum(s0, np.minimum(a0, a1))
+        s1 = np.minimum(s1, np.maximum(a0, a1))
+    nrm = plane[m, 3:6]
+    nm = nrm @ n
+    cut = np.isfinite(plane[m, 6]) & (np.abs(nm) > 1e-9)
+    off = plane[m, 6] + 0.5 * cell * (np.abs(nrm @ e) + np.abs(nrm @ f))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lim = (((plane[m, :3] - base) * nrm).sum(axis=1) + np.sign(nm) * off) / nm
+    s1 = np.where(cut, np.minimum(s1, lim), s1)
+    hit = s0 < s1
+    return m[hit], p[hit], q[hit], s1[hit]
+
+
+def _disc_cells(nc, u0, cell, pu, pv, rr):
+    """Indices (ia, ja) and the mask of the cells of an nc x nc grid that meet the disc."""
     ia, ib = max(0, int(np.floor((pu - rr - u0) / cell))), min(nc - 1, int(np.floor((pu + rr - u0) / cell)))
     ja, jb = max(0, int(np.floor((pv - rr - u0) / cell))), min(nc - 1, int(np.floor((pv + rr - u0) / cell)))
     ua = u0 + np.arange(ia, ib + 1) * cell
     va = u0 + np.arange(ja, jb + 1) * cell
     du = np.where((ua <= pu) & (pu <= ua + cell), 0.0, np.minimum(np.abs(ua - pu), np.abs(ua + cell - pu)))
     dv = np.where((va <= pv) & (pv <= va + cell), 0.0, np.minimum(np.abs(va - pv), np.abs(va + cell - pv)))
-    meets = du[:, None] ** 2 + dv[None, :] ** 2 < rr * rr
-    return bool((buf[ia:ib + 1, ja:jb + 1][meets] > h0).any())
+    return ia, ja, du[:, None] ** 2 + dv[None, :] ** 2 < rr * rr
 
 
-def tool_clearance_reference(vm, local, tool, *, cell=None, cell_holder=None, skin=False) -> np.ndarray:
-    """The bits of :func:`zmap.access.voxelmap.tool_clearance`, computed plainly (small maps)."""
+def _disc_blocked(buf, other, u0, cell, pu, pv, rr, h0, lin) -> bool:
+    """Whether a cell meeting the disc holds an exit above h0: ``buf`` all blockers', or, for a
+    query on a plane face, ``other`` (the other faces') and of ``buf`` only as much as the
+    face's plane ``lin`` = (k0, ku, kv) rises over the cell's part within the disc."""
+    from ._access_kernels import _linear_max_in
+
+    ia, ja, meets = _disc_cells(buf.shape[0], u0, cell, pu, pv, rr)
+    ps, qs = np.nonzero(meets)
+    z = buf[ia + ps, ja + qs]
+    if other is None:
+        return bool((z > h0).any())
+    if (other[ia + ps, ja + qs] > h0).any():
+        return True
+    for p, q, zc in zip(ps[z > h0], qs[z > h0], z[z > h0]):
+        if min(zc, _linear_max_in(u0 + (ia + p) * cell, u0 + (ja + q) * cell, cell, pu, pv, rr, *lin)) > h0:
+            return True
+    return False
+
+
+def tool_clearance_reference(vm, local, tool, *, cell=None, cell_holder=None, skin=False,
+                             slack: float | tuple[float, ...] = 0.0):
+    """The bits of :func:`zmap.access.voxelmap.tool_clearance`, computed plainly (small maps):
+    per direction and cell the latest exit of every blocker of :meth:`VoxelMap.blockers` (not
+    merged), one buffer per face (and one of the skin cubes), so one of all faces and, per
+    plane face with a query, one of the others'; then per pair every cell that meets the disc,
+    blocking when above the cylinder's start plus ``slack`` (mm; a tuple: one map each). The
+    exits are those of the kernel but for rounding (other operations in another order, the
+    merged boxes' last bits), so the kernel's bits lie between those of slack -1e-9 and +1e-9."""
+    from .voxelmap import _blocker_faces, _plane_faces
+
     ds = vm.directions
     a = tool.radius
+    slacks = slack if isinstance(slack, tuple) else (slack,)
     centre = vm.point + a * vm.normal
-    bc, bh = vm.boxes()
+    bc, bh, _, _, bplane = vm.blockers()
+    bface = _blocker_faces(vm)
     sk = vm.skin()
     lo_, hi_ = np.concatenate([bc, sk]).min(axis=0), np.concatenate([bc, sk]).max(axis=0)
     sk = sk if skin else sk[:0]
     occ = np.concatenate([bc, sk])
     ohalf = np.concatenate([bh, np.full((len(sk), 3), 0.5 * vm.d)])
+    oplane = np.concatenate([bplane, np.tile([0, 0, 0, 0, 0, 0, np.inf], (len(sk), 1))])
+    oface = np.concatenate([bface, np.full(len(sk), -2)])
     mid = 0.5 * (lo_ + hi_)
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d + a
     holder_r = tool.holder_diameter / 2.0
     cell = float(cell or vm.d)
     cell_h = float(cell_holder or max(vm.d, holder_r / 5))
+    ratio = cell_h / cell
+    hm = int(round(ratio))
+    hm = hm if hm >= 1 and ratio == hm and hm & (hm - 1) == 0 else 0
     u0 = -(radius + 2 * vm.d + holder_r + cell_h)
     rel, crel = occ - mid, centre - mid
+    prel = np.concatenate([oplane[:, :3] - mid, oplane[:, 3:]], axis=1)
+    plane_face = _plane_faces(vm)
+    qface = np.where((vm.surface >= 0) & plane_face[np.clip(vm.surface, 0, None)], vm.surface, -1)
+    groups = sorted(set(oface.tolist()))
+    gidx = np.searchsorted(groups, oface)
     loc = to_bool(local, ds.k)
-    out = np.zeros((vm.n_boundary, ds.k), bool)
+    outs = [np.zeros((vm.n_boundary, ds.k), bool) for _ in slacks]
     for i in range(ds.k):
         n = ds.normals[i]
         e, f = _basis(n)
-        bufs = []
-        for c in ([cell, cell_h] if holder_r > 0 else [cell]):
+        asking = np.flatnonzero(loc[:, i])
+        faces = sorted(set(qface[asking][qface[asking] >= 0].tolist()))
+        sizes = [cell, cell_h] if holder_r > 0 else [cell]
+        per_face = []  # per cell size: one buffer per blocker group (face or skin)
+        for level, c in enumerate(sizes):
             nc = int(np.ceil(-2.0 * u0 / c)) + 1
-            buf = np.full((nc, nc), -1.0e300)
-            pu, pv, top = rel @ e, rel @ f, rel @ n + ohalf @ np.abs(n)
-            ae, af = ohalf @ np.abs(e), ohalf @ np.abs(f)
-            ia = np.maximum(0, np.floor((pu - ae - u0) / c).astype(int))
-            ib = np.minimum(nc - 1, np.floor((pu + ae - u0) / c).astype(int))
-            ja = np.maximum(0, np.floor((pv - af - u0) / c).astype(int))
-            jb = np.minimum(nc - 1, np.floor((pv + af - u0) / c).astype(int))
-            for m in range(len(occ)):
-                sub = buf[ia[m]:ib[m] + 1, ja[m]:jb[m] + 1]
-                np.maximum(sub, top[m], out=sub)
-            bufs.append(buf)
-        for b in np.flatnonzero(loc[:, i]):
+            if level == 1 and hm:
+                # the holder's cells from the shank's by block maxima (as the kernel)
+                nf = per_face[0].shape[1]
+                pad = np.full((len(groups), nc * hm, nc * hm), -1.0e300)
+                pad[:, :nf, :nf] = per_face[0]
+                per_face.append(pad.reshape(len(groups), nc, hm, nc, hm).max(axis=(2, 4)))
+                continue
+            bufs = np.full((len(groups), nc, nc), -1.0e300)
+            m, p, q, ext = _exits(rel, ohalf, prel, n, e, f, u0, c, nc)
+            np.maximum.at(bufs, (gidx[m], p, q), ext)
+            per_face.append(bufs)
+        alls = [b.max(axis=0) for b in per_face]
+        others = [{F: np.delete(b, groups.index(F), axis=0).max(axis=0, initial=-1.0e300) if F in groups else b.max(axis=0)
+                   for F in faces} for b in per_face]
+        for b in asking:
             pu, pv, h0 = crel[b] @ e, crel[b] @ f, crel[b] @ n
-            if _disc_blocked(bufs[0], u0, cell, pu, pv, a, h0):
-                continue
-            if holder_r > 0 and _disc_blocked(bufs[1], u0, cell_h, pu, pv, holder_r, h0 + tool.stickout - a):
-                continue
-            out[b, i] = True
-    return from_bool(out)
+            F, lin = int(qface[b]), None
+            nm = float(n @ vm.normal[b])
+            if F >= 0 and nm > 1e-12:
+                lin = (((vm.point[b] - mid) @ vm.normal[b] + 1e-6 * vm.d) / nm, float(e @ vm.normal[b]) / nm,
+                       float(f @ vm.normal[b]) / nm)
+            else:
+                F = -1
+            for out, sl in zip(outs, slacks):
+                if _disc_blocked(alls[0], others[0][F] if F >= 0 else None, u0, cell, pu, pv, a, h0 + sl, lin):
+                    continue
+                if holder_r > 0 and _disc_blocked(alls[1], others[1][F] if F >= 0 else None, u0, cell_h, pu, pv,
+                                                  holder_r, h0 + sl + tool.stickout - a, lin):
+                    continue
+                out[b, i] = True
+    res = [from_bool(o) for o in outs]
+    return tuple(res) if isinstance(slack, tuple) else res[0]

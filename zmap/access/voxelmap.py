@@ -737,7 +737,9 @@ def _skin_boxes(vm: VoxelMap, sijk: np.ndarray, smask: np.ndarray) -> tuple[np.n
 
 
 def _merged_blockers(vm: VoxelMap, blockers: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
-    """:meth:`VoxelMap.blockers` with the flat boxes of axis-aligned planar faces merged.
+    """:meth:`VoxelMap.blockers` with the flat boxes of axis-aligned planar faces merged (and
+    any further per-blocker arrays in ``blockers`` after the five, a merged box taking its
+    first member's).
 
     A voxel crossed by one face whose patch is a plane square to an axis (slab 0), with a box
     that spans the voxel across that axis, is merged with the voxels of the same face, plane,
@@ -751,7 +753,7 @@ def _merged_blockers(vm: VoxelMap, blockers: tuple[np.ndarray, ...]) -> tuple[np
     stay apart."""
     from ._access_kernels import merge_runs, run_members
 
-    c, h, bvox, blight, bplane = blockers
+    c, h, bvox, blight, bplane, *extra = blockers
     lo, hi = c - h, c + h
     nrm = bplane[:, 3:6]
     ax = np.argmax(np.abs(nrm), axis=1)
@@ -799,7 +801,8 @@ def _merged_blockers(vm: VoxelMap, blockers: tuple[np.ndarray, ...]) -> tuple[np
             np.ascontiguousarray(np.concatenate([h[keep], 0.5 * (mhi - mlo)])),
             np.ascontiguousarray(np.concatenate([bvox[keep], bvox[rep]])),
             np.ascontiguousarray(np.concatenate([blight[keep], blight[rep]])),
-            np.ascontiguousarray(np.concatenate([bplane[keep], plane])))
+            np.ascontiguousarray(np.concatenate([bplane[keep], plane])),
+            *(np.ascontiguousarray(np.concatenate([x[keep], x[rep]])) for x in extra))
 
 
 def _row_groups(key: np.ndarray) -> np.ndarray:
@@ -1150,6 +1153,38 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     return tool_clearance(vm, local, tool, cell=cell, cell_holder=cell_holder)
 
 
+def _blocker_faces(vm: VoxelMap) -> np.ndarray:
+    """The face of each of :meth:`VoxelMap.blockers` (nb,) int64 (-1: several)."""
+    one = np.flatnonzero(vm.surface >= 0) if vm.pieces is not None else np.arange(vm.n_boundary)
+    face = vm.surface[one].astype(np.int64)
+    if vm.pieces is None:
+        return face
+    pf = vm.pieces.face if vm.pieces.face is not None else np.full(len(vm.pieces.voxel), -1)
+    return np.concatenate([face, np.asarray(pf, dtype=np.int64)])
+
+
+def _plane_faces(vm: VoxelMap) -> np.ndarray:
+    """Per face id, whether the face is a plane: every voxel that it alone crosses and every
+    piece of it has one unit normal (within 1e-9) and a slab of at most 1e-9 d (a connected
+    face with one normal is flat)."""
+    face = _blocker_faces(vm)
+    blk = vm.blockers()
+    normal, slab = blk[4][:, 3:6], blk[4][:, 6]
+    nf = int(max(face.max(initial=-1), vm.surface.max(initial=-1))) + 1
+    if nf == 0:
+        return np.zeros(0, dtype=bool)
+    ok = face >= 0
+    first = np.full(nf, -1, dtype=np.int64)
+    idx = np.flatnonzero(ok)
+    first[face[idx[::-1]]] = idx[::-1]  # the first blocker of each face
+    flat = np.ones(nf, dtype=bool)
+    dev = np.abs(normal[idx] - normal[first[face[idx]]]).max(axis=1)
+    bad = (dev > 1e-9) | ~(slab[idx] <= 1e-9 * vm.d) | (np.abs(normal[idx]).sum(axis=1) == 0)
+    flat[face[idx[bad]]] = False
+    flat[first < 0] = False
+    return flat
+
+
 def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float | None = None,
                    cell_holder: float | None = None, skin: bool = False) -> np.ndarray:
     """The directions of ``local`` (mb, words) along which the shank and the holder clear the
@@ -1173,7 +1208,8 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     centre = np.ascontiguousarray(vm.point + a * vm.normal)
     mb = vm.n_boundary
     sk = vm.skin()
-    bc, bh = vm.boxes()
+    bc, bh, _, _, bplane, bface = _merged_blockers(vm, tuple(np.ascontiguousarray(x) for x in vm.blockers())
+                                                   + (_blocker_faces(vm),))
     # the buffers' grid is laid on the boxes and skin centres either way
     lo_ = np.minimum(bc.min(axis=0), sk.min(axis=0)) if len(sk) else bc.min(axis=0)
     hi_ = np.maximum(bc.max(axis=0), sk.max(axis=0)) if len(sk) else bc.max(axis=0)
@@ -1181,6 +1217,15 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
         sk = sk[:0]
     occ = np.ascontiguousarray(np.concatenate([bc, sk]))
     ohalf = np.ascontiguousarray(np.concatenate([bh, np.full((len(sk), 3), 0.5 * vm.d)]))
+    splane = np.zeros((len(sk), 7))
+    splane[:, 6] = np.inf
+    oplane = np.ascontiguousarray(np.concatenate([bplane, splane]))
+    oface = np.ascontiguousarray(np.concatenate([bface, np.full(len(sk), -2)]), dtype=np.int64)
+    # a ball on a plane face, its shank tilted less than 90 degrees off the normal, stays on the
+    # plane's outer side: the shank's test skips that face's blockers
+    plane = _plane_faces(vm)
+    surf = vm.surface.astype(np.int64)
+    qface = np.where((surf >= 0) & plane[np.clip(surf, 0, None)], surf, -1)
     mid = 0.5 * (lo_ + hi_)
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d + a
     out = np.zeros((ds.k, mb), dtype=np.uint8)
@@ -1193,7 +1238,7 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     ratio = cell_holder / cell
     hm = int(round(ratio))
     hm = hm if hm >= 1 and ratio == hm and hm & (hm - 1) == 0 else 0
-    tool_kernel(ds.normals, local, centre, occ, ohalf, vm.d, a, cell, cell_holder, hm, tool.stickout - a, holder_r,
+    tool_kernel(ds.normals, local, centre, np.ascontiguousarray(vm.point), np.ascontiguousarray(vm.normal), occ, ohalf, oplane, oface, qface, vm.d, a, cell, cell_holder, hm, tool.stickout - a, holder_r,
                 mid, radius, _disc_rows(a / cell, outer=True), _disc_rows(a / cell, outer=False),
                 _disc_rows(holder_r / cell_holder, outer=True), _disc_rows(holder_r / cell_holder, outer=False),
                 out, stats)

@@ -89,13 +89,18 @@ def test_box_access_verdict_and_setups(box):
     setups = set_cover(vm, A)
     covered = sum(s["area"] for s in setups)
     assert covered == pytest.approx(v["area_reachable"] + v["area_other"], rel=1e-9)
-    # the first set-up looks at one of the two largest faces (top or bottom, 120 mm^2 each)
-    assert abs(setups[0]["vector"][2]) > 0.9 and setups[0]["area"] >= 0.5 * top_area
+    # the first set-up takes most of one of the two largest faces (top or bottom, 120 mm^2 each;
+    # tilted towards a side face, which a ball on a plane clears at any tilt, it takes more)
+    first = setups[0]["voxels"]
+    flat = np.abs(vm.normal[first, 2]) > 0.9
+    assert vm.area[first[flat]].sum() >= 0.5 * top_area and setups[0]["area"] >= 0.5 * top_area
     assert all(a["area"] >= b["area"] for a, b in zip(setups, setups[1:]))
-    # a tilt cone of 30 degrees about +z reaches only the top
+    # a tilt cone of 30 degrees about +z reaches the top and, tilted away from them, the side
+    # walls (the ball's flank on a wall, its shank clear of the wall's plane), not the bottom
     cone = set_cover(vm, A, cone=np.radians(30))
     got = np.concatenate([c["voxels"] for c in cone])
-    assert (vm.point[got, 2] > 5.0).all()  # the top face, or the edge voxels beside it
+    assert (vm.point[got, 2] > 0.8).all()
+    assert vm.area[got[vm.point[got, 2] > 5.0]].sum() >= 0.5 * top_area
     assert sum(c["area"] for c in cone) >= v["area_reachable"] - 1e-9
     assert all(np.degrees(np.arccos(c["vector"][2])) <= 30 + 1e-9 for c in cone)
     vox, n = node_directions(vm, A, np.array([6.0, 50.0]), np.array([5.0, 5.0]))
