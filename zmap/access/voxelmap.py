@@ -1101,7 +1101,7 @@ _LAST_TOOL_STATS = [0, 0, 0]
 def _ball_inputs(vm: VoxelMap, a: float) -> tuple[float, np.ndarray, np.ndarray]:
     """What the ball's conditions (:func:`accessibility`) take besides the maps, for a ball of
     radius ``a``: half a voxel diagonal ``hd``; ``bad`` (mb,) uint8, the voxels with a concave
-    curvature above 1/a or a crease; ``cap`` (k, words), per tessel of x_w - c the directions
+    curvature above 1/a or a concave crease; ``cap`` (k, words), per tessel of x_w - c the directions
     for which a shell voxel lies beyond the eraser's equator (n . v_j > hd / (a - hd) for the
     tessel's three vertices: conservative)."""
     from .directions import from_bool
@@ -1110,8 +1110,36 @@ def _ball_inputs(vm: VoxelMap, a: float) -> tuple[float, np.ndarray, np.ndarray]
     hd = float(np.sqrt(3.0) * 0.5 * vm.d)
     thr = hd / (a - hd) if a > hd else np.inf
     cap = from_bool((np.einsum("tjx,nx->tjn", ds.vertices, ds.normals) > thr).all(axis=1))
-    bad = ((vm.curvature > (1.0 / a) * (1 + 1e-9)) | vm.crease).astype(np.uint8)
+    bad = ((vm.curvature > (1.0 / a) * (1 + 1e-9)) | _concave_creases(vm)).astype(np.uint8)
     return hd, bad, cap
+
+
+def _concave_creases(vm: VoxelMap) -> np.ndarray:
+    """The crease voxels (mb,) bool that the ball's third condition counts: all but those whose
+    faces all meet convexly, each piece's mean point below every other piece's plane by more
+    than 1e-3 d unless the two normals are within 10 degrees (a flat join) (the part's outer
+    edges and corners: material there lies under each face's plane, which a ball touching a
+    face from outside stays above)."""
+    out = vm.crease.astype(bool).copy()
+    p = vm.pieces
+    if p is None or not len(p.voxel) or not out.any():
+        return out
+    start = np.flatnonzero(np.r_[True, p.voxel[1:] != p.voxel[:-1]])  # pieces come sorted by voxel
+    size = np.diff(np.r_[start, len(p.voxel)])
+    # every ordered pair (i, j) of pieces of a voxel, i != j
+    owner = np.repeat(np.arange(len(start)), size * size)
+    k = np.arange(len(owner)) - np.repeat(np.cumsum(size * size) - size * size, size * size)
+    i = start[owner] + k // size[owner]
+    j = start[owner] + k % size[owner]
+    pair = i != j
+    i, j, owner = i[pair], j[pair], owner[pair]
+    below = ((p.point[j] - p.point[i]) * p.normal[i]).sum(axis=1) < -1e-3 * vm.d
+    below |= (p.normal[i] * p.normal[j]).sum(axis=1) > np.cos(np.radians(10.0))
+    convex = np.ones(len(start), dtype=bool)
+    convex[owner[~below]] = False
+    vox = p.voxel[start]
+    out[vox[convex & (size > 1)]] = False
+    return out
 
 
 def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | None = None,
@@ -1124,7 +1152,8 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
        within half a voxel diagonal of the eraser's surface, on its side facing -n (the ball
        of radius a centred at v's mean point plus a times its mean normal);
     2. no voxel of ``E_n(v)`` has a concave curvature above 1/a;
-    3. no voxel of ``E_n(v)`` is a crease (several faces meeting at an angle);
+    3. no voxel of ``E_n(v)`` is a concave crease (several faces meeting at an angle, not all
+       convexly: :func:`_concave_creases`);
 
     and no boundary box reaches above the ball's centre within the
     shank's radius, nor above the stick-out within the holder's radius (both tested upward

@@ -297,3 +297,23 @@ def test_cylinder_casting_kernel_matches_the_plain_reference():
     slow = global_visibility_reference(vm)
     assert (fast == slow).all()
     assert (count(fast) < count(vm.vl)).any()  # the step's concave edge hides directions
+
+
+def test_only_concave_creases_bar_the_ball():
+    """An L-shaped block (a step on a block, off the voxel grid's planes): the step's foot
+    (x = 2.17, z = 2.13) is a concave edge, every other edge and corner convex or a flat join.
+    The ball's crease condition keeps the crease voxels along the foot and drops the others."""
+    from zmap.access.voxelmap import _concave_creases
+
+    a = box_samples(np.zeros(3), np.array([4.13, 3.07, 2.13]), 0.1)
+    b = box_samples(np.array([0.0, 0.0, 2.13]), np.array([2.17, 3.07, 3.3]), 0.1, fid0=6)
+    keep_a = ~((a[3] == 5) & (a[0][:, 0] < 2.17))
+    keep_b = b[3] != 10  # the step's bottom lies on the block
+    vm = VoxelMap.from_samples(*[np.concatenate([x[keep_a], y[keep_b]]) for x, y in zip(a, b)], d=0.4, q=2,
+                               step=0.1, check=False)
+    concave = _concave_creases(vm)
+    assert not (concave & ~vm.crease).any()
+    foot = np.hypot(vm.centres[:, 0] - 2.17, vm.centres[:, 2] - 2.13)
+    near = vm.crease & (foot < 0.3)
+    assert concave[near].all() and near.sum() >= 7
+    assert not concave[foot > 0.8].any() and vm.crease[foot > 0.8].sum() > 50
