@@ -1100,66 +1100,54 @@ def _linear_max_in(ua, va, cell, pu, pv, rr, k0, ku, kv):
 
 
 @njit(cache=True)
-def _disc_clear(buf, H, A0, B0, u0, cell, pu, pv, rr, h0, fid, buf2, face, k0, ku, kv):
+def _disc_clear(buf, A0, B0, u0, cell, pu, pv, rr, h0, skip, fid, buf2, face, k0, ku, kv):
     """True when no buffer cell meeting the disc (centre pu, pv, radius rr) is above h0 (cells
-    outside the window hold nothing): per row of the disc, its run of cells by the row maxima
-    ``H`` of :func:`disc_max` (one or two lookups), the cells one by one only in a row above h0
-    for a face query.
+    outside the window hold nothing). ``skip[|dp|]``: half-width of the columns around the
+    centre's cell, in row dp from it, known to be at or below h0 (-1: none).
 
     ``face`` >= 0, a plane face whose exit on the line (u, v) is ``k0 - u ku - v kv``: a cell
     whose top exit is of that face (``fid``) counts the other faces' (``buf2``), and the face's
     own only as high as its plane rises over the part of the cell within the disc."""
     na, nb = buf.shape
-    W = H.shape[0] - 1
     ia = max(A0, int(np.floor((pu - rr - u0) / cell)))
     ib = min(A0 + na - 1, int(np.floor((pu + rr - u0) / cell)))
+    ja = max(B0, int(np.floor((pv - rr - u0) / cell)))
+    jb = min(B0 + nb - 1, int(np.floor((pv + rr - u0) / cell)))
+    pc = int(np.floor((pu - u0) / cell))
+    rc = int(np.floor((pv - u0) / cell))
     r2 = rr * rr
     for p in range(ia, ib + 1):
         ua = u0 + p * cell
         du = 0.0 if ua <= pu <= ua + cell else min(abs(ua - pu), abs(ua + cell - pu))
-        rest = r2 - du * du
-        if rest <= 0.0:
-            continue
-        # the run of columns whose cells meet the disc (du^2 + dv^2 < rr^2): dv < sqrt(rest)
-        half = np.sqrt(rest)
-        j0 = int(np.floor((pv - half - u0) / cell)) - 1
-        j1 = int(np.floor((pv + half - u0) / cell)) + 1
-        while j0 <= j1 and not (du * du + _dv(u0, cell, j0, pv) ** 2 < r2):
-            j0 += 1
-        while j1 >= j0 and not (du * du + _dv(u0, cell, j1, pv) ** 2 < r2):
-            j1 -= 1
-        j0 = max(j0, B0)
-        j1 = min(j1, B0 + nb - 1)
-        if j0 > j1:
-            continue
-        c0, c1 = j0 - B0, j1 - B0
-        w = (c1 - c0) // 2
-        if w <= W:
-            top = max(H[w, p - A0, c0 + w], H[w, p - A0, c1 - w])
-        else:
-            top = -1.0e300
-            for r in range(c0, c1 + 1):
-                top = max(top, buf[p - A0, r])
-        if top <= h0:
-            continue
-        if face < 0:
-            return False
-        for r in range(c0, c1 + 1):
-            z = buf[p - A0, r]
-            if z > h0 and fid[p - A0, r] == face:
-                z2 = buf2[p - A0, r]
-                if z2 <= h0:
-                    z2 = min(z, _linear_max_in(ua, u0 + (r + B0) * cell, cell, pu, pv, rr, k0, ku, kv))
-                z = z2
-            if z > h0:
-                return False
+        dp = abs(p - pc)
+        w = skip[dp] if dp < skip.shape[0] else -1
+        # the columns left and right of the skipped run
+        for side in range(2):
+            if w < 0:
+                if side == 1:
+                    break
+                r0, r1 = ja, jb
+            elif side == 0:
+                r0, r1 = ja, min(jb, rc - w - 1)
+            else:
+                r0, r1 = max(ja, rc + w + 1), jb
+            for r in range(r0, r1 + 1):
+                va = u0 + r * cell
+                dv = 0.0 if va <= pv <= va + cell else min(abs(va - pv), abs(va + cell - pv))
+                if du * du + dv * dv >= r2:
+                    continue
+                z = buf[p - A0, r - B0]
+                if z > h0 and face >= 0 and fid[p - A0, r - B0] == face:
+                    z2 = buf2[p - A0, r - B0]
+                    # the plane's highest corner over the cell first: below h0, the face's own
+                    # exits in the cell do not count
+                    if z2 <= h0 and (k0 - (ua if ku > 0.0 else ua + cell) * ku
+                                     - (va if kv > 0.0 else va + cell) * kv) > h0:
+                        z2 = min(z, _linear_max_in(ua, va, cell, pu, pv, rr, k0, ku, kv))
+                    z = z2
+                if z > h0:
+                    return False
     return True
-
-
-@njit(cache=True)
-def _dv(u0, cell, r, pv):
-    va = u0 + r * cell
-    return 0.0 if va <= pv <= va + cell else min(abs(va - pv), abs(va + cell - pv))
 
 
 @njit(cache=True)
@@ -1184,12 +1172,10 @@ def disc_max(buf, wa, wb, outa, outb):
     """outa[p, q] = max of buf over the cells (p + dp, q + dq) with |dq| <= wa[|dp|] (rows
     with width -1 or beyond the array hold none), clipped to the array; outb the same with wb.
     Row maxima of growing half-width, each from the last by one three-way max, then one max
-    per row offset, all along contiguous rows: O(widths) per cell, shared by both filters.
-    Returns the row maxima ``H`` (W + 1, na, nb): ``H[w, p, q]`` the max of ``buf[p, q - w ..
-    q + w]`` (clipped), W the largest width."""
+    per row offset, all along contiguous rows: O(widths) per cell, shared by both filters."""
     na, nb = buf.shape
     W = max(0, max(wa.max(), wb.max()))
-    H = np.empty((W + 1, na, nb))  # H[w, p, q]: max of buf[p, q - w .. q + w], clipped
+    H = np.empty((W + 1, na, nb))
     H[0] = buf
     for w in range(1, W + 1):
         for p in range(na):
@@ -1204,16 +1190,15 @@ def disc_max(buf, wa, wb, outa, outb):
             cur[nb - 1] = max(prev[nb - 2], prev[nb - 1])
     _rows_max(H, wa, outa)
     _rows_max(H, wb, outb)
-    return H
 
 
 @njit(cache=True)
-def _disc_test(buf, H, up, lo_, A0, B0, u0, cell, pu, pv, rr, h0, stats, fid, buf2, lo2, face, k0, ku, kv):
+def _disc_test(buf, up, lo_, A0, B0, u0, cell, pu, pv, rr, h0, skip, stats, fid, buf2, lo2, face, k0, ku, kv):
     """_disc_clear with two O(1) pre-tests: ``up`` (the max filter of buf over every cell a
     disc centred in the cell can meet) at or below h0: clear; ``lo_`` (the max filter over the
     cells every such disc meets) above h0: blocked. Otherwise the scan. A face query
     (``face`` >= 0) is blocked by ``lo2``, the second filter of ``buf2`` (a cell counts at least
-    that for any face)."""
+    that for any face), and skips the columns ``lo_`` vouches for."""
     na, nb = buf.shape
     p = int(np.floor((pu - u0) / cell)) - A0
     r = int(np.floor((pv - u0) / cell)) - B0
@@ -1224,8 +1209,11 @@ def _disc_test(buf, H, up, lo_, A0, B0, u0, cell, pu, pv, rr, h0, stats, fid, bu
         if (lo2[p, r] if face >= 0 else lo_[p, r]) > h0:
             stats[1] += 1
             return False
+        stats[2] += 1
+        return _disc_clear(buf, A0, B0, u0, cell, pu, pv, rr, h0, skip if lo_[p, r] <= h0 else skip[:0], fid, buf2,
+                           face, k0, ku, kv)
     stats[2] += 1
-    return _disc_clear(buf, H, A0, B0, u0, cell, pu, pv, rr, h0, fid, buf2, face, k0, ku, kv)
+    return _disc_clear(buf, A0, B0, u0, cell, pu, pv, rr, h0, skip[:0], fid, buf2, face, k0, ku, kv)
 
 
 @njit(cache=True)
@@ -1334,8 +1322,8 @@ def tool_kernel(dirs, local, centre, qpoint, qnormal, occ, ohalf, oplane, oface,
     half-widths per row offset ``up_r`` / ``low_r`` for the shank, ``up_h`` / ``low_h`` for the
     holder): over every cell a disc centred in a cell can meet (at or below the cylinder's
     start: clear), and over the cells every such disc meets (above it: blocked). Only the pairs
-    in between scan the disc, row by row from the buffer's row maxima, so the bits are those
-    of the plain disc scan. ``stats`` (k, 3): pairs decided
+    in between scan the disc's cells (less those the second filter vouched for), so the bits
+    are those of the plain disc scan. ``stats`` (k, 3): pairs decided
     clear, blocked and scanned, per direction (shank and holder tests together).
 
     ``hm`` > 0: ``cell_h`` is ``hm`` (a power of two) times ``cell`` on the same origin, and the
@@ -1409,16 +1397,15 @@ def _tool_one(i, dirs, local, centre, qpoint, qnormal, occ, ohalf, oplane, oface
             _block_max(buf, A0, B0, hm, bufh, H0, G0)
     up = np.empty_like(buf)
     low = np.empty_like(buf)
-    rows = disc_max(buf, up_r, low_r, up, low)
+    disc_max(buf, up_r, low_r, up, low)
     up2 = np.empty_like(buf2)
     low2 = np.empty_like(buf2)
     if two:
         disc_max(buf2, up_r, low_r, up2, low2)
     uph = np.empty_like(bufh)
     lowh = np.empty_like(bufh)
-    rowsh = np.empty((1, 1, 1))
     if holder_r > 0:
-        rowsh = disc_max(bufh, up_h, low_h, uph, lowh)
+        disc_max(bufh, up_h, low_h, uph, lowh)
     uph2 = np.empty_like(bufh2)
     lowh2 = np.empty_like(bufh2)
     if twoh:
@@ -1436,11 +1423,11 @@ def _tool_one(i, dirs, local, centre, qpoint, qnormal, occ, ohalf, oplane, oface
         if two and qface[b] >= 0:
             mode, k0, ku, kv = _own_plane(b, qpoint, qnormal, centre, lo, geo, nx, ny, nz, d, a, cell, cell_h, stick,
                                           holder_r)
-        if not _disc_test(buf, rows, up, low, A0, B0, u0, cell, pu, pv, a, hc, st, fid, buf2, low2,
+        if not _disc_test(buf, up, low, A0, B0, u0, cell, pu, pv, a, hc, low_r, st, fid, buf2, low2,
                           qface[b] if mode & 1 else -1, k0, ku, kv):
             continue
-        if holder_r > 0 and not _disc_test(bufh, rowsh, uph, lowh, H0, G0, u0, cell_h, pu, pv, holder_r, hc + stick,
-                                           st, fidh, bufh2, lowh2, qface[b] if mode & 2 else -1, k0, ku, kv):
+        if holder_r > 0 and not _disc_test(bufh, uph, lowh, H0, G0, u0, cell_h, pu, pv, holder_r, hc + stick,
+                                           low_h, st, fidh, bufh2, lowh2, qface[b] if mode & 2 else -1, k0, ku, kv):
             continue
         out[i, b] = 1
     for c in range(3):
