@@ -11,9 +11,11 @@ the line). No depth buffer,
 no top-two bookkeeping: the kernel must give the same bits.
 
 :func:`tool_clearance_reference` restates the shank and holder tests of
-:func:`zmap.access.voxelmap.tool_clearance` plainly: a max-depth buffer per direction filled box
-by box, then for each pair every buffer cell that meets the cylinder's disc, compared with its
-start. No dilated buffers, no pre-tests: the kernel must give the same bits.
+:func:`zmap.access.voxelmap.tool_clearance` plainly: per direction the exits of every (unmerged)
+blocker on every cell's centre line in numpy, one buffer per face, then for each pair every
+buffer cell that meets the cylinder's disc, compared with its start. No dilated buffers, no
+pre-tests, no top-two bookkeeping: the kernel's bits must lie between the reference's with
+its heights 1e-9 mm stricter and laxer (the same exits, rounded in another order).
 """
 
 from __future__ import annotations

@@ -1155,7 +1155,7 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     3. no voxel of ``E_n(v)`` is a concave crease (several faces meeting at an angle, not all
        convexly: :func:`_concave_creases`);
 
-    and no boundary box reaches above the ball's centre within the
+    and no blocker reaches above the ball's centre within the
     shank's radius, nor above the stick-out within the holder's radius (both tested upward
     without end; cells of the depth buffers: ``cell``, d by default, and ``cell_holder``, the
     larger of d and a fifth of the holder's radius; see :func:`tool_clearance`). A voxel where the ball
@@ -1217,18 +1217,24 @@ def _plane_faces(vm: VoxelMap) -> np.ndarray:
 def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float | None = None,
                    cell_holder: float | None = None, skin: bool = False) -> np.ndarray:
     """The directions of ``local`` (mb, words) along which the shank and the holder clear the
-    part: no boundary box (as its footprint box and its far end along n) above the ball's
-    centre within the shank's radius, nor above the stick-out within the holder's radius
-    (buffers of pitch ``cell`` and ``cell_holder``, as in :func:`accessibility`, which calls it
-    on the ball's local map).
+    part: no blocker of the casting (:meth:`VoxelMap.blockers`, merged) leaves a line of a
+    buffer cell meeting the shank's disc above the ball's centre, nor one meeting the holder's
+    disc above the stick-out (buffers of pitch ``cell`` and ``cell_holder``, as in
+    :func:`accessibility`, which calls it on the ball's local map). A blocker's exit on the
+    lines of a cell: its box grown by the lines' offset from the cell's centre line, cut at its
+    patch's slab (every patch point lies within ``slab`` of its mean plane).
+
+    A ball on a plane face (:func:`_plane_faces`; the voxel crossed by that face alone) leaves
+    the face out of its shank's test: at a tilt t below 90 degrees the shank's points lie
+    ``a (1 - sin t)`` or more outside the plane. For the holder, which can dip below the plane,
+    the face counts only as high as its plane rises over each cell's part within the disc.
 
     The interior skin cubes need not be drawn (``skin=False``, the default): both cylinders
     reach upward without end, so a point of material inside one has above it, on the same
     line along n, the point where that line leaves the part, a surface point inside the
-    cylinder and higher, held by a boundary box whose footprint holds the same buffer cell.
-    A skin cube only adds the corners of its footprint box that it does not cover, so leaving
-    the cubes out keeps every true block, drops only those false ones, and halves the boxes
-    drawn. ``skin=True`` draws them too (the rule before; a subset of the bits).
+    cylinder and higher, on a blocker whose exit on that line the cell holds. (Not on the ball's
+    plane face: the shank stays outside that plane.) ``skin=True`` draws the cubes too (a
+    subset of the bits).
     """
     from ._access_kernels import pack_columns, tool_kernel
 
