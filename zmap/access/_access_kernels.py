@@ -972,7 +972,7 @@ def _shell_conditions(b, vg, bxyz, centre, origin, d, index, state, r_in, r_out,
                 if tt < 0:  # w's centre on the ball's centre: the ball cannot be there (conservative)
                     for w in range(W):
                         out[b, w] = np.uint64(0)
-                elif bad[m]:
+                elif bad[m] & 2:
                     for w in range(W):
                         out[b, w] &= cap[tt, w]
                 else:
@@ -990,16 +990,16 @@ def ball_conditions(vg, bxyz, centre, origin, d, index, state, r_in, r_out, bad,
     test). w belongs to E_n(v) unless n lies in ``cap[t]`` (t: the tessel of x_w - c_v), the
     directions for which w lies beyond the eraser's equator. So
     ``A(v) = V'_g(v) & AND_w (V'_g(w) | cap[t_w])`` with ``V'_g(w)`` replaced by nothing where
-    w is bad (curvature above 1/a, crease); v itself must not be bad, and the ball must fit:
-    no boundary or interior voxel centre closer than r_in. One pass over the sphere per
-    voxel, in parallel, with no neighbour lists.
+    w is bad as a neighbour (``bad`` bit 2); v itself must not be bad (bit 1), and the ball
+    must fit: no boundary or interior voxel centre closer than r_in. One pass over the sphere
+    per voxel, in parallel, with no neighbour lists.
     """
     mb = bxyz.shape[0]
     W = vg.shape[1]
     for b in prange(mb):
         for w in range(W):
-            out[b, w] = np.uint64(0) if bad[b] else vg[b, w]
-        if bad[b]:
+            out[b, w] = np.uint64(0) if bad[b] & 1 else vg[b, w]
+        if bad[b] & 1:
             continue
         if not _shell_conditions(b, vg, bxyz, centre, origin, d, index, state, r_in, r_out, bad, cap, centres,
                                  frames, q, out):

@@ -1100,8 +1100,10 @@ _LAST_TOOL_STATS = [0, 0, 0]
 
 def _ball_inputs(vm: VoxelMap, a: float) -> tuple[float, np.ndarray, np.ndarray]:
     """What the ball's conditions (:func:`accessibility`) take besides the maps, for a ball of
-    radius ``a``: half a voxel diagonal ``hd``; ``bad`` (mb,) uint8, the voxels with a concave
-    curvature above 1/a or a concave crease; ``cap`` (k, words), per tessel of x_w - c the directions
+    radius ``a``: half a voxel diagonal ``hd``; ``bad`` (mb,) uint8, bit 1 for the voxels that
+    get no direction themselves (a concave curvature above 1/a, or any crease: its ball sits at
+    its faces' mean point and normal, the ball of none of its points), bit 2 for those that bar
+    the ball as its neighbours (the curvature, or a concave crease); ``cap`` (k, words), per tessel of x_w - c the directions
     for which a shell voxel lies beyond the eraser's equator (n . v_j > hd / (a - hd) for the
     tessel's three vertices: conservative)."""
     from .directions import from_bool
@@ -1110,16 +1112,17 @@ def _ball_inputs(vm: VoxelMap, a: float) -> tuple[float, np.ndarray, np.ndarray]
     hd = float(np.sqrt(3.0) * 0.5 * vm.d)
     thr = hd / (a - hd) if a > hd else np.inf
     cap = from_bool((np.einsum("tjx,nx->tjn", ds.vertices, ds.normals) > thr).all(axis=1))
-    bad = ((vm.curvature > (1.0 / a) * (1 + 1e-9)) | _concave_creases(vm)).astype(np.uint8)
+    curved = vm.curvature > (1.0 / a) * (1 + 1e-9)
+    bad = (curved | vm.crease).astype(np.uint8) | (2 * (curved | _concave_creases(vm))).astype(np.uint8)
     return hd, bad, cap
 
 
 def _concave_creases(vm: VoxelMap) -> np.ndarray:
-    """The crease voxels (mb,) bool that the ball's third condition counts: all but those whose
-    faces all meet convexly, each piece's mean point below every other piece's plane by more
-    than 1e-3 d unless the two normals are within 10 degrees (a flat join) (the part's outer
-    edges and corners: material there lies under each face's plane, which a ball touching a
-    face from outside stays above)."""
+    """The crease voxels (mb,) bool that bar a ball as its neighbours (condition 3): all but
+    those whose faces all meet convexly, each piece's mean point below every other piece's
+    plane by more than 1e-3 d unless the two normals are within 10 degrees (a flat join): the
+    part's outer edges and corners, whose material lies under each face's plane, which a ball
+    touching a face from outside stays above."""
     out = vm.crease.astype(bool).copy()
     p = vm.pieces
     if p is None or not len(p.voxel) or not out.any():
@@ -1153,7 +1156,8 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
        of radius a centred at v's mean point plus a times its mean normal);
     2. no voxel of ``E_n(v)`` has a concave curvature above 1/a;
     3. no voxel of ``E_n(v)`` is a concave crease (several faces meeting at an angle, not all
-       convexly: :func:`_concave_creases`);
+       convexly: :func:`_concave_creases`), and v is no crease at all (its ball, at its faces'
+       mean point and normal, is the ball of none of its points);
 
     and no blocker reaches above the ball's centre within the
     shank's radius, nor above the stick-out within the holder's radius (both tested upward

@@ -182,13 +182,13 @@ def _ball_conditions_brute(vm, vg, a, voxels):
     boundary centres, the fit test from all boundary and interior centres (no grid search)."""
     ds = vm.directions
     hd, bad, cap = _ball_inputs(vm, a)
-    bad = bad.astype(bool)
+    bad_self, bad = (bad & 1).astype(bool), (bad & 2).astype(bool)
     r_in, r_out = a - hd, a + hd
     centre = vm.point + a * vm.normal
     solid = vm.origin + vm.d * (np.argwhere(vm.state != 0) + 0.5)
-    out = np.where(bad[voxels, None], np.uint64(0), vg[voxels])
+    out = np.where(bad_self[voxels, None], np.uint64(0), vg[voxels])
     for row, b in enumerate(voxels):
-        if bad[b] or (np.linalg.norm(solid - centre[b], axis=1) < r_in).any():
+        if bad_self[b] or (np.linalg.norm(solid - centre[b], axis=1) < r_in).any():
             out[row] = 0
             continue
         off = vm.centres - centre[b]
