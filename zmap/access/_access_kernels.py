@@ -625,6 +625,15 @@ def _row_tight(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb,
 
 
 @njit(cache=True)
+def _box_row(wide, uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb, geo, u0, cell):
+    """Row uc of a box's cells: :func:`_row_tight` for a wide box (more than 8 columns, where
+    the cut pays), else :func:`_row`."""
+    if wide:
+        return _row_tight(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb, geo, u0, cell)
+    return _row(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb, geo, u0, cell)
+
+
+@njit(cache=True)
 def _pair_cut(a, pa, b, pb, vlo, vhi):
     """(vlo, vhi) cut to the v where entry ``a - v pa`` comes before exit ``b - v pb``."""
     dd = pb - pa
@@ -763,12 +772,8 @@ def _cast_one(i, dirs, opp, bxyz, bhalf, bvox, blight, bplane, qxyz, qhalf, qid,
         wide = jb - ja > 8
         for a in range(ia, ib + 1):
             uc = u0 + (a + 0.5) * cell
-            if wide:
-                jl, jh, xa, xb, ya, yb, za, zb = _row_tight(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza,
-                                                            lzb, geo, u0, cell)
-            else:
-                jl, jh, xa, xb, ya, yb, za, zb = _row(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb,
-                                                      geo, u0, cell)
+            jl, jh, xa, xb, ya, yb, za, zb = _box_row(wide, uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza,
+                                                      lzb, geo, u0, cell)
             ra = a - A0
             kr = k0 - uc * ku
             for b in range(jl, jh + 1):
@@ -1042,12 +1047,8 @@ def _draw_exits(buf, A0, B0, geo, nx, ny, nz, u0, cell, rx, ry, rz, hx, hy, hz, 
     wide = jb - ja > 8
     for a in range(ia, ib + 1):
         uc = u0 + (a + 0.5) * cell
-        if wide:
-            jl, jh, xa, xb, ya, yb, za, zb = _row_tight(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza,
-                                                        lzb, geo, u0, cell)
-        else:
-            jl, jh, xa, xb, ya, yb, za, zb = _row(uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza, lzb,
-                                                  geo, u0, cell)
+        jl, jh, xa, xb, ya, yb, za, zb = _box_row(wide, uc, rx, ry, rz, hx, hy, hz, ja, jb, lxa, lxb, lya, lyb, lza,
+                                                  lzb, geo, u0, cell)
         kr = k0 - uc * ku
         row = buf[a - A0]
         for b in range(jl, jh + 1):
