@@ -226,7 +226,7 @@ def tool_clearance_reference(vm, local, tool, *, cell=None, cell_holder=None, sk
     blocking when above the cylinder's start plus ``slack`` (mm; a tuple: one map each). The
     exits are those of the kernel but for rounding (other operations in another order, the
     merged boxes' last bits), so the kernel's bits lie between those of slack -1e-9 and +1e-9."""
-    from .voxelmap import _blocker_faces, _plane_faces
+    from .voxelmap import _blocker_faces, _plane_faces, _plane_queries
 
     ds = vm.directions
     a = tool.radius
@@ -252,8 +252,7 @@ def tool_clearance_reference(vm, local, tool, *, cell=None, cell_holder=None, sk
     u0 = -(radius + 2 * vm.d + holder_r + cell_h)
     rel, crel = occ - mid, centre - mid
     prel = np.concatenate([oplane[:, :3] - mid, oplane[:, 3:]], axis=1)
-    plane_face = _plane_faces(vm)
-    qface = np.where((vm.surface >= 0) & plane_face[np.clip(vm.surface, 0, None)], vm.surface, -1)
+    qface = _plane_queries(vm, _plane_faces(vm, bface, bplane))
     groups = sorted(set(oface.tolist()))
     gidx = np.searchsorted(groups, oface)
     loc = to_bool(local, ds.k)

@@ -1103,9 +1103,9 @@ def _ball_inputs(vm: VoxelMap, a: float) -> tuple[float, np.ndarray, np.ndarray]
     radius ``a``: half a voxel diagonal ``hd``; ``bad`` (mb,) uint8, bit 1 for the voxels that
     get no direction themselves (a concave curvature above 1/a, or any crease: its ball sits at
     its faces' mean point and normal, the ball of none of its points), bit 2 for those that bar
-    the ball as its neighbours (the curvature, or a concave crease); ``cap`` (k, words), per tessel of x_w - c the directions
-    for which a shell voxel lies beyond the eraser's equator (n . v_j > hd / (a - hd) for the
-    tessel's three vertices: conservative)."""
+    the ball as its neighbours (the curvature, or a concave crease); ``cap`` (k, words), per
+    tessel of x_w - c the directions for which a shell voxel lies beyond the eraser's equator
+    (n . v_j > hd / (a - hd) for the tessel's three vertices: conservative)."""
     from .directions import from_bool
 
     ds = vm.directions
@@ -1196,13 +1196,12 @@ def _blocker_faces(vm: VoxelMap) -> np.ndarray:
     return np.concatenate([face, np.asarray(pf, dtype=np.int64)])
 
 
-def _plane_faces(vm: VoxelMap) -> np.ndarray:
+def _plane_faces(vm: VoxelMap, face: np.ndarray, plane: np.ndarray) -> np.ndarray:
     """Per face id, whether the face is a plane: every voxel that it alone crosses and every
     piece of it has one unit normal (within 1e-9) and a slab of at most 1e-9 d (a connected
-    face with one normal is flat)."""
-    face = _blocker_faces(vm)
-    blk = vm.blockers()
-    normal, slab = blk[4][:, 3:6], blk[4][:, 6]
+    face with one normal is flat). ``face`` and ``plane``: those of :meth:`VoxelMap.blockers`
+    (:func:`_blocker_faces` and its fifth array)."""
+    normal, slab = plane[:, 3:6], plane[:, 6]
     nf = int(max(face.max(initial=-1), vm.surface.max(initial=-1))) + 1
     if nf == 0:
         return np.zeros(0, dtype=bool)
@@ -1216,6 +1215,16 @@ def _plane_faces(vm: VoxelMap) -> np.ndarray:
     flat[face[idx[bad]]] = False
     flat[first < 0] = False
     return flat
+
+
+def _plane_queries(vm: VoxelMap, plane: np.ndarray) -> np.ndarray:
+    """Per boundary voxel (mb,) int64, the plane face that alone crosses it (-1: none), by the
+    faces' flags ``plane`` of :func:`_plane_faces`."""
+    surf = vm.surface.astype(np.int64)
+    out = np.full(len(surf), -1, dtype=np.int64)
+    one = np.flatnonzero(surf >= 0)
+    out[one] = np.where(plane[surf[one]], surf[one], -1)
+    return out
 
 
 def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float | None = None,
@@ -1247,8 +1256,9 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     centre = np.ascontiguousarray(vm.point + a * vm.normal)
     mb = vm.n_boundary
     sk = vm.skin()
-    bc, bh, _, _, bplane, bface = _merged_blockers(vm, tuple(np.ascontiguousarray(x) for x in vm.blockers())
-                                                   + (_blocker_faces(vm),))
+    blockers = tuple(np.ascontiguousarray(x) for x in vm.blockers()) + (_blocker_faces(vm),)
+    plane = _plane_faces(vm, blockers[5], blockers[4])
+    bc, bh, _, _, bplane, bface = _merged_blockers(vm, blockers)
     # the buffers' grid is laid on the boxes and skin centres either way
     lo_ = np.minimum(bc.min(axis=0), sk.min(axis=0)) if len(sk) else bc.min(axis=0)
     hi_ = np.maximum(bc.max(axis=0), sk.max(axis=0)) if len(sk) else bc.max(axis=0)
@@ -1262,9 +1272,7 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     oface = np.ascontiguousarray(np.concatenate([bface, np.full(len(sk), -2)]), dtype=np.int64)
     # a ball on a plane face, its shank tilted less than 90 degrees off the normal, stays on the
     # plane's outer side: the shank's test skips that face's blockers
-    plane = _plane_faces(vm)
-    surf = vm.surface.astype(np.int64)
-    qface = np.where((surf >= 0) & plane[np.clip(surf, 0, None)], surf, -1)
+    qface = _plane_queries(vm, plane)
     mid = 0.5 * (lo_ + hi_)
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d + a
     out = np.zeros((ds.k, mb), dtype=np.uint8)
