@@ -1282,7 +1282,7 @@ def _window(cmin, cmax, ex, ey, ez, fx, fy, fz, grow, u0, cell, nc):
 
 
 @njit(cache=True)
-def _own_plane(b, qpoint, qnormal, centre, lo, geo, nx, ny, nz, d, a, cell, cell_h, stick, holder_r):
+def _own_plane(b, qpoint, qnormal, lo, geo, nx, ny, nz, d, a, cell, cell_h, stick, holder_r):
     """Query b on a plane face, direction n: ``(mode, k0, ku, kv)``, the face's exit on the line
     (u, v), ``k0 - u ku - v kv`` (its plane through the voxel's mean point, raised by 1e-6 d for
     the normals' rounding), and in ``mode`` bit 1 (bit 2) where the plane may rise above the
@@ -1374,7 +1374,7 @@ def _tool_one(i, dirs, local, centre, qpoint, qnormal, occ, ohalf, oplane, oface
     two = False
     for b in range(mb):
         if qface[b] >= 0 and (local[b, wi] >> bit) & np.uint64(1):
-            mode, k0, ku, kv = _own_plane(b, qpoint, qnormal, centre, lo, geo, nx, ny, nz, d, a, cell, cell_h, stick,
+            mode, k0, ku, kv = _own_plane(b, qpoint, qnormal, lo, geo, nx, ny, nz, d, a, cell, cell_h, stick,
                                           holder_r)
             if mode:
                 two = True
@@ -1422,7 +1422,7 @@ def _tool_one(i, dirs, local, centre, qpoint, qnormal, occ, ohalf, oplane, oface
         hc = rx * nx + ry * ny + rz * nz
         mode, k0, ku, kv = 0, 0.0, 0.0, 0.0
         if two and qface[b] >= 0:
-            mode, k0, ku, kv = _own_plane(b, qpoint, qnormal, centre, lo, geo, nx, ny, nz, d, a, cell, cell_h, stick,
+            mode, k0, ku, kv = _own_plane(b, qpoint, qnormal, lo, geo, nx, ny, nz, d, a, cell, cell_h, stick,
                                           holder_r)
         if not _disc_test(buf, up, low, A0, B0, u0, cell, pu, pv, a, hc, low_r, st, fid, buf2, low2,
                           qface[b] if mode & 1 else -1, k0, ku, kv):

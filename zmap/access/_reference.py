@@ -35,16 +35,17 @@ def _basis(n):
 
 
 def _clip(base, n, c, h):
-    """(s0, s1) of the line base + s n in the boxes (c, h) (arrays of boxes); s0 > s1: miss."""
+    """(s0, s1) of the line base + s n in the boxes (c, h) (arrays of boxes; ``base`` one point
+    or one per box); s0 > s1: miss."""
     s0 = np.full(len(c), -np.inf)
     s1 = np.full(len(c), np.inf)
     for m in range(3):
         if abs(n[m]) < 1e-12:
-            out = np.abs(base[m] - c[:, m]) > h[:, m]
+            out = np.abs(base[..., m] - c[:, m]) > h[:, m]
             s0[out], s1[out] = 1.0, -1.0
             continue
-        a0 = (c[:, m] - h[:, m] - base[m]) / n[m]
-        a1 = (c[:, m] + h[:, m] - base[m]) / n[m]
+        a0 = (c[:, m] - h[:, m] - base[..., m]) / n[m]
+        a1 = (c[:, m] + h[:, m] - base[..., m]) / n[m]
         s0 = np.maximum(s0, np.minimum(a0, a1))
         s1 = np.minimum(s1, np.maximum(a0, a1))
     return s0, s1
@@ -165,17 +166,7 @@ def _exits(c, h, plane, n, e, f, u0, cell, nc):
     p = ia[m] + k // nb[m]
     q = ja[m] + k % nb[m]
     base = (u0 + (p + 0.5) * cell)[:, None] * e + (u0 + (q + 0.5) * cell)[:, None] * f
-    s0 = np.full(len(m), -np.inf)
-    s1 = np.full(len(m), np.inf)
-    for x in range(3):
-        if abs(n[x]) < 1e-12:
-            out = np.abs(base[:, x] - c[m, x]) > g[m, x]
-            s0[out], s1[out] = 1.0, -1.0
-            continue
-        a0 = (c[m, x] - g[m, x] - base[:, x]) / n[x]
-        a1 = (c[m, x] + g[m, x] - base[:, x]) / n[x]
-        s0 = np.maximum(s0, np.minimum(a0, a1))
-        s1 = np.minimum(s1, np.maximum(a0, a1))
+    s0, s1 = _clip(base, n, c[m], g[m])
     nrm = plane[m, 3:6]
     nm = nrm @ n
     cut = np.isfinite(plane[m, 6]) & (np.abs(nm) > 1e-9)
