@@ -26,7 +26,7 @@ from cad_io.part import Part
 from zmap.access.voxelmap import (AccessModelError, AccessResult, Tool, VoxelMap, accessibility,
                                   global_visibility, set_cover, three_axis)
 
-__all__ = ["Samples", "surface_samples", "voxelize", "analyse", "agreement", "point_visibility", "reference_visibility",
+__all__ = ["Samples", "surface_samples", "voxelize", "analyse", "agreement", "point_visibility", "point_access", "reference_visibility",
            "reference_tool", "read_part"]
 
 
@@ -235,7 +235,7 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     sec["visibility"] = time.perf_counter() - t
     t = time.perf_counter()
     say("accessibility for the tool")
-    amap = accessibility(vm, vg, tool)
+    amap, amap_pieces = accessibility(vm, vg, tool, pieces=True)
     sec["access"] = time.perf_counter() - t
     t = time.perf_counter()
     verdict = three_axis(vm, amap)
@@ -243,7 +243,8 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     sec["setups"] = time.perf_counter() - t
     sec["total"] = time.perf_counter() - t0
     return AccessResult(vm=vm, vg=vg, amap=amap, tool=tool, verdict=verdict, setups=setups, seconds=sec,
-                        source=str(part.source or ""), vg_pieces=vg_pieces, vg_fine=vg_fine)
+                        source=str(part.source or ""), vg_pieces=vg_pieces, vg_fine=vg_fine,
+                        amap_pieces=amap_pieces)
 
 
 def read_part(path) -> Part:
@@ -391,6 +392,22 @@ def point_visibility(result: AccessResult, voxel: np.ndarray, face: np.ndarray,
     return out
 
 
+def point_access(result: AccessResult, voxel: np.ndarray, face: np.ndarray) -> np.ndarray:
+    """``A'`` (n, words) that the map gives surface points of ``face`` in boundary voxels
+    ``voxel``: their face's piece's where several faces meet in the voxel (and the pieces were
+    answered, ``result.amap_pieces``), else the voxel's."""
+    from zmap.access.voxelmap import _piece_index
+
+    vm = result.vm
+    voxel = np.asarray(voxel, dtype=np.int64)
+    out = result.amap[voxel].copy()
+    ap = result.amap_pieces
+    if vm.pieces is not None and ap is not None and len(ap) and vm.pieces.face is not None:
+        pi = _piece_index(vm, voxel, np.asarray(face, dtype=np.int64))
+        out[pi >= 0] = ap[pi[pi >= 0]]
+    return out
+
+
 def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int = 0,
               tool: bool = False, samples: Samples | None = None, explain: bool = False) -> dict:
     """Compare the voxel map with the OCC reference on random surface points x all k directions.
@@ -419,7 +436,7 @@ def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int
     pts, nrm, vb = s.points[pick], s.normals[pick], vox[pick]
     if tool:
         ref = reference_tool(part.shape, pts, nrm, ds.normals, result.tool)
-        mine = to_bool(result.amap[vb], ds.k)
+        mine = to_bool(point_access(result, vb, s.face[pick]), ds.k)
         hit = np.where(ref, np.inf, 0.0)
     else:
         ref, hit = reference_visibility(part.shape, pts, ds.normals)

@@ -13,7 +13,7 @@ from numba import njit, prange
 
 from ._direction_kernels import lookup_one
 
-__all__ = ["accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "pack_columns", "row_hash", "patch_slab", "piece_accumulate", "cast_directions", "dilate_bits", "bit_lists",
+__all__ = ["ball_fits", "accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "pack_columns", "row_hash", "patch_slab", "piece_accumulate", "cast_directions", "dilate_bits", "bit_lists",
            "ball_conditions", "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
@@ -1010,6 +1010,36 @@ def ball_conditions(vg, bxyz, centre, origin, d, index, state, r_in, r_out, bad,
                                  frames, q, out):
             for w in range(W):
                 out[b, w] = np.uint64(0)
+
+
+@njit(cache=True, parallel=True)
+def ball_fits(centre, origin, d, state, r_in, out):
+    """``out[b]`` True where no boundary or interior voxel centre lies closer than ``r_in`` to
+    ``centre[b]`` (the ball of the capsule test holds no material, to half a voxel diagonal)."""
+    nx, ny, nz = state.shape
+    reach = int(np.ceil(r_in / d)) + 1
+    for b in prange(centre.shape[0]):
+        cx = (centre[b, 0] - origin[0]) / d - 0.5
+        cy = (centre[b, 1] - origin[1]) / d - 0.5
+        cz = (centre[b, 2] - origin[2]) / d - 0.5
+        ic, jc, lc = int(np.round(cx)), int(np.round(cy)), int(np.round(cz))
+        ok = True
+        for i in range(max(0, ic - reach), min(nx, ic + reach + 1)):
+            if not ok:
+                break
+            dx = (i - cx) * d
+            for j in range(max(0, jc - reach), min(ny, jc + reach + 1)):
+                if not ok:
+                    break
+                dy = (j - cy) * d
+                for l in range(max(0, lc - reach), min(nz, lc + reach + 1)):
+                    if state[i, j, l] == EXTERIOR:
+                        continue
+                    dz = (l - cz) * d
+                    if dx * dx + dy * dy + dz * dz < r_in * r_in:
+                        ok = False
+                        break
+        out[b] = ok
 
 
 @njit(cache=True)

@@ -1146,10 +1146,11 @@ def _concave_creases(vm: VoxelMap) -> np.ndarray:
 
 
 def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | None = None,
-                  cell_holder: float | None = None) -> np.ndarray:
+                  cell_holder: float | None = None, method: str = "capsule",
+                  pieces: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Ball-end accessibility map ``A'`` (paper 002 §4.6) with shank and holder.
 
-    n is in ``A'(v)`` when n is in ``V'_g(v)`` and
+    ``method="paper"``: n is in ``A'(v)`` when n is in ``V'_g(v)`` and
 
     1. n is in ``V'_g(w)`` for every boundary voxel w of ``E_n(v)``: those whose centres lie
        within half a voxel diagonal of the eraser's surface, on its side facing -n (the ball
@@ -1159,19 +1160,41 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
        convexly: :func:`_concave_creases`), and v is no crease at all (its ball, at its faces'
        mean point and normal, is the ball of none of its points);
 
-    and no blocker reaches above the ball's centre within the
-    shank's radius, nor above the stick-out within the holder's radius (both tested upward
-    without end; cells of the depth buffers: ``cell``, d by default, and ``cell_holder``, the
-    larger of d and a fifth of the holder's radius; see :func:`tool_clearance`). A voxel where the ball
-    itself would hold a boundary or interior voxel centre closer than a - half a diagonal to
-    its centre has no direction.
+    and the shank and the holder clear (below).
+
+    ``method="capsule"`` (the default): the ball withdrawn along n sweeps the capsule of
+    radius a around the ray from its centre c, that is the ball itself and the half cylinder
+    above c's plane across n, which is the shank's test when the shank is as wide as the ball
+    (it is: :class:`Tool`). So n is in ``A'(v)`` when n is in ``V'_l(v)``, v is neither a
+    crease nor curved concavely above 1/a (condition 2 and 3 for v itself), the ball holds no
+    boundary or interior voxel centre closer than a - half a voxel diagonal to c, and the
+    shank and the holder clear. The thin ray of ``V'_g`` from v's point lies inside the
+    capsule (for n . normal > 0), so ``V'_g`` is not needed (``vg`` is not read; the cast's
+    voxel-wide cylinders lose grazing directions that the tool clears, so ``A'`` may hold a
+    direction that ``V'_g`` lost), and the paper's conditions 1-3 over ``E_n(v)`` stand in for
+    the swept ball with the neighbours' voxels, which the shank's test replaces by the
+    blockers themselves.
+
+    With ``pieces=True`` (capsule only) each piece of ``vm.pieces`` (a face in a voxel where
+    several meet) gets its own ``A'`` too, from its face's mean point, normal and ``V'_l``, and
+    a crease voxel, which has none of its own, the directions all its pieces share: a point on
+    either side of an edge is then answered for its own face, as the thin rays are.
+
+    Either way no blocker may reach above the ball's centre within the shank's radius, nor
+    above the stick-out within the holder's radius (both tested upward without end; cells of
+    the depth buffers: ``cell``, d by default, and ``cell_holder``, the larger of d and a fifth
+    of the holder's radius; see :func:`tool_clearance`), and a voxel where the ball itself
+    would hold a boundary or interior voxel centre closer than a - half a diagonal to its
+    centre has no direction.
 
     Returns
     -------
-    ndarray of shape (mb, words), uint64
+    ndarray of shape (mb, words), uint64; with ``pieces``, also the pieces' (np, words)
     """
-    from ._access_kernels import ball_conditions
+    from ._access_kernels import ball_conditions, ball_fits
 
+    if method not in ("capsule", "paper"):
+        raise ValueError(f"method must be 'capsule' or 'paper', got {method!r}")
     a = tool.radius
     bbox = vm.centres.max(axis=0) - vm.centres.min(axis=0)
     if 2 * a > float(bbox.max()) + vm.d:
@@ -1180,10 +1203,40 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     ds = vm.directions
     hd, bad, cap = _ball_inputs(vm, a)
     centre = np.ascontiguousarray(vm.point + a * vm.normal)
-    local = np.empty_like(vg)
-    ball_conditions(np.ascontiguousarray(vg), np.ascontiguousarray(vm.centres), centre, vm.origin, vm.d, vm.index,
-                    vm.state, a - hd, a + hd, bad, cap, ds._centres, ds._frames, ds.q, local)
-    return tool_clearance(vm, local, tool, cell=cell, cell_holder=cell_holder)
+    if method == "paper":
+        if pieces:
+            raise ValueError("pieces are answered by method='capsule' only")
+        local = np.empty_like(vg)
+        ball_conditions(np.ascontiguousarray(vg), np.ascontiguousarray(vm.centres), centre, vm.origin, vm.d,
+                        vm.index, vm.state, a - hd, a + hd, bad, cap, ds._centres, ds._frames, ds.q, local)
+        return tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell, cell_holder=cell_holder)
+    fits = np.empty(vm.n_boundary, dtype=np.bool_)
+    ball_fits(centre, vm.origin, vm.d, vm.state, a - hd, fits)
+    # not ANDed with V'_g: the capsule holds the thin ray, and the cast's voxel-wide cylinders
+    # lose grazing directions at convex edges that the tool clears (featuretype: 0.5 % of pairs)
+    local = np.where((fits & (bad & 1 == 0))[:, None], vm.vl, np.uint64(0))
+    p = vm.pieces
+    if not pieces or p is None or not len(p.voxel) or p.vl is None:
+        amap = tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell, cell_holder=cell_holder)
+        return (amap, np.zeros((0 if p is None else len(p.voxel), ds.words), dtype=np.uint64)) if pieces else amap
+    # the pieces ride along as more queries of the same buffers
+    pcentre = np.ascontiguousarray(p.point + a * p.normal)
+    pfits = np.empty(len(p.voxel), dtype=np.bool_)
+    ball_fits(pcentre, vm.origin, vm.d, vm.state, a - hd, pfits)
+    curved = vm.curvature > (1.0 / a) * (1 + 1e-9)
+    plocal = np.where((pfits & ~curved[p.voxel])[:, None], p.vl, np.uint64(0))
+    both = tool_clearance(vm, np.ascontiguousarray(np.concatenate([local, plocal])), tool, cell=cell,
+                          cell_holder=cell_holder,
+                          queries=(np.concatenate([vm.point, p.point]), np.concatenate([vm.normal, p.normal]),
+                                   np.concatenate([vm.surface.astype(np.int64), p.face])))
+    amap, pmap = both[:vm.n_boundary].copy(), both[vm.n_boundary:].copy()
+    # a crease voxel: what all its pieces keep (pieces come sorted by voxel)
+    start = np.flatnonzero(np.r_[True, p.voxel[1:] != p.voxel[:-1]])
+    shared = np.bitwise_and.reduceat(pmap, start, axis=0)
+    vox = p.voxel[start]
+    crease = vm.crease[vox].astype(bool)
+    amap[vox[crease]] = shared[crease]
+    return amap, pmap
 
 
 def _blocker_faces(vm: VoxelMap) -> np.ndarray:
@@ -1228,7 +1281,8 @@ def _plane_queries(vm: VoxelMap, plane: np.ndarray) -> np.ndarray:
 
 
 def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float | None = None,
-                   cell_holder: float | None = None, skin: bool = False) -> np.ndarray:
+                   cell_holder: float | None = None, skin: bool = False,
+                   queries: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """The directions of ``local`` (mb, words) along which the shank and the holder clear the
     part: no blocker of the casting (:meth:`VoxelMap.blockers`, merged) leaves a line of a
     buffer cell meeting the shank's disc above the ball's centre, nor one meeting the holder's
@@ -1248,13 +1302,20 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     cylinder and higher, on a blocker whose exit on that line the cell holds. (Not on the ball's
     plane face: the shank stays outside that plane.) ``skin=True`` draws the cubes too (a
     subset of the bits).
+
+    ``queries``: ``(point, normal, face)`` (m, 3), (m, 3), (m,) of other balls than the
+    boundary voxels' (``local`` is then (m, words)): surface points with their unit normals
+    and face ids (-1: none), e.g. the half-voxel pieces of :func:`accessibility`'s refinement.
     """
     from ._access_kernels import pack_columns, tool_kernel
 
     ds = vm.directions
     a = tool.radius
-    centre = np.ascontiguousarray(vm.point + a * vm.normal)
-    mb = vm.n_boundary
+    qpoint, qnormal = (vm.point, vm.normal) if queries is None else (queries[0], queries[1])
+    qpoint = np.ascontiguousarray(qpoint, dtype=np.float64)
+    qnormal = np.ascontiguousarray(qnormal, dtype=np.float64)
+    centre = np.ascontiguousarray(qpoint + a * qnormal)
+    mb = len(qpoint)
     sk = vm.skin()
     blockers = tuple(np.ascontiguousarray(x) for x in vm.blockers()) + (_blocker_faces(vm),)
     plane = _plane_faces(vm, blockers[5], blockers[4])
@@ -1272,7 +1333,15 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     oface = np.ascontiguousarray(np.concatenate([bface, np.full(len(sk), -2)]), dtype=np.int64)
     # a ball on a plane face, its shank tilted less than 90 degrees off the normal, stays on the
     # plane's outer side: the shank's test skips that face's blockers
-    qface = _plane_queries(vm, plane)
+    if queries is None:
+        qface = _plane_queries(vm, plane)
+    else:
+        f = np.asarray(queries[2], dtype=np.int64)
+        on_plane = np.zeros(len(f), dtype=bool)
+        ok = (f >= 0) & (f < len(plane))
+        on_plane[ok] = plane[f[ok]]
+        qface = np.where(on_plane, f, -1)
+    qface = np.ascontiguousarray(qface, dtype=np.int64)
     mid = 0.5 * (lo_ + hi_)
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d + a
     out = np.zeros((ds.k, mb), dtype=np.uint8)
@@ -1285,7 +1354,8 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     ratio = cell_holder / cell
     hm = int(round(ratio))
     hm = hm if hm >= 1 and ratio == hm and hm & (hm - 1) == 0 else 0
-    tool_kernel(ds.normals, local, centre, np.ascontiguousarray(vm.point), np.ascontiguousarray(vm.normal), occ, ohalf, oplane, oface, qface, vm.d, a, cell, cell_holder, hm, tool.stickout - a, holder_r,
+    tool_kernel(ds.normals, local, centre, qpoint, qnormal, occ, ohalf, oplane, oface, qface, vm.d, a, cell,
+                cell_holder, hm, tool.stickout - a, holder_r,
                 mid, radius, _disc_rows(a / cell, outer=True), _disc_rows(a / cell, outer=False),
                 _disc_rows(holder_r / cell_holder, outer=True), _disc_rows(holder_r / cell_holder, outer=False),
                 out, stats)
@@ -1397,6 +1467,8 @@ class AccessResult:
     #: ``V'_g`` of each half-voxel piece of ``vm.fine`` (:func:`global_visibility` with
     #: ``refine=True``), or None
     vg_fine: np.ndarray | None = None
+    #: ``A'`` of each piece of ``vm.pieces`` (:func:`accessibility` with ``pieces``), or None
+    amap_pieces: np.ndarray | None = None
 
     def summary(self) -> str:
         """A markdown table of the verdict and the set-ups."""
@@ -1451,6 +1523,8 @@ class AccessResult:
                       header=np.frombuffer(json.dumps(header).encode(), dtype=np.uint8))
         if self.vg_pieces is not None and vm.pieces is not None and vm.pieces.face is not None:
             arrays.update(piece_voxel=vm.pieces.voxel, piece_face=vm.pieces.face, piece_vg=self.vg_pieces)
+            if self.amap_pieces is not None:
+                arrays.update(piece_amap=self.amap_pieces)
         if self.vg_fine is not None and vm.fine is not None:
             arrays.update(fine_voxel=vm.fine.voxel.astype(np.int32), fine_octant=vm.fine.octant.astype(np.uint8),
                           fine_face=vm.fine.face.astype(np.int32), fine_vg=self.vg_fine)

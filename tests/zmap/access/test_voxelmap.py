@@ -80,7 +80,7 @@ def test_box_classification_and_local_maps(box):
 def test_box_access_verdict_and_setups(box):
     vm, vg = box
     A = accessibility(vm, vg, Tool(2.0))
-    assert not (A & ~vg).any()  # A' within V'_g
+    assert not (A & ~vm.vl).any()  # A' within V'_l
     v = three_axis(vm, A)
     top_area = 12 * 10
     # the top face, less a band of about one ball radius plus a voxel at its edges, is reachable
@@ -96,15 +96,47 @@ def test_box_access_verdict_and_setups(box):
     assert vm.area[first[flat]].sum() >= 0.5 * top_area and setups[0]["area"] >= 0.5 * top_area
     assert all(a["area"] >= b["area"] for a, b in zip(setups, setups[1:]))
     # a tilt cone of 30 degrees about +z reaches the top and, tilted away from them, the side
-    # walls (the ball's flank on a wall, its shank clear of the wall's plane), not the bottom
+    # walls down to their foot (the ball's flank on a wall, its shank clear of the wall's
+    # plane, nothing under the box), not the bottom
     cone = set_cover(vm, A, cone=np.radians(30))
     got = np.concatenate([c["voxels"] for c in cone])
-    assert (vm.point[got, 2] > 0.8).all()
+    assert not (vm.normal[got, 2] < -0.5).any() and (vm.point[got, 2] < 0.8).any()
     assert vm.area[got[vm.point[got, 2] > 5.0]].sum() >= 0.5 * top_area
     assert sum(c["area"] for c in cone) >= v["area_reachable"] - 1e-9
     assert all(np.degrees(np.arccos(c["vector"][2])) <= 30 + 1e-9 for c in cone)
     vox, n = node_directions(vm, A, np.array([6.0, 50.0]), np.array([5.0, 5.0]))
     assert vox[0] == vm.voxel_of([[6.0, 5.0, 6.0]])[0] and vox[1] == -1 and n[1] == 0 and n[0] > 0
+
+
+def test_capsule_map_holds_the_papers_and_answers_edges_by_their_faces(box):
+    """The capsule test (the default) keeps every direction of the paper's conditions, and
+    more; with the pieces, a top-edge voxel gets the directions both its faces share (the
+    paper gives an edge voxel none), and each piece its own face's: the top's +z, the side's
+    out and up."""
+    vm, vg = box
+    ds = vm.directions
+    tool = Tool(2.0)
+    paper = accessibility(vm, vg, tool, method="paper")
+    caps = accessibility(vm, vg, tool)
+    assert not (paper & ~caps).any() and count(caps).sum() > count(paper).sum()
+    vg2, vp = global_visibility(vm, pieces=True)
+    amap, ap = accessibility(vm, vg2, tool, pieces=True)
+    assert ap.shape == vp.shape and not (ap & ~vm.pieces.vl).any()
+    edge = vm.voxel_of([[6.0, 0.0, 6.0]])[0]  # the top face (z = 6) meets the side y = 0
+    assert count(paper[[edge]])[0] == 0
+    mine = np.flatnonzero(vm.pieces.voxel == edge)
+    top = mine[vm.pieces.normal[mine, 2] > 0.9]
+    side = mine[vm.pieces.normal[mine, 1] < -0.9]
+    assert len(top) == 1 and len(side) == 1
+    assert to_bool(ap[top], ds.k)[0, ds.index("+z")]
+    out_up = ds.index((0.0, -1.0, 0.5))
+    assert to_bool(ap[side], ds.k)[0, out_up] and not to_bool(ap[top], ds.k)[0, ds.index("-y")]
+    assert (amap[edge] == ap[top[0]] & ap[side[0]]).all() and count(amap[[edge]])[0] > 0
+    assert not (amap & ~vm.vl).any()
+    with pytest.raises(ValueError, match="capsule"):
+        accessibility(vm, vg2, tool, method="paper", pieces=True)
+    with pytest.raises(ValueError, match="method"):
+        accessibility(vm, vg2, tool, method="cone")
 
 
 def bowl_samples(r=6.0, half=10.0, depth=10.0, step=0.15):
