@@ -235,7 +235,7 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     sec["visibility"] = time.perf_counter() - t
     t = time.perf_counter()
     say("accessibility for the tool")
-    amap, amap_pieces = accessibility(vm, vg, tool, pieces=True)
+    amap, amap_pieces = accessibility(vm, vg, tool, pieces=True, samples=(s.points, s.normals, s.face))
     sec["access"] = time.perf_counter() - t
     t = time.perf_counter()
     verdict = three_axis(vm, amap)

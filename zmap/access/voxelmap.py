@@ -1093,6 +1093,19 @@ def _disc_rows(rad: float, *, outer: bool) -> np.ndarray:
     return w[:last + 1].astype(np.int64)
 
 
+def _covered_rows(rad: float) -> np.ndarray:
+    """Half-widths per row offset |dp| = 0, 1, ... (-1: none) of the cell offsets that a disc of
+    radius ``rad`` cells, centred anywhere in cell (0, 0), always covers whole: the farthest
+    point of cell (p, q) lies (|p| + 1, |q| + 1) cells away (a margin keeps it a subset)."""
+    rad = float(rad)
+    n = max(int(np.ceil(rad)), 1)
+    o = np.arange(n + 1, dtype=float)
+    inside = (o[:, None] + 1) ** 2 + (o[None, :] + 1) ** 2 < rad * rad * (1 - 1e-9)
+    w = np.array([np.flatnonzero(row).max() if row.any() else -1 for row in inside], dtype=np.int64)
+    keep = np.flatnonzero(w >= 0)
+    return w[:keep.max() + 1] if len(keep) else w[:1]
+
+
 #: pairs the last :func:`accessibility` call decided by the dilated buffers as clear, as
 #: blocked, and by scanning the disc (shank and holder tests together); for benches.
 _LAST_TOOL_STATS = [0, 0, 0]
@@ -1147,7 +1160,9 @@ def _concave_creases(vm: VoxelMap) -> np.ndarray:
 
 def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | None = None,
                   cell_holder: float | None = None, method: str = "capsule",
-                  pieces: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+                  pieces: bool = False,
+                  samples: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+                  ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Ball-end accessibility map ``A'`` (paper 002 §4.6) with shank and holder.
 
     ``method="paper"``: n is in ``A'(v)`` when n is in ``V'_g(v)`` and
@@ -1180,7 +1195,17 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     a crease voxel, which has none of its own, the directions all its pieces share: a point on
     either side of an edge is then answered for its own face, as the thin rays are.
 
-    Either way no blocker may reach above the ball's centre within the shank's radius, nor
+    With ``samples`` ``(points, normals, face)`` (the part's surface samples, those the map
+    was built from; capsule only) the balls and cylinders are tested on the samples instead
+    of the voxels: each ball touches the sample of its face nearest its voxel's (or piece's)
+    mean point, with that sample's normal (a mean point of a curved face lies off the
+    surface); it fits when no sample lies closer than a - 1e-3 mm to its centre; the
+    directions asked are that normal's open hemisphere and a few degrees below it
+    (``_GRAZE``), not ``V'_l``, and the shank and the holder are tested as by
+    :func:`tool_clearance` with ``samples``. (The voxel-sized slack of the blockers' boxes
+    was most of what the map refused and OCC's tool allowed.)
+
+    Without samples, no blocker may reach above the ball's centre within the shank's radius, nor
     above the stick-out within the holder's radius (both tested upward without end; cells of
     the depth buffers: ``cell``, d by default, and ``cell_holder``, the larger of d and a fifth
     of the holder's radius; see :func:`tool_clearance`), and a voxel where the ball itself
@@ -1204,12 +1229,14 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     hd, bad, cap = _ball_inputs(vm, a)
     centre = np.ascontiguousarray(vm.point + a * vm.normal)
     if method == "paper":
-        if pieces:
-            raise ValueError("pieces are answered by method='capsule' only")
+        if pieces or samples is not None:
+            raise ValueError("pieces and samples are answered by method='capsule' only")
         local = np.empty_like(vg)
         ball_conditions(np.ascontiguousarray(vg), np.ascontiguousarray(vm.centres), centre, vm.origin, vm.d,
                         vm.index, vm.state, a - hd, a + hd, bad, cap, ds._centres, ds._frames, ds.q, local)
         return tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell, cell_holder=cell_holder)
+    if samples is not None:
+        return _sampled_access(vm, tool, bad, pieces, samples, cell)
     fits = np.empty(vm.n_boundary, dtype=np.bool_)
     ball_fits(centre, vm.origin, vm.d, vm.state, a - hd, fits)
     # not ANDed with V'_g: the capsule holds the thin ray, and the cast's voxel-wide cylinders
@@ -1230,13 +1257,87 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
                           queries=(np.concatenate([vm.point, p.point]), np.concatenate([vm.normal, p.normal]),
                                    np.concatenate([vm.surface.astype(np.int64), p.face])))
     amap, pmap = both[:vm.n_boundary].copy(), both[vm.n_boundary:].copy()
-    # a crease voxel: what all its pieces keep (pieces come sorted by voxel)
+    _crease_from_pieces(vm, amap, pmap)
+    return amap, pmap
+
+
+def _snap(tree, spts: np.ndarray, snrm: np.ndarray, sface: np.ndarray, point: np.ndarray,
+          face: np.ndarray, k: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """The sample nearest each ``point`` among its ``k`` nearest that lie on ``face`` (any face
+    where ``face`` is -1; the point itself, with a zero normal, where none of them does):
+    ``(points, normals)``."""
+    _, near = tree.query(point, k=k)
+    near = np.asarray(near).reshape(len(point), -1)
+    ok = (sface[near] == face[:, None]) | (face[:, None] < 0)
+    first = np.argmax(ok, axis=1)
+    pick = near[np.arange(len(point)), first]
+    found = ok.any(axis=1)
+    return (np.where(found[:, None], spts[pick], point),
+            np.where(found[:, None], snrm[pick], 0.0))
+
+
+#: how far below its tangent plane (as n . normal > -_GRAZE, about 3 degrees) a direction is
+#: still asked of the samples: OCC's tool clears such a tilt where the face ends within the
+#: reference's 1e-3 mm of intrusion, and the samples answer it alike
+_GRAZE = 0.05
+
+
+def _hemisphere_bits(vm: VoxelMap, normal: np.ndarray) -> np.ndarray:
+    """The directions with n . normal > -``_GRAZE``, per row of ``normal`` (m, words)."""
+    from .directions import from_bool
+
+    return from_bool(np.asarray(normal) @ vm.directions.normals.T > -_GRAZE)
+
+
+def _sampled_access(vm: VoxelMap, tool: Tool, bad: np.ndarray, pieces: bool,
+                    samples: tuple[np.ndarray, np.ndarray, np.ndarray],
+                    cell: float | None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """:func:`accessibility` by the capsule on the surface samples (its ``samples``)."""
+    from scipy.spatial import cKDTree
+
+    spts = np.ascontiguousarray(samples[0], dtype=np.float64)
+    snrm = np.asarray(samples[1], dtype=np.float64)
+    sface = np.asarray(samples[2], dtype=np.int64)
+    a = tool.radius
+    tree = cKDTree(spts)
+    curved = vm.curvature > (1.0 / a) * (1 + 1e-9)
+    qpoint, qnormal = _snap(tree, spts, snrm, sface, vm.point, vm.surface.astype(np.int64))
+    keep = (bad & 1 == 0) & (np.abs(qnormal).sum(axis=1) > 0)
+    local = [np.where(keep[:, None], _hemisphere_bits(vm, qnormal), np.uint64(0))]
+    qp, qn = [qpoint], [qnormal]
+    p = vm.pieces
+    with_pieces = pieces and p is not None and len(p.voxel) and p.vl is not None
+    if with_pieces:
+        pp, pn = _snap(tree, spts, snrm, sface, p.point, p.face)
+        pkeep = ~curved[p.voxel] & (np.abs(pn).sum(axis=1) > 0)
+        local.append(np.where(pkeep[:, None], _hemisphere_bits(vm, pn), np.uint64(0)))
+        qp.append(pp)
+        qn.append(pn)
+    qp, qn, local = np.concatenate(qp), np.concatenate(qn), np.concatenate(local)
+    # the ball fits: no sample closer than a (less OCC's 1e-3 mm) to its centre
+    dist, _ = tree.query(qp + a * qn)
+    local[dist < a - 1e-3] = 0
+    both = tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell,
+                          queries=(qp, qn, np.full(len(qp), -1)), samples=spts)
+    amap = both[:vm.n_boundary].copy()
+    if not pieces:
+        return amap
+    if not with_pieces:
+        return amap, np.zeros((0 if p is None else len(p.voxel), vm.directions.words), dtype=np.uint64)
+    pmap = both[vm.n_boundary:].copy()
+    _crease_from_pieces(vm, amap, pmap)
+    return amap, pmap
+
+
+def _crease_from_pieces(vm: VoxelMap, amap: np.ndarray, pmap: np.ndarray) -> None:
+    """A crease voxel's ``A'``: the directions all its pieces keep (in place; pieces come
+    sorted by voxel)."""
+    p = vm.pieces
     start = np.flatnonzero(np.r_[True, p.voxel[1:] != p.voxel[:-1]])
     shared = np.bitwise_and.reduceat(pmap, start, axis=0)
     vox = p.voxel[start]
     crease = vm.crease[vox].astype(bool)
     amap[vox[crease]] = shared[crease]
-    return amap, pmap
 
 
 def _blocker_faces(vm: VoxelMap) -> np.ndarray:
@@ -1282,7 +1383,8 @@ def _plane_queries(vm: VoxelMap, plane: np.ndarray) -> np.ndarray:
 
 def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float | None = None,
                    cell_holder: float | None = None, skin: bool = False,
-                   queries: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+                   queries: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+                   samples: np.ndarray | None = None) -> np.ndarray:
     """The directions of ``local`` (mb, words) along which the shank and the holder clear the
     part: no blocker of the casting (:meth:`VoxelMap.blockers`, merged) leaves a line of a
     buffer cell meeting the shank's disc above the ball's centre, nor one meeting the holder's
@@ -1305,7 +1407,14 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
 
     ``queries``: ``(point, normal, face)`` (m, 3), (m, 3), (m,) of other balls than the
     boundary voxels' (``local`` is then (m, words)): surface points with their unit normals
-    and face ids (-1: none), e.g. the half-voxel pieces of :func:`accessibility`'s refinement.
+    and face ids (-1: none), e.g. the pieces of :func:`accessibility`.
+
+    ``samples`` (ns, 3): the part's surface samples. The cylinders are then tested against
+    the samples themselves (:mod:`zmap.access._sample_kernels`): a sample closer than the
+    radius less 1e-3 mm to the axis and above the start blocks (OCC's reference allows the
+    same 1e-3 mm), with no voxel-sized slack and no plane-face rule (a ball's own plane stays
+    outside its shank exactly); ``cell`` is then the pitch of the samples' cells for both
+    cylinders (``cell_holder`` is not read).
     """
     from ._access_kernels import pack_columns, tool_kernel
 
@@ -1316,6 +1425,9 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     qnormal = np.ascontiguousarray(qnormal, dtype=np.float64)
     centre = np.ascontiguousarray(qpoint + a * qnormal)
     mb = len(qpoint)
+    if samples is not None:
+        return _sample_clearance(vm, local, tool, centre, np.ascontiguousarray(samples, dtype=np.float64),
+                                 float(cell or vm.d))
     sk = vm.skin()
     blockers = tuple(np.ascontiguousarray(x) for x in vm.blockers()) + (_blocker_faces(vm),)
     plane = _plane_faces(vm, blockers[5], blockers[4])
@@ -1361,6 +1473,28 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
                 out, stats)
     _LAST_TOOL_STATS[:] = [int(x) for x in stats.sum(axis=0)]
     bits = np.empty((mb, ds.words), dtype=np.uint64)
+    pack_columns(out, bits)
+    return bits
+
+
+def _sample_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, centre: np.ndarray, samples: np.ndarray,
+                      cell: float) -> np.ndarray:
+    """:func:`tool_clearance` on the surface samples (its ``samples``): (mb, words) uint64."""
+    from ._access_kernels import pack_columns
+    from ._sample_kernels import sample_tool_kernel
+
+    ds = vm.directions
+    tol = 1e-3
+    r_shank = tool.radius - tol
+    r_holder = tool.holder_diameter / 2.0 - tol if tool.holder_diameter > 0 else 0.0
+    out = np.zeros((ds.k, len(centre)), dtype=np.uint8)
+    stats = np.zeros((ds.k, 3), dtype=np.int64)
+    sample_tool_kernel(ds.normals, np.ascontiguousarray(local), centre, samples, r_shank,
+                       tool.stickout - tool.radius, r_holder, cell, _disc_rows(r_shank / cell, outer=True),
+                       _covered_rows(r_shank / cell), _disc_rows(max(r_holder, 0.0) / cell, outer=True),
+                       _covered_rows(max(r_holder, 0.0) / cell), out, stats)
+    _LAST_TOOL_STATS[:] = [int(x) for x in stats.sum(axis=0)]
+    bits = np.empty((len(centre), ds.words), dtype=np.uint64)
     pack_columns(out, bits)
     return bits
 

@@ -1,0 +1,181 @@
+"""The shank and holder test on the part's surface samples (numba).
+
+Per direction n, every sample is projected onto the plane across n (u, v) and along it (h),
+and sorted into square cells of that plane; a cell keeps its samples and their highest h. A
+cylinder of radius r about the line through a query's centre along n, from height h0 up,
+holds material when a sample lies closer than r to that line and higher than h0: the cells'
+maxima, dilated over the cells that a disc centred in a cell can meet and over those it
+always covers (:func:`zmap.access._access_kernels.disc_max`), decide most queries; the rest
+test the samples of the cells on the disc's rim one by one. So the answer is that of the
+samples themselves, with no voxel-sized slack (the voxel boxes of
+:func:`zmap.access._access_kernels.tool_kernel` hold the surface up to a voxel diagonal away).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from ._access_kernels import _basis, disc_max
+
+__all__ = ["sample_tool_kernel"]
+
+
+@njit(cache=True)
+def _cells(u, v, u0, v0, cell, na, nb, h, order, start, top):
+    """Counting sort of the samples into cells: ``order[start[c]:start[c + 1]]`` are cell c's
+    (c = ia * nb + ib), ``top[ia, ib]`` their highest h (-1e300: none)."""
+    ns = u.shape[0]
+    cnt = np.zeros(na * nb + 1, dtype=np.int64)
+    key = np.empty(ns, dtype=np.int64)
+    for m in range(ns):
+        ia = min(na - 1, max(0, int((u[m] - u0) / cell)))
+        ib = min(nb - 1, max(0, int((v[m] - v0) / cell)))
+        c = ia * nb + ib
+        key[m] = c
+        cnt[c + 1] += 1
+        if h[m] > top[ia, ib]:
+            top[ia, ib] = h[m]
+    for c in range(na * nb):
+        cnt[c + 1] += cnt[c]
+    start[:] = cnt
+    for m in range(ns):
+        c = key[m]
+        order[cnt[c]] = m
+        cnt[c] += 1
+
+
+@njit(cache=True)
+def _meets(pu, pv, h0, r, u, v, h, order, start, top, u0, v0, cell, na, nb):
+    """Whether a sample lies closer than r to (pu, pv) across n and above h0 along it."""
+    r2 = r * r
+    ia0 = max(0, int((pu - r - u0) / cell))
+    ia1 = min(na - 1, int((pu + r - u0) / cell))
+    ib0 = max(0, int((pv - r - v0) / cell))
+    ib1 = min(nb - 1, int((pv + r - v0) / cell))
+    for ia in range(ia0, ia1 + 1):
+        ca = u0 + ia * cell
+        da_near = max(0.0, max(ca - pu, pu - ca - cell))
+        da_far = max(abs(ca - pu), abs(ca + cell - pu))
+        for ib in range(ib0, ib1 + 1):
+            if top[ia, ib] <= h0:
+                continue
+            cb = v0 + ib * cell
+            db_near = max(0.0, max(cb - pv, pv - cb - cell))
+            if da_near * da_near + db_near * db_near >= r2:
+                continue
+            db_far = max(abs(cb - pv), abs(cb + cell - pv))
+            if da_far * da_far + db_far * db_far < r2:
+                return True  # the whole cell lies inside, and its top is above h0
+            c = ia * nb + ib
+            for s in range(start[c], start[c + 1]):
+                m = order[s]
+                if h[m] > h0:
+                    du = u[m] - pu
+                    dv = v[m] - pv
+                    if du * du + dv * dv < r2:
+                        return True
+    return False
+
+
+@njit(cache=True)
+def _sample_tool_one(i, dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h, out,
+                     stats):
+    """Direction i of :func:`sample_tool_kernel`."""
+    nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+    ex, ey, ez, fx, fy, fz = _basis(nx, ny, nz)
+    ns = pts.shape[0]
+    mb = centre.shape[0]
+    wi = i >> 6
+    bit = np.uint64(i & 63)
+    u = np.empty(ns)
+    v = np.empty(ns)
+    h = np.empty(ns)
+    lo_u = 1.0e300
+    hi_u = -1.0e300
+    lo_v = 1.0e300
+    hi_v = -1.0e300
+    for m in range(ns):
+        x, y, z = pts[m, 0], pts[m, 1], pts[m, 2]
+        u[m] = x * ex + y * ey + z * ez
+        v[m] = x * fx + y * fy + z * fz
+        h[m] = x * nx + y * ny + z * nz
+        lo_u = min(lo_u, u[m])
+        hi_u = max(hi_u, u[m])
+        lo_v = min(lo_v, v[m])
+        hi_v = max(hi_v, v[m])
+    # the grid covers the samples and the centres: a centre clamped to an edge cell would take
+    # that cell's covered cells, which its own disc may not cover
+    for b in range(mb):
+        cx, cy, cz = centre[b, 0], centre[b, 1], centre[b, 2]
+        pu = cx * ex + cy * ey + cz * ez
+        pv = cx * fx + cy * fy + cz * fz
+        lo_u = min(lo_u, pu)
+        hi_u = max(hi_u, pu)
+        lo_v = min(lo_v, pv)
+        hi_v = max(hi_v, pv)
+    u0 = lo_u - cell
+    v0 = lo_v - cell
+    na = int((hi_u - u0) / cell) + 2
+    nb = int((hi_v - v0) / cell) + 2
+    top = np.full((na, nb), -1.0e300)
+    order = np.empty(ns, dtype=np.int64)
+    start = np.empty(na * nb + 1, dtype=np.int64)
+    _cells(u, v, u0, v0, cell, na, nb, h, order, start, top)
+    up = np.empty_like(top)
+    low = np.empty_like(top)
+    disc_max(top, up_r, low_r, up, low)
+    uph = np.empty_like(top)
+    lowh = np.empty_like(top)
+    if r_holder > 0:
+        disc_max(top, up_h, low_h, uph, lowh)
+    n_clear = 0
+    n_blocked = 0
+    n_scan = 0
+    for b in range(mb):
+        out[i, b] = 0
+        if (local[b, wi] >> bit) & np.uint64(1) == 0:
+            continue
+        cx, cy, cz = centre[b, 0], centre[b, 1], centre[b, 2]
+        pu = cx * ex + cy * ey + cz * ez
+        pv = cx * fx + cy * fy + cz * fz
+        h0 = cx * nx + cy * ny + cz * nz
+        ia = min(na - 1, max(0, int((pu - u0) / cell)))
+        ib = min(nb - 1, max(0, int((pv - v0) / cell)))
+        free = True
+        for tube in range(2 if r_holder > 0 else 1):
+            hh = h0 if tube == 0 else h0 + stick
+            rr = r_shank if tube == 0 else r_holder
+            hi_ = up[ia, ib] if tube == 0 else uph[ia, ib]
+            lo_ = low[ia, ib] if tube == 0 else lowh[ia, ib]
+            if hi_ <= hh:
+                n_clear += 1
+                continue
+            if lo_ > hh:
+                n_blocked += 1
+                free = False
+                break
+            n_scan += 1
+            if _meets(pu, pv, hh, rr, u, v, h, order, start, top, u0, v0, cell, na, nb):
+                free = False
+                break
+        if free:
+            out[i, b] = 1
+    stats[i, 0] = n_clear
+    stats[i, 1] = n_blocked
+    stats[i, 2] = n_scan
+
+
+@njit(cache=True, parallel=True)
+def sample_tool_kernel(dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h, out,
+                       stats):
+    """Shank (radius ``r_shank`` from each ball centre up along n) and holder (radius
+    ``r_holder`` from ``stick`` above the centre up; 0: none) against the samples ``pts``
+    (ns, 3), for every direction i of ``dirs`` and query b whose ``local[b]`` holds i:
+    ``out[i, b]`` = 1 where no sample lies inside either cylinder. ``up_r``/``low_r`` (and
+    ``up_h``/``low_h``): half-widths per row offset of the cells a disc centred in a cell can
+    meet and of those it always covers, at pitch ``cell``. ``stats`` (k, 3): tests decided
+    clear and blocked by the dilated maxima, and by scanning the samples."""
+    for i in prange(dirs.shape[0]):  # the body is a call: parfor lowering of a big body compiles slowly
+        _sample_tool_one(i, dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h,
+                         out, stats)
