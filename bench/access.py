@@ -21,8 +21,10 @@ a silhouette); ``voxel_only_far``: pairs the map calls free that OCC finds block
 voxel diagonal away (non-conservative answers), ``voxel_only_near`` within it;
 ``disagree_near_silhouette``: disagreements where OCC gives the other answer for the same
 direction from a point one voxel diagonal away (a silhouette within one voxel);
-``tool_agree_share`` the same for the ball-end map A' against ``reference_tool``
-(BRepExtrema on the tool's axis; ``--tool-points`` points). ``peak_mb``: peak resident memory
+``tool_agree_share`` the same for the ball-end map A' (the point's piece's where faces meet,
+``cad_io.access.point_access``) against ``reference_tool`` (BRepExtrema on the tool's axis;
+``--tool-points`` points); ``tool_voxel_only_far``: pairs the map frees that OCC blocks even
+with the shank and holder a voxel diagonal thinner. ``peak_mb``: peak resident memory
 of the process (ru_maxrss). ``map_mb``: the voxel map's arrays.
 
 ``rays``: casting lines per voxel edge (``--rays``, 2 as in ``analyse``).
@@ -96,7 +98,8 @@ def main() -> None:
         t = time.perf_counter()
         agt = agreement(part, res, n_points=args.tool_points, seed=args.seed + 1, tool=True)
         out.update({"tool_agree_share": round(agt["agree_share"], 5), "tool_pairs": agt["pairs"],
-                    "tool_voxel_only": agt["voxel_only"], "tool_reference_only": agt["reference_only"],
+                    "tool_voxel_only": agt["voxel_only"], "tool_voxel_only_far": agt["voxel_only_far"],
+                    "tool_reference_only": agt["reference_only"],
                     "tool_reference_seconds": round(time.perf_counter() - t, 1)})
     out["peak_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     print(json.dumps(out))

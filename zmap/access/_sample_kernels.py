@@ -22,12 +22,11 @@ __all__ = ["sample_tool_kernel"]
 
 
 @njit(cache=True)
-def _cells(u, v, u0, v0, cell, na, nb, h, order, start, top):
+def _cells(u, v, u0, v0, cell, na, nb, h, order, start, top, key):
     """Counting sort of the samples into cells: ``order[start[c]:start[c + 1]]`` are cell c's
-    (c = ia * nb + ib), ``top[ia, ib]`` their highest h (-1e300: none)."""
+    (c = ia * nb + ib), ``top[ia, ib]`` their highest h (-1e300: none); ``key`` is work space."""
     ns = u.shape[0]
     cnt = np.zeros(na * nb + 1, dtype=np.int64)
-    key = np.empty(ns, dtype=np.int64)
     for m in range(ns):
         ia = min(na - 1, max(0, int((u[m] - u0) / cell)))
         ib = min(nb - 1, max(0, int((v[m] - v0) / cell)))
@@ -80,17 +79,15 @@ def _meets(pu, pv, h0, r, u, v, h, order, start, top, u0, v0, cell, na, nb):
 
 @njit(cache=True)
 def _sample_tool_one(i, dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h, out,
-                     stats):
-    """Direction i of :func:`sample_tool_kernel`."""
+                     stats, u, v, h, order, key):
+    """Direction i of :func:`sample_tool_kernel` (``u`` ... ``key``: its worker's space, one
+    entry per sample)."""
     nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
     ex, ey, ez, fx, fy, fz = _basis(nx, ny, nz)
     ns = pts.shape[0]
     mb = centre.shape[0]
     wi = i >> 6
     bit = np.uint64(i & 63)
-    u = np.empty(ns)
-    v = np.empty(ns)
-    h = np.empty(ns)
     lo_u = 1.0e300
     hi_u = -1.0e300
     lo_v = 1.0e300
@@ -119,9 +116,8 @@ def _sample_tool_one(i, dirs, local, centre, pts, r_shank, stick, r_holder, cell
     na = int((hi_u - u0) / cell) + 2
     nb = int((hi_v - v0) / cell) + 2
     top = np.full((na, nb), -1.0e300)
-    order = np.empty(ns, dtype=np.int64)
     start = np.empty(na * nb + 1, dtype=np.int64)
-    _cells(u, v, u0, v0, cell, na, nb, h, order, start, top)
+    _cells(u, v, u0, v0, cell, na, nb, h, order, start, top, key)
     up = np.empty_like(top)
     low = np.empty_like(top)
     disc_max(top, up_r, low_r, up, low)
@@ -168,14 +164,26 @@ def _sample_tool_one(i, dirs, local, centre, pts, r_shank, stick, r_holder, cell
 
 @njit(cache=True, parallel=True)
 def sample_tool_kernel(dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h, out,
-                       stats):
+                       stats, workers):
     """Shank (radius ``r_shank`` from each ball centre up along n) and holder (radius
     ``r_holder`` from ``stick`` above the centre up; 0: none) against the samples ``pts``
     (ns, 3), for every direction i of ``dirs`` and query b whose ``local[b]`` holds i:
     ``out[i, b]`` = 1 where no sample lies inside either cylinder. ``up_r``/``low_r`` (and
     ``up_h``/``low_h``): half-widths per row offset of the cells a disc centred in a cell can
     meet and of those it always covers, at pitch ``cell``. ``stats`` (k, 3): tests decided
-    clear and blocked by the dilated maxima, and by scanning the samples."""
-    for i in prange(dirs.shape[0]):  # the body is a call: parfor lowering of a big body compiles slowly
-        _sample_tool_one(i, dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h,
-                         out, stats)
+    clear and blocked by the dilated maxima, and by scanning the samples. ``workers``: the
+    threads to use (numba's count: asked in Python, where numba caches the kernel)."""
+    k = dirs.shape[0]
+    ns = pts.shape[0]
+    nw = max(1, min(k, workers))
+    # one worker per thread, each with its space for the samples allocated once (fresh pages
+    # per direction cost more than the sort), taking the directions in turn
+    for w in prange(nw):
+        u = np.empty(ns)
+        v = np.empty(ns)
+        h = np.empty(ns)
+        order = np.empty(ns, dtype=np.int64)
+        key = np.empty(ns, dtype=np.int64)
+        for i in range(w, k, nw):
+            _sample_tool_one(i, dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h,
+                             out, stats, u, v, h, order, key)

@@ -1480,6 +1480,8 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
 def _sample_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, centre: np.ndarray, samples: np.ndarray,
                       cell: float) -> np.ndarray:
     """:func:`tool_clearance` on the surface samples (its ``samples``): (mb, words) uint64."""
+    import numba
+
     from ._access_kernels import pack_columns
     from ._sample_kernels import sample_tool_kernel
 
@@ -1492,7 +1494,7 @@ def _sample_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, centre: np.nd
     sample_tool_kernel(ds.normals, np.ascontiguousarray(local), centre, samples, r_shank,
                        tool.stickout - tool.radius, r_holder, cell, _disc_rows(r_shank / cell, outer=True),
                        _covered_rows(r_shank / cell), _disc_rows(max(r_holder, 0.0) / cell, outer=True),
-                       _covered_rows(max(r_holder, 0.0) / cell), out, stats)
+                       _covered_rows(max(r_holder, 0.0) / cell), out, stats, numba.get_num_threads())
     _LAST_TOOL_STATS[:] = [int(x) for x in stats.sum(axis=0)]
     bits = np.empty((len(centre), ds.words), dtype=np.uint64)
     pack_columns(out, bits)

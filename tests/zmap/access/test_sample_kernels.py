@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -33,7 +34,7 @@ def run_kernel(dirs, local, centre, pts, r_shank, stick, r_holder, cell):
     sample_tool_kernel(np.ascontiguousarray(dirs), local, np.ascontiguousarray(centre), np.ascontiguousarray(pts),
                        r_shank, stick, r_holder, cell, _disc_rows(r_shank / cell, outer=True),
                        _covered_rows(r_shank / cell), _disc_rows(r_holder / cell, outer=True),
-                       _covered_rows(r_holder / cell), out, stats)
+                       _covered_rows(r_holder / cell), out, stats, numba.get_num_threads())
     return out.astype(bool), stats
 
 
