@@ -320,7 +320,7 @@ def test_tool_map_against_occ_tool(slot):
     res = analyse(part, d=0.5, q=3, tool=Tool(3.0, stickout=8.0, holder_diameter=10.0, holder_length=20.0))
     assert res.amap_pieces is not None and len(res.amap_pieces) == len(res.vm.pieces.voxel)
     ag = agreement(part, res, n_points=4, seed=1, tool=True)
-    assert ag["voxel_only_far"] == 0 and ag["agree_share"] >= 0.97  # measured 0.996 (720 pairs, 177 free)
+    assert ag["voxel_only_far"] == 0 and ag["agree_share"] >= 0.97  # measured 0.981 (720 pairs; 3 freed within a voxel)
 
 
 def test_refined_map_against_occ_rays(slot):
