@@ -209,6 +209,35 @@ def test_bowl_access_shrinks_as_the_ball_grows(bowl):
     assert (vm.curvature[cav] == pytest.approx(1 / 6.0))
 
 
+def test_bowl_access_on_samples_shrinks_pair_by_pair_and_finds_the_cone(bowl):
+    """On the samples the capsule of a larger ball holds the smaller one's (its centre moves
+    along the normal by the difference of the radii), so A' shrinks pair by pair as the ball
+    grows; at the bottom of the cavity (r = 6) a ball of radius a leaves along the directions
+    whose axis from its centre (r - a below the rim's plane) passes the rim circle at more
+    than a (which also keeps it off the cavity's wall below)."""
+    vm, vg = bowl
+    P, N, _, F, _ = bowl_samples()
+    maps = [accessibility(vm, vg, Tool(dia), samples=(P, N, F)) for dia in (2.0, 4.0, 6.0, 9.0, 13.0)]
+    for small, big in zip(maps, maps[1:]):
+        assert not (big & ~small).any()
+    cav = vm.surface == 6
+    assert count(maps[-1][cav]).sum() == 0 and count(maps[2][cav]).sum() > 0
+    ds = vm.directions
+    b = vm.voxel_of([[0.0, 0.0, -6.0]])[0]
+    r = 6.0
+    for m, a in zip(maps[:3], (1.0, 2.0, 3.0)):
+        got = to_bool(m[b], ds.k)
+        # the axis from c = (0, 0, a - r) along n, against the rim circle of radius r at z = 0:
+        # its distance to the nearest rim point, with the ball's centre allowed a sample step
+        n = ds.normals
+        up = n[:, 2] > 1e-9
+        s_ = np.where(up, (r - a) / np.where(up, n[:, 2], 1.0), 0.0)
+        hit = np.hypot(s_ * n[:, 0], s_ * n[:, 1])  # where the axis crosses z = 0
+        clear = np.where(up, (r - hit) * n[:, 2], -1.0)  # distance to the rim, to first order
+        assert not (got & (clear < a - 0.3)).any()
+        assert got[clear > a + 0.3].all()
+
+
 def _ball_conditions_brute(vm, vg, a, voxels):
     """Conditions 1-3 of the ball-end map for ``voxels`` by plain numpy: the shell from all
     boundary centres, the fit test from all boundary and interior centres (no grid search)."""
