@@ -1266,7 +1266,7 @@ def _snap(tree, spts: np.ndarray, snrm: np.ndarray, sface: np.ndarray, point: np
     """The sample nearest each ``point`` among its ``k`` nearest that lie on ``face`` (any face
     where ``face`` is -1; the point itself, with a zero normal, where none of them does):
     ``(points, normals)``."""
-    _, near = tree.query(point, k=k)
+    _, near = tree.query(point, k=min(k, len(spts)))
     near = np.asarray(near).reshape(len(point), -1)
     ok = (sface[near] == face[:, None]) | (face[:, None] < 0)
     first = np.argmax(ok, axis=1)
@@ -1298,6 +1298,10 @@ def _sampled_access(vm: VoxelMap, tool: Tool, bad: np.ndarray, pieces: bool,
     spts = np.ascontiguousarray(samples[0], dtype=np.float64)
     snrm = np.asarray(samples[1], dtype=np.float64)
     sface = np.asarray(samples[2], dtype=np.int64)
+    if spts.ndim != 2 or spts.shape[1] != 3 or not len(spts) or snrm.shape != spts.shape \
+            or sface.shape != (len(spts),):
+        raise AccessModelError(f"samples must be points (n, 3), normals (n, 3) and face ids (n,) with n > 0, "
+                               f"got shapes {spts.shape}, {snrm.shape} and {sface.shape}")
     a = tool.radius
     tree = cKDTree(spts)
     curved = vm.curvature > (1.0 / a) * (1 + 1e-9)

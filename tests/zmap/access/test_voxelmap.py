@@ -137,6 +137,8 @@ def test_capsule_map_holds_the_papers_and_answers_edges_by_their_faces(box):
         accessibility(vm, vg2, tool, method="paper", pieces=True)
     with pytest.raises(ValueError, match="method"):
         accessibility(vm, vg2, tool, method="cone")
+    with pytest.raises(AccessModelError, match="samples must be"):
+        accessibility(vm, vg2, tool, samples=(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int)))
 
 
 def bowl_samples(r=6.0, half=10.0, depth=10.0, step=0.15):
