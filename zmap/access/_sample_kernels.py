@@ -22,10 +22,12 @@ __all__ = ["sample_tool_kernel"]
 
 
 @njit(cache=True)
-def _cells(u, v, u0, v0, cell, na, nb, h, order, start, top, key):
+def _cells(u, v, u0, v0, cell, na, nb, h, order, start, top, low, key):
     """Counting sort of the samples into cells: ``order[start[c]:start[c + 1]]`` are cell c's
-    (c = ia * nb + ib), ``top[ia, ib]`` their highest h (-1e300: none); ``key`` is work space."""
+    (c = ia * nb + ib), ``top[ia, ib]`` their highest h and ``low[ia, ib]`` their highest -h
+    (-1e300: none; ``low`` only where it has the shape of ``top``); ``key`` is work space."""
     ns = u.shape[0]
+    both = low.shape[0] == na
     cnt = np.zeros(na * nb + 1, dtype=np.int64)
     for m in range(ns):
         ia = min(na - 1, max(0, int((u[m] - u0) / cell)))
@@ -35,6 +37,8 @@ def _cells(u, v, u0, v0, cell, na, nb, h, order, start, top, key):
         cnt[c + 1] += 1
         if h[m] > top[ia, ib]:
             top[ia, ib] = h[m]
+        if both and -h[m] > low[ia, ib]:
+            low[ia, ib] = -h[m]
     for c in range(na * nb):
         cnt[c + 1] += cnt[c]
     start[:] = cnt
@@ -45,8 +49,10 @@ def _cells(u, v, u0, v0, cell, na, nb, h, order, start, top, key):
 
 
 @njit(cache=True)
-def _meets(pu, pv, h0, r, u, v, h, order, start, top, u0, v0, cell, na, nb):
-    """Whether a sample lies closer than r to (pu, pv) across n and above h0 along it."""
+def _meets(pu, pv, h0, r, u, v, h, sgn, order, start, top, u0, v0, cell, na, nb):
+    """Whether a sample lies closer than r to (pu, pv) across n and above h0 along it (its
+    height ``sgn * h``: -1 for the opposite direction, on the same cells; ``top`` its cells'
+    highest)."""
     r2 = r * r
     ia0 = max(0, int((pu - r - u0) / cell))
     ia1 = min(na - 1, int((pu + r - u0) / cell))
@@ -69,7 +75,7 @@ def _meets(pu, pv, h0, r, u, v, h, order, start, top, u0, v0, cell, na, nb):
             c = ia * nb + ib
             for s in range(start[c], start[c + 1]):
                 m = order[s]
-                if h[m] > h0:
+                if sgn * h[m] > h0:
                     du = u[m] - pu
                     dv = v[m] - pv
                     if du * du + dv * dv < r2:
@@ -78,16 +84,70 @@ def _meets(pu, pv, h0, r, u, v, h, order, start, top, u0, v0, cell, na, nb):
 
 
 @njit(cache=True)
-def _sample_tool_one(i, dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h, out,
-                     stats, u, v, h, order, key):
-    """Direction i of :func:`sample_tool_kernel` (``u`` ... ``key``: its worker's space, one
-    entry per sample)."""
+def _queries(d, sgn, ex, ey, ez, nx, ny, nz, top, local, centre, r_shank, stick, r_holder, cell, up_r, low_r, up_h,
+             low_h, out, stats, u, v, h, order, start, u0, v0, na, nb):
+    """The queries of direction d, whose heights are ``sgn`` times those along (nx, ny, nz)
+    (the plane's basis e, with f = n x e, shared by a direction and its opposite)."""
+    mb = centre.shape[0]
+    fx, fy, fz = ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex
+    wi = d >> 6
+    bit = np.uint64(d & 63)
+    up = np.empty_like(top)
+    low = np.empty_like(top)
+    disc_max(top, up_r, low_r, up, low)
+    uph = np.empty_like(top)
+    lowh = np.empty_like(top)
+    if r_holder > 0:
+        disc_max(top, up_h, low_h, uph, lowh)
+    n_clear = 0
+    n_blocked = 0
+    n_scan = 0
+    for b in range(mb):
+        out[d, b] = 0
+        if (local[b, wi] >> bit) & np.uint64(1) == 0:
+            continue
+        cx, cy, cz = centre[b, 0], centre[b, 1], centre[b, 2]
+        pu = cx * ex + cy * ey + cz * ez
+        pv = cx * fx + cy * fy + cz * fz
+        h0 = sgn * (cx * nx + cy * ny + cz * nz)
+        ia = min(na - 1, max(0, int((pu - u0) / cell)))
+        ib = min(nb - 1, max(0, int((pv - v0) / cell)))
+        free = True
+        for tube in range(2 if r_holder > 0 else 1):
+            hh = h0 if tube == 0 else h0 + stick
+            rr = r_shank if tube == 0 else r_holder
+            hi_ = up[ia, ib] if tube == 0 else uph[ia, ib]
+            lo_ = low[ia, ib] if tube == 0 else lowh[ia, ib]
+            if hi_ <= hh:
+                n_clear += 1
+                continue
+            if lo_ > hh:
+                n_blocked += 1
+                free = False
+                break
+            n_scan += 1
+            if _meets(pu, pv, hh, rr, u, v, h, sgn, order, start, top, u0, v0, cell, na, nb):
+                free = False
+                break
+        if free:
+            out[d, b] = 1
+    stats[d, 0] = n_clear
+    stats[d, 1] = n_blocked
+    stats[d, 2] = n_scan
+
+
+@njit(cache=True)
+def _sample_tool_pair(i, j, dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h, out,
+                      stats, u, v, h, order, key):
+    """Direction i of :func:`sample_tool_kernel` and its opposite j (-1: none), on one sort
+    of the samples into cells across them (``u`` ... ``key``: its worker's space, one entry
+    per sample)."""
     nx, ny, nz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
     ex, ey, ez, fx, fy, fz = _basis(nx, ny, nz)
+    # f = n x e, so that the queries of the opposite direction find the same plane coordinates
+    fx, fy, fz = ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex
     ns = pts.shape[0]
     mb = centre.shape[0]
-    wi = i >> 6
-    bit = np.uint64(i & 63)
     lo_u = 1.0e300
     hi_u = -1.0e300
     lo_v = 1.0e300
@@ -116,55 +176,19 @@ def _sample_tool_one(i, dirs, local, centre, pts, r_shank, stick, r_holder, cell
     na = int((hi_u - u0) / cell) + 2
     nb = int((hi_v - v0) / cell) + 2
     top = np.full((na, nb), -1.0e300)
+    topn = np.full((na, nb) if j >= 0 else (1, 1), -1.0e300)
     start = np.empty(na * nb + 1, dtype=np.int64)
-    _cells(u, v, u0, v0, cell, na, nb, h, order, start, top, key)
-    up = np.empty_like(top)
-    low = np.empty_like(top)
-    disc_max(top, up_r, low_r, up, low)
-    uph = np.empty_like(top)
-    lowh = np.empty_like(top)
-    if r_holder > 0:
-        disc_max(top, up_h, low_h, uph, lowh)
-    n_clear = 0
-    n_blocked = 0
-    n_scan = 0
-    for b in range(mb):
-        out[i, b] = 0
-        if (local[b, wi] >> bit) & np.uint64(1) == 0:
-            continue
-        cx, cy, cz = centre[b, 0], centre[b, 1], centre[b, 2]
-        pu = cx * ex + cy * ey + cz * ez
-        pv = cx * fx + cy * fy + cz * fz
-        h0 = cx * nx + cy * ny + cz * nz
-        ia = min(na - 1, max(0, int((pu - u0) / cell)))
-        ib = min(nb - 1, max(0, int((pv - v0) / cell)))
-        free = True
-        for tube in range(2 if r_holder > 0 else 1):
-            hh = h0 if tube == 0 else h0 + stick
-            rr = r_shank if tube == 0 else r_holder
-            hi_ = up[ia, ib] if tube == 0 else uph[ia, ib]
-            lo_ = low[ia, ib] if tube == 0 else lowh[ia, ib]
-            if hi_ <= hh:
-                n_clear += 1
-                continue
-            if lo_ > hh:
-                n_blocked += 1
-                free = False
-                break
-            n_scan += 1
-            if _meets(pu, pv, hh, rr, u, v, h, order, start, top, u0, v0, cell, na, nb):
-                free = False
-                break
-        if free:
-            out[i, b] = 1
-    stats[i, 0] = n_clear
-    stats[i, 1] = n_blocked
-    stats[i, 2] = n_scan
+    _cells(u, v, u0, v0, cell, na, nb, h, order, start, top, topn, key)
+    _queries(i, 1.0, ex, ey, ez, nx, ny, nz, top, local, centre, r_shank, stick, r_holder, cell, up_r, low_r, up_h,
+             low_h, out, stats, u, v, h, order, start, u0, v0, na, nb)
+    if j >= 0:
+        _queries(j, -1.0, ex, ey, ez, nx, ny, nz, topn, local, centre, r_shank, stick, r_holder, cell, up_r, low_r,
+                 up_h, low_h, out, stats, u, v, h, order, start, u0, v0, na, nb)
 
 
 @njit(cache=True, parallel=True)
 def sample_tool_kernel(dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h, out,
-                       stats, workers):
+                       stats, workers, first, second):
     """Shank (radius ``r_shank`` from each ball centre up along n) and holder (radius
     ``r_holder`` from ``stick`` above the centre up; 0: none) against the samples ``pts``
     (ns, 3), for every direction i of ``dirs`` and query b whose ``local[b]`` holds i:
@@ -172,18 +196,19 @@ def sample_tool_kernel(dirs, local, centre, pts, r_shank, stick, r_holder, cell,
     ``up_h``/``low_h``): half-widths per row offset of the cells a disc centred in a cell can
     meet and of those it always covers, at pitch ``cell``. ``stats`` (k, 3): tests decided
     clear and blocked by the dilated maxima, and by scanning the samples. ``workers``: the
-    threads to use (numba's count: asked in Python, where numba caches the kernel)."""
-    k = dirs.shape[0]
+    threads to use (numba's count: asked in Python, where numba caches the kernel).
+    ``first``, ``second``: the directions in pairs, each with its opposite (-1: none), which
+    shares its plane and its cells: every direction once across both."""
     ns = pts.shape[0]
-    nw = max(1, min(k, workers))
-    # one worker per thread, each with its space for the samples allocated once (fresh pages
-    # per direction cost more than the sort), taking the directions in turn
+    npair = first.shape[0]
+    nw = max(1, min(npair, workers))
+    # one worker per thread, its space for the samples allocated once, taking the pairs in turn
     for w in prange(nw):
         u = np.empty(ns)
         v = np.empty(ns)
         h = np.empty(ns)
         order = np.empty(ns, dtype=np.int64)
         key = np.empty(ns, dtype=np.int64)
-        for i in range(w, k, nw):
-            _sample_tool_one(i, dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h,
-                             out, stats, u, v, h, order, key)
+        for q in range(w, npair, nw):
+            _sample_tool_pair(first[q], second[q], dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r,
+                              low_r, up_h, low_h, out, stats, u, v, h, order, key)

@@ -1481,6 +1481,20 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     return bits
 
 
+def _direction_pairs(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The directions as pairs ``(first, second)``, each with its opposite (-1: none), every
+    direction once: the sample kernel sorts the samples once per pair (a direction and its
+    opposite share the plane across them)."""
+    n = np.asarray(normals, dtype=np.float64)
+    d = n @ n.T
+    opp = np.argmin(d, axis=1)
+    ok = (np.abs(n[opp] + n).max(axis=1) < 1e-9) & (opp[opp] == np.arange(len(n))) & (opp != np.arange(len(n)))
+    if not ok.all():
+        return np.arange(len(n), dtype=np.int64), np.full(len(n), -1, dtype=np.int64)
+    first = np.flatnonzero(np.arange(len(n)) < opp).astype(np.int64)
+    return first, opp[first].astype(np.int64)
+
+
 def _sample_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, centre: np.ndarray, samples: np.ndarray,
                       cell: float) -> np.ndarray:
     """:func:`tool_clearance` on the surface samples (its ``samples``): (mb, words) uint64."""
@@ -1498,7 +1512,8 @@ def _sample_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, centre: np.nd
     sample_tool_kernel(ds.normals, np.ascontiguousarray(local), centre, samples, r_shank,
                        tool.stickout - tool.radius, r_holder, cell, _disc_rows(r_shank / cell, outer=True),
                        _covered_rows(r_shank / cell), _disc_rows(max(r_holder, 0.0) / cell, outer=True),
-                       _covered_rows(max(r_holder, 0.0) / cell), out, stats, numba.get_num_threads())
+                       _covered_rows(max(r_holder, 0.0) / cell), out, stats, numba.get_num_threads(),
+                       *_direction_pairs(ds.normals))
     _LAST_TOOL_STATS[:] = [int(x) for x in stats.sum(axis=0)]
     bits = np.empty((len(centre), ds.words), dtype=np.uint64)
     pack_columns(out, bits)

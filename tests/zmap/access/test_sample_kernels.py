@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from zmap.access._sample_kernels import sample_tool_kernel
 from zmap.access.directions import direction_set, to_bool
-from zmap.access.voxelmap import _covered_rows, _disc_rows
+from zmap.access.voxelmap import _covered_rows, _direction_pairs, _disc_rows
 
 
 def brute_force(dirs, centre, pts, r_shank, stick, r_holder):
@@ -28,20 +28,24 @@ def brute_force(dirs, centre, pts, r_shank, stick, r_holder):
     return out
 
 
-def run_kernel(dirs, local, centre, pts, r_shank, stick, r_holder, cell):
+def run_kernel(dirs, local, centre, pts, r_shank, stick, r_holder, cell, paired=True):
+    """The kernel, with each direction paired with its opposite (one sort for both) or alone."""
+    pairs = _direction_pairs(dirs) if paired else (np.arange(len(dirs)), np.full(len(dirs), -1))
+    if paired:
+        assert len(pairs[0]) == len(dirs) // 2 and (pairs[1] >= 0).all()
     out = np.zeros((len(dirs), len(centre)), dtype=np.uint8)
     stats = np.zeros((len(dirs), 3), dtype=np.int64)
     sample_tool_kernel(np.ascontiguousarray(dirs), local, np.ascontiguousarray(centre), np.ascontiguousarray(pts),
                        r_shank, stick, r_holder, cell, _disc_rows(r_shank / cell, outer=True),
                        _covered_rows(r_shank / cell), _disc_rows(r_holder / cell, outer=True),
-                       _covered_rows(r_holder / cell), out, stats, numba.get_num_threads())
+                       _covered_rows(r_holder / cell), out, stats, numba.get_num_threads(), *pairs)
     return out.astype(bool), stats
 
 
 @settings(max_examples=12, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), cell=st.sampled_from([0.3, 0.5, 1.1]),
-       holder=st.sampled_from([0.0, 2.5]))
-def test_sample_kernel_matches_a_brute_force(seed, cell, holder):
+       holder=st.sampled_from([0.0, 2.5]), paired=st.booleans())
+def test_sample_kernel_matches_a_brute_force(seed, cell, holder, paired):
     rng = np.random.default_rng(seed)
     ds = direction_set(1)
     # a bumpy sheet of samples, and ball centres above it and among it
@@ -50,7 +54,7 @@ def test_sample_kernel_matches_a_brute_force(seed, cell, holder):
     pts = np.c_[xy, z]
     centre = np.c_[rng.uniform(-7, 7, size=(25, 2)), rng.uniform(-1.0, 3.0, 25)]
     local = np.full((len(centre), ds.words), np.uint64(0xFFFFFFFFFFFFFFFF), dtype=np.uint64)
-    got, stats = run_kernel(ds.normals, local, centre, pts, 1.0, 2.0, holder, cell)
+    got, stats = run_kernel(ds.normals, local, centre, pts, 1.0, 2.0, holder, cell, paired)
     want = brute_force(ds.normals, centre, pts, 1.0, 2.0, holder)
     assert (got == want).all()
     assert stats.sum() > 0
