@@ -381,16 +381,12 @@ def point_visibility(result: AccessResult, voxel: np.ndarray, face: np.ndarray,
     piece's (the face's samples in the point's half-voxel cell of the voxel); else their
     face's piece's where several faces meet in the voxel (and the pieces were cast); else the
     voxel's."""
-    from zmap.access.voxelmap import _octant, _piece_index
+    from zmap.access.voxelmap import _octant
 
     vm = result.vm
     voxel = np.asarray(voxel, dtype=np.int64)
     face = np.asarray(face, dtype=np.int64)
-    out = result.vg[voxel].copy()
-    vp = result.vg_pieces
-    if vm.pieces is not None and vp is not None and len(vp) and vm.pieces.face is not None:
-        pi = _piece_index(vm, voxel, face)
-        out[pi >= 0] = vp[pi[pi >= 0]]
+    out = _by_piece(vm, result.vg, result.vg_pieces, voxel, face)
     f = vm.fine
     if points is None or result.vg_fine is None or f is None or not len(f.voxel):
         return out
@@ -408,15 +404,20 @@ def point_access(result: AccessResult, voxel: np.ndarray, face: np.ndarray) -> n
     """``A'`` (n, words) that the map gives surface points of ``face`` in boundary voxels
     ``voxel``: their face's piece's where several faces meet in the voxel (and the pieces were
     answered, ``result.amap_pieces``), else the voxel's."""
+    return _by_piece(result.vm, result.amap, result.amap_pieces, np.asarray(voxel, dtype=np.int64),
+                     np.asarray(face, dtype=np.int64))
+
+
+def _by_piece(vm: VoxelMap, per_voxel: np.ndarray, per_piece: np.ndarray | None, voxel: np.ndarray,
+              face: np.ndarray) -> np.ndarray:
+    """Rows of ``per_voxel`` for ``voxel``, replaced by the (voxel, face) piece's row of
+    ``per_piece`` where that piece exists."""
     from zmap.access.voxelmap import _piece_index
 
-    vm = result.vm
-    voxel = np.asarray(voxel, dtype=np.int64)
-    out = result.amap[voxel].copy()
-    ap = result.amap_pieces
-    if vm.pieces is not None and ap is not None and len(ap) and vm.pieces.face is not None:
-        pi = _piece_index(vm, voxel, np.asarray(face, dtype=np.int64))
-        out[pi >= 0] = ap[pi[pi >= 0]]
+    out = per_voxel[voxel].copy()
+    if vm.pieces is not None and per_piece is not None and len(per_piece) and vm.pieces.face is not None:
+        pi = _piece_index(vm, voxel, face)
+        out[pi >= 0] = per_piece[pi[pi >= 0]]
     return out
 
 
