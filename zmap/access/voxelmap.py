@@ -1111,6 +1111,12 @@ def _covered_rows(rad: float) -> np.ndarray:
 _LAST_TOOL_STATS = [0, 0, 0]
 
 
+def _curved(vm: VoxelMap, a: float) -> np.ndarray:
+    """The voxels (mb,) bool whose largest concave curvature exceeds 1/a: no ball of radius a
+    touches them without cutting their neighbourhood (condition 2)."""
+    return vm.curvature > (1.0 / a) * (1 + 1e-9)
+
+
 def _ball_inputs(vm: VoxelMap, a: float) -> tuple[float, np.ndarray, np.ndarray]:
     """What the ball's conditions (:func:`accessibility`) take besides the maps, for a ball of
     radius ``a``: half a voxel diagonal ``hd``; ``bad`` (mb,) uint8, bit 1 for the voxels that
@@ -1125,7 +1131,7 @@ def _ball_inputs(vm: VoxelMap, a: float) -> tuple[float, np.ndarray, np.ndarray]
     hd = float(np.sqrt(3.0) * 0.5 * vm.d)
     thr = hd / (a - hd) if a > hd else np.inf
     cap = from_bool((np.einsum("tjx,nx->tjn", ds.vertices, ds.normals) > thr).all(axis=1))
-    curved = vm.curvature > (1.0 / a) * (1 + 1e-9)
+    curved = _curved(vm, a)
     bad = (curved | vm.crease).astype(np.uint8) | (2 * (curved | _concave_creases(vm))).astype(np.uint8)
     return hd, bad, cap
 
@@ -1243,22 +1249,19 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     # lose grazing directions at convex edges that the tool clears (featuretype: 0.5 % of pairs)
     local = np.where((fits & (bad & 1 == 0))[:, None], vm.vl, np.uint64(0))
     p = vm.pieces
-    if not pieces or p is None or not len(p.voxel) or p.vl is None:
-        amap = tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell, cell_holder=cell_holder)
-        return (amap, np.zeros((0 if p is None else len(p.voxel), ds.words), dtype=np.uint64)) if pieces else amap
+    if not _has_pieces(vm, pieces):
+        return _split_pieces(vm, tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell,
+                                                cell_holder=cell_holder), pieces)
     # the pieces ride along as more queries of the same buffers
     pcentre = np.ascontiguousarray(p.point + a * p.normal)
     pfits = np.empty(len(p.voxel), dtype=np.bool_)
     ball_fits(pcentre, vm.origin, vm.d, vm.state, a - hd, pfits)
-    curved = vm.curvature > (1.0 / a) * (1 + 1e-9)
-    plocal = np.where((pfits & ~curved[p.voxel])[:, None], p.vl, np.uint64(0))
+    plocal = np.where((pfits & ~_curved(vm, a)[p.voxel])[:, None], p.vl, np.uint64(0))
     both = tool_clearance(vm, np.ascontiguousarray(np.concatenate([local, plocal])), tool, cell=cell,
                           cell_holder=cell_holder,
                           queries=(np.concatenate([vm.point, p.point]), np.concatenate([vm.normal, p.normal]),
                                    np.concatenate([vm.surface.astype(np.int64), p.face])))
-    amap, pmap = both[:vm.n_boundary].copy(), both[vm.n_boundary:].copy()
-    _crease_from_pieces(vm, amap, pmap)
-    return amap, pmap
+    return _split_pieces(vm, both, pieces)
 
 
 def _snap(tree, spts: np.ndarray, snrm: np.ndarray, sface: np.ndarray, point: np.ndarray,
@@ -1304,14 +1307,13 @@ def _sampled_access(vm: VoxelMap, tool: Tool, bad: np.ndarray, pieces: bool,
                                f"got shapes {spts.shape}, {snrm.shape} and {sface.shape}")
     a = tool.radius
     tree = cKDTree(spts)
-    curved = vm.curvature > (1.0 / a) * (1 + 1e-9)
+    curved = _curved(vm, a)
     qpoint, qnormal = _snap(tree, spts, snrm, sface, vm.point, vm.surface.astype(np.int64))
     keep = (bad & 1 == 0) & (np.abs(qnormal).sum(axis=1) > 0)
     local = [np.where(keep[:, None], _hemisphere_bits(vm, qnormal), np.uint64(0))]
     qp, qn = [qpoint], [qnormal]
     p = vm.pieces
-    with_pieces = pieces and p is not None and len(p.voxel) and p.vl is not None
-    if with_pieces:
+    if _has_pieces(vm, pieces):
         pp, pn = _snap(tree, spts, snrm, sface, p.point, p.face)
         pkeep = ~curved[p.voxel] & (np.abs(pn).sum(axis=1) > 0)
         local.append(np.where(pkeep[:, None], _hemisphere_bits(vm, pn), np.uint64(0)))
@@ -1323,25 +1325,32 @@ def _sampled_access(vm: VoxelMap, tool: Tool, bad: np.ndarray, pieces: bool,
     local[dist < a - 1e-3] = 0
     both = tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell,
                           queries=(qp, qn, np.full(len(qp), -1)), samples=spts)
+    return _split_pieces(vm, both, pieces)
+
+
+def _has_pieces(vm: VoxelMap, pieces: bool) -> bool:
+    """Whether :func:`accessibility` answers ``vm.pieces`` too (asked, and there are some)."""
+    p = vm.pieces
+    return bool(pieces and p is not None and len(p.voxel) and p.vl is not None)
+
+
+def _split_pieces(vm: VoxelMap, both: np.ndarray, pieces: bool) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """:func:`accessibility`'s return from the rows of the voxels' queries and, after them, the
+    pieces' (where :func:`_has_pieces`): with ``pieces``, ``(voxels', pieces')``, a crease voxel
+    taking the directions all its pieces keep (pieces come sorted by voxel)."""
     amap = both[:vm.n_boundary].copy()
     if not pieces:
         return amap
-    if not with_pieces:
+    p = vm.pieces
+    if not _has_pieces(vm, pieces):
         return amap, np.zeros((0 if p is None else len(p.voxel), vm.directions.words), dtype=np.uint64)
     pmap = both[vm.n_boundary:].copy()
-    _crease_from_pieces(vm, amap, pmap)
-    return amap, pmap
-
-
-def _crease_from_pieces(vm: VoxelMap, amap: np.ndarray, pmap: np.ndarray) -> None:
-    """A crease voxel's ``A'``: the directions all its pieces keep (in place; pieces come
-    sorted by voxel)."""
-    p = vm.pieces
     start = np.flatnonzero(np.r_[True, p.voxel[1:] != p.voxel[:-1]])
     shared = np.bitwise_and.reduceat(pmap, start, axis=0)
     vox = p.voxel[start]
     crease = vm.crease[vox].astype(bool)
     amap[vox[crease]] = shared[crease]
+    return amap, pmap
 
 
 def _blocker_faces(vm: VoxelMap) -> np.ndarray:
@@ -1481,18 +1490,17 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     return bits
 
 
-def _direction_pairs(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _direction_pairs(ds: DirectionSet) -> tuple[np.ndarray, np.ndarray]:
     """The directions as pairs ``(first, second)``, each with its opposite (-1: none), every
     direction once: the sample kernel sorts the samples once per pair (a direction and its
     opposite share the plane across them)."""
-    n = np.asarray(normals, dtype=np.float64)
-    d = n @ n.T
-    opp = np.argmin(d, axis=1)
-    ok = (np.abs(n[opp] + n).max(axis=1) < 1e-9) & (opp[opp] == np.arange(len(n))) & (opp != np.arange(len(n)))
-    if not ok.all():
-        return np.arange(len(n), dtype=np.int64), np.full(len(n), -1, dtype=np.int64)
-    first = np.flatnonzero(np.arange(len(n)) < opp).astype(np.int64)
-    return first, opp[first].astype(np.int64)
+    n = ds.normals
+    opp = _opposite(ds)
+    idx = np.arange(len(n))
+    if not ((np.abs(n[opp] + n).max(axis=1) < 1e-9) & (opp[opp] == idx) & (opp != idx)).all():
+        return idx.astype(np.int64), np.full(len(n), -1, dtype=np.int64)
+    first = np.flatnonzero(idx < opp).astype(np.int64)
+    return first, opp[first]
 
 
 def _sample_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, centre: np.ndarray, samples: np.ndarray,
@@ -1513,7 +1521,7 @@ def _sample_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, centre: np.nd
                        tool.stickout - tool.radius, r_holder, cell, _disc_rows(r_shank / cell, outer=True),
                        _covered_rows(r_shank / cell), _disc_rows(max(r_holder, 0.0) / cell, outer=True),
                        _covered_rows(max(r_holder, 0.0) / cell), out, stats, numba.get_num_threads(),
-                       *_direction_pairs(ds.normals))
+                       *_direction_pairs(ds))
     _LAST_TOOL_STATS[:] = [int(x) for x in stats.sum(axis=0)]
     bits = np.empty((len(centre), ds.words), dtype=np.uint64)
     pack_columns(out, bits)

@@ -28,9 +28,10 @@ def brute_force(dirs, centre, pts, r_shank, stick, r_holder):
     return out
 
 
-def run_kernel(dirs, local, centre, pts, r_shank, stick, r_holder, cell, paired=True):
+def run_kernel(ds, local, centre, pts, r_shank, stick, r_holder, cell, paired=True):
     """The kernel, with each direction paired with its opposite (one sort for both) or alone."""
-    pairs = _direction_pairs(dirs) if paired else (np.arange(len(dirs)), np.full(len(dirs), -1))
+    dirs = ds.normals
+    pairs = _direction_pairs(ds) if paired else (np.arange(len(dirs)), np.full(len(dirs), -1))
     if paired:
         assert len(pairs[0]) == len(dirs) // 2 and (pairs[1] >= 0).all()
     out = np.zeros((len(dirs), len(centre)), dtype=np.uint8)
@@ -54,7 +55,7 @@ def test_sample_kernel_matches_a_brute_force(seed, cell, holder, paired):
     pts = np.c_[xy, z]
     centre = np.c_[rng.uniform(-7, 7, size=(25, 2)), rng.uniform(-1.0, 3.0, 25)]
     local = np.full((len(centre), ds.words), np.uint64(0xFFFFFFFFFFFFFFFF), dtype=np.uint64)
-    got, stats = run_kernel(ds.normals, local, centre, pts, 1.0, 2.0, holder, cell, paired)
+    got, stats = run_kernel(ds, local, centre, pts, 1.0, 2.0, holder, cell, paired)
     want = brute_force(ds.normals, centre, pts, 1.0, 2.0, holder)
     assert (got == want).all()
     assert stats.sum() > 0
@@ -66,7 +67,7 @@ def test_sample_kernel_skips_what_local_leaves_out():
     centre = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 10.0]])
     local = np.zeros((2, ds.words), dtype=np.uint64)
     local[0, 0] = np.uint64(0b101)
-    got, _ = run_kernel(ds.normals, local, centre, pts, 0.5, 1.0, 0.0, 0.4)
+    got, _ = run_kernel(ds, local, centre, pts, 0.5, 1.0, 0.0, 0.4)
     assert got[[0, 2], 0].all() and not got[1, 0] and not got[:, 1].any()
     assert to_bool(local, ds.k)[0, [0, 2]].all()
 
