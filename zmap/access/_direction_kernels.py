@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["lookup_kernel", "popcount_rows", "bits_to_bool", "bool_to_bits"]
+__all__ = ["lookup_kernel", "popcount_rows", "bits_to_bool", "bool_to_bits", "above_bits"]
 
 
 @njit(cache=True)
@@ -115,3 +115,17 @@ def bool_to_bits(mask, out):
         for i in range(mask.shape[1]):
             if mask[r, i]:
                 out[r, i >> 6] |= np.uint64(1) << np.uint64(i & 63)
+
+
+@njit(cache=True, parallel=True)
+def above_bits(dirs, normals, floor, out):
+    """out[r]: the bitset of the directions i with dirs[i] . normals[r] > floor."""
+    k = dirs.shape[0]
+    for r in prange(normals.shape[0]):
+        nx, ny, nz = normals[r, 0], normals[r, 1], normals[r, 2]
+        for w in range(out.shape[1]):
+            acc = np.uint64(0)
+            for i in range(w * 64, min(k, w * 64 + 64)):
+                if dirs[i, 0] * nx + dirs[i, 1] * ny + dirs[i, 2] * nz > floor:
+                    acc |= np.uint64(1) << np.uint64(i - w * 64)
+            out[r, w] = acc

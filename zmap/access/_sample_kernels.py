@@ -49,37 +49,58 @@ def _cells(u, v, u0, v0, cell, na, nb, h, order, start, top, low, key):
 
 
 @njit(cache=True)
-def _meets(pu, pv, h0, r, u, v, h, sgn, order, start, top, u0, v0, cell, na, nb):
+def _rim(outer, covered):
+    """The cell offsets (dp, dq) a disc centred in cell (0, 0) can meet (half-widths ``outer``
+    per row offset |dp|) but does not always cover whole (``covered``): where a scan must look
+    once the covered cells' highest is known to lie low enough."""
+    out = np.empty((0, 2), dtype=np.int64)
+    for pass_ in range(2):
+        n = 0
+        for ap in range(outer.shape[0]):
+            w = outer[ap]
+            cw = covered[ap] if ap < covered.shape[0] else -1
+            for dp in range(-ap, ap + 1, max(1, 2 * ap)):  # -ap and ap, or 0 once
+                for dq in range(-w, w + 1):  # none where w is -1
+                    if abs(dq) > cw:
+                        if pass_ == 1:
+                            out[n, 0] = dp
+                            out[n, 1] = dq
+                        n += 1
+        if pass_ == 0:
+            out = np.empty((n, 2), dtype=np.int64)
+    return out
+
+
+@njit(cache=True)
+def _meets(pu, pv, ia0, ib0, h0, r, rim, u, v, h, sgn, order, start, top, u0, v0, cell, na, nb):
     """Whether a sample lies closer than r to (pu, pv) across n and above h0 along it (its
     height ``sgn * h``: -1 for the opposite direction, on the same cells; ``top`` its cells'
-    highest)."""
+    highest), looking only at the cells ``rim`` around the query's cell (ia0, ib0): the caller
+    knows the cells the disc always covers lie at or below h0."""
     r2 = r * r
-    ia0 = max(0, int((pu - r - u0) / cell))
-    ia1 = min(na - 1, int((pu + r - u0) / cell))
-    ib0 = max(0, int((pv - r - v0) / cell))
-    ib1 = min(nb - 1, int((pv + r - v0) / cell))
-    for ia in range(ia0, ia1 + 1):
+    for t in range(rim.shape[0]):
+        ia = ia0 + rim[t, 0]
+        ib = ib0 + rim[t, 1]
+        if ia < 0 or ia >= na or ib < 0 or ib >= nb or top[ia, ib] <= h0:
+            continue
         ca = u0 + ia * cell
+        cb = v0 + ib * cell
         da_near = max(0.0, max(ca - pu, pu - ca - cell))
+        db_near = max(0.0, max(cb - pv, pv - cb - cell))
+        if da_near * da_near + db_near * db_near >= r2:
+            continue
         da_far = max(abs(ca - pu), abs(ca + cell - pu))
-        for ib in range(ib0, ib1 + 1):
-            if top[ia, ib] <= h0:
-                continue
-            cb = v0 + ib * cell
-            db_near = max(0.0, max(cb - pv, pv - cb - cell))
-            if da_near * da_near + db_near * db_near >= r2:
-                continue
-            db_far = max(abs(cb - pv), abs(cb + cell - pv))
-            if da_far * da_far + db_far * db_far < r2:
-                return True  # the whole cell lies inside, and its top is above h0
-            c = ia * nb + ib
-            for s in range(start[c], start[c + 1]):
-                m = order[s]
-                if sgn * h[m] > h0:
-                    du = u[m] - pu
-                    dv = v[m] - pv
-                    if du * du + dv * dv < r2:
-                        return True
+        db_far = max(abs(cb - pv), abs(cb + cell - pv))
+        if da_far * da_far + db_far * db_far < r2:
+            return True  # the whole cell lies inside, and its top is above h0
+        c = ia * nb + ib
+        for s in range(start[c], start[c + 1]):
+            m = order[s]
+            if sgn * h[m] > h0:
+                du = u[m] - pu
+                dv = v[m] - pv
+                if du * du + dv * dv < r2:
+                    return True
     return False
 
 
@@ -99,6 +120,8 @@ def _queries(d, sgn, ex, ey, ez, nx, ny, nz, top, local, centre, r_shank, stick,
     lowh = np.empty_like(top)
     if r_holder > 0:
         disc_max(top, up_h, low_h, uph, lowh)
+    rim_r = _rim(up_r, low_r)
+    rim_h = _rim(up_h, low_h)
     n_clear = 0
     n_blocked = 0
     n_scan = 0
@@ -126,7 +149,8 @@ def _queries(d, sgn, ex, ey, ez, nx, ny, nz, top, local, centre, r_shank, stick,
                 free = False
                 break
             n_scan += 1
-            if _meets(pu, pv, hh, rr, u, v, h, sgn, order, start, top, u0, v0, cell, na, nb):
+            if _meets(pu, pv, ia, ib, hh, rr, rim_r if tube == 0 else rim_h, u, v, h, sgn, order, start,
+                      top, u0, v0, cell, na, nb):
                 free = False
                 break
         if free:

@@ -1269,7 +1269,7 @@ def _snap(tree, spts: np.ndarray, snrm: np.ndarray, sface: np.ndarray, point: np
     """The sample nearest each ``point`` among its ``k`` nearest that lie on ``face`` (any face
     where ``face`` is -1; the point itself, with a zero normal, where none of them does):
     ``(points, normals)``."""
-    _, near = tree.query(point, k=min(k, len(spts)))
+    _, near = tree.query(point, k=min(k, len(spts)), workers=-1)
     near = np.asarray(near).reshape(len(point), -1)
     ok = (sface[near] == face[:, None]) | (face[:, None] < 0)
     first = np.argmax(ok, axis=1)
@@ -1287,9 +1287,13 @@ _GRAZE = 0.05
 
 def _hemisphere_bits(vm: VoxelMap, normal: np.ndarray) -> np.ndarray:
     """The directions with n . normal > -``_GRAZE``, per row of ``normal`` (m, words)."""
-    from .directions import from_bool
+    from ._direction_kernels import above_bits
 
-    return from_bool(np.asarray(normal) @ vm.directions.normals.T > -_GRAZE)
+    ds = vm.directions
+    normal = np.ascontiguousarray(normal, dtype=np.float64)
+    out = np.empty((len(normal), ds.words), dtype=np.uint64)
+    above_bits(np.ascontiguousarray(ds.normals), normal, -_GRAZE, out)
+    return out
 
 
 def _sampled_access(vm: VoxelMap, tool: Tool, bad: np.ndarray, pieces: bool,
@@ -1321,7 +1325,7 @@ def _sampled_access(vm: VoxelMap, tool: Tool, bad: np.ndarray, pieces: bool,
         qn.append(pn)
     qp, qn, local = np.concatenate(qp), np.concatenate(qn), np.concatenate(local)
     # the ball fits: no sample closer than a (less OCC's 1e-3 mm) to its centre
-    dist, _ = tree.query(qp + a * qn)
+    dist, _ = tree.query(qp + a * qn, workers=-1)
     local[dist < a - 1e-3] = 0
     both = tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell,
                           queries=(qp, qn, np.full(len(qp), -1)), samples=spts)

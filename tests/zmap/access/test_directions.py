@@ -139,3 +139,17 @@ def test_folded_hemispheres_equal_the_direct_ones(seed, q, jitter):
         want_l = np.bitwise_or.reduce(mine, axis=0) if len(mine) else light[p]
         assert np.array_equal(vl[p] & k_mask, want_vl & k_mask)
         assert np.array_equal(light[p], want_l)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), floor=st.sampled_from([-0.05, 0.0, 0.5]))
+def test_above_bits_are_the_directions_over_the_floor(seed, floor):
+    from zmap.access._direction_kernels import above_bits
+
+    ds = direction_set(3)
+    n = np.random.default_rng(seed).normal(size=(50, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    out = np.empty((len(n), ds.words), dtype=np.uint64)
+    above_bits(np.ascontiguousarray(ds.normals), n, floor, out)
+    dots = np.array([[d[0] * m[0] + d[1] * m[1] + d[2] * m[2] for d in ds.normals] for m in n])
+    assert (to_bool(out, ds.k) == (dots > floor)).all()

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from zmap.access._sample_kernels import sample_tool_kernel
+from zmap.access._sample_kernels import _rim, sample_tool_kernel
 from zmap.access.directions import direction_set, to_bool
 from zmap.access.voxelmap import _covered_rows, _direction_pairs, _disc_rows
 
@@ -90,3 +90,18 @@ def test_covered_rows_are_whole_cells_inside_every_disc(rad):
                 cell = np.array([sgn * dp, dq], dtype=float) + corners
                 far = np.sqrt(((cell[None, :, :] - centres[:, None, :]) ** 2).sum(axis=2)).max()
                 assert far < rad
+
+
+@pytest.mark.parametrize("rad", [0.0, 0.5, 1.0, 2.9, 6.0, 20.0])
+def test_rim_is_the_cells_a_disc_meets_less_those_it_covers(rad):
+    """A scan looks at the rim only: with the covered cells it makes every cell a disc can meet,
+    each once."""
+    outer, covered = _disc_rows(rad, outer=True), _covered_rows(rad)
+
+    def cells(w):
+        return {(s * p, q) for p, h in enumerate(w) for s in (1, -1) for q in range(-h, h + 1)}
+
+    rim = [tuple(r) for r in _rim(outer, covered)]
+    assert len(rim) == len(set(rim))
+    assert set(rim) == cells(outer) - cells(covered)
+    assert cells(covered) <= cells(outer)
