@@ -22,10 +22,11 @@ __all__ = ["sample_tool_kernel"]
 
 
 @njit(cache=True)
-def _cells(u, v, u0, v0, cell, na, nb, h, order, start, top, low, key):
-    """Counting sort of the samples into cells: ``order[start[c]:start[c + 1]]`` are cell c's
-    (c = ia * nb + ib), ``top[ia, ib]`` their highest h and ``low[ia, ib]`` their highest -h
-    (-1e300: none; ``low`` only where it has the shape of ``top``); ``key`` is work space."""
+def _cells(u, v, u0, v0, cell, na, nb, h, sorted_, start, top, low, key):
+    """Counting sort of the samples into cells: ``sorted_[start[c]:start[c + 1]]`` are cell c's
+    (c = ia * nb + ib) as rows (u, v, h), side by side for the scans; ``top[ia, ib]`` their
+    highest h and ``low[ia, ib]`` their highest -h (-1e300: none; ``low`` only where it has the
+    shape of ``top``); ``key`` is work space."""
     ns = u.shape[0]
     both = low.shape[0] == na
     cnt = np.zeros(na * nb + 1, dtype=np.int64)
@@ -44,7 +45,10 @@ def _cells(u, v, u0, v0, cell, na, nb, h, order, start, top, low, key):
     start[:] = cnt
     for m in range(ns):
         c = key[m]
-        order[cnt[c]] = m
+        s = cnt[c]
+        sorted_[s, 0] = u[m]
+        sorted_[s, 1] = v[m]
+        sorted_[s, 2] = h[m]
         cnt[c] += 1
 
 
@@ -72,7 +76,7 @@ def _rim(outer, covered):
 
 
 @njit(cache=True)
-def _meets(pu, pv, ia0, ib0, h0, r, rim, u, v, h, sgn, order, start, top, u0, v0, cell, na, nb):
+def _meets(pu, pv, ia0, ib0, h0, r, rim, sgn, sorted_, start, top, u0, v0, cell, na, nb):
     """Whether a sample lies closer than r to (pu, pv) across n and above h0 along it (its
     height ``sgn * h``: -1 for the opposite direction, on the same cells; ``top`` its cells'
     highest), looking only at the cells ``rim`` around the query's cell (ia0, ib0): the caller
@@ -95,10 +99,9 @@ def _meets(pu, pv, ia0, ib0, h0, r, rim, u, v, h, sgn, order, start, top, u0, v0
             return True  # the whole cell lies inside, and its top is above h0
         c = ia * nb + ib
         for s in range(start[c], start[c + 1]):
-            m = order[s]
-            if sgn * h[m] > h0:
-                du = u[m] - pu
-                dv = v[m] - pv
+            if sgn * sorted_[s, 2] > h0:
+                du = sorted_[s, 0] - pu
+                dv = sorted_[s, 1] - pv
                 if du * du + dv * dv < r2:
                     return True
     return False
@@ -106,7 +109,7 @@ def _meets(pu, pv, ia0, ib0, h0, r, rim, u, v, h, sgn, order, start, top, u0, v0
 
 @njit(cache=True)
 def _queries(d, sgn, ex, ey, ez, nx, ny, nz, top, local, centre, r_shank, stick, r_holder, cell, up_r, low_r, up_h,
-             low_h, out, stats, u, v, h, order, start, u0, v0, na, nb):
+             low_h, out, stats, sorted_, start, u0, v0, na, nb):
     """The queries of direction d, whose heights are ``sgn`` times those along (nx, ny, nz)
     (the plane's basis e, with f = n x e, shared by a direction and its opposite)."""
     mb = centre.shape[0]
@@ -149,8 +152,8 @@ def _queries(d, sgn, ex, ey, ez, nx, ny, nz, top, local, centre, r_shank, stick,
                 free = False
                 break
             n_scan += 1
-            if _meets(pu, pv, ia, ib, hh, rr, rim_r if tube == 0 else rim_h, u, v, h, sgn, order, start,
-                      top, u0, v0, cell, na, nb):
+            if _meets(pu, pv, ia, ib, hh, rr, rim_r if tube == 0 else rim_h, sgn, sorted_, start, top, u0, v0,
+                      cell, na, nb):
                 free = False
                 break
         if free:
@@ -162,7 +165,7 @@ def _queries(d, sgn, ex, ey, ez, nx, ny, nz, top, local, centre, r_shank, stick,
 
 @njit(cache=True)
 def _sample_tool_pair(i, j, dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h, out,
-                      stats, u, v, h, order, key):
+                      stats, u, v, h, sorted_, key):
     """Direction i of :func:`sample_tool_kernel` and its opposite j (-1: none), on one sort
     of the samples into cells across them (``u`` ... ``key``: its worker's space, one entry
     per sample)."""
@@ -202,12 +205,12 @@ def _sample_tool_pair(i, j, dirs, local, centre, pts, r_shank, stick, r_holder, 
     top = np.full((na, nb), -1.0e300)
     topn = np.full((na, nb) if j >= 0 else (1, 1), -1.0e300)
     start = np.empty(na * nb + 1, dtype=np.int64)
-    _cells(u, v, u0, v0, cell, na, nb, h, order, start, top, topn, key)
+    _cells(u, v, u0, v0, cell, na, nb, h, sorted_, start, top, topn, key)
     _queries(i, 1.0, ex, ey, ez, nx, ny, nz, top, local, centre, r_shank, stick, r_holder, cell, up_r, low_r, up_h,
-             low_h, out, stats, u, v, h, order, start, u0, v0, na, nb)
+             low_h, out, stats, sorted_, start, u0, v0, na, nb)
     if j >= 0:
         _queries(j, -1.0, ex, ey, ez, nx, ny, nz, topn, local, centre, r_shank, stick, r_holder, cell, up_r, low_r,
-                 up_h, low_h, out, stats, u, v, h, order, start, u0, v0, na, nb)
+                 up_h, low_h, out, stats, sorted_, start, u0, v0, na, nb)
 
 
 @njit(cache=True, parallel=True)
@@ -231,8 +234,8 @@ def sample_tool_kernel(dirs, local, centre, pts, r_shank, stick, r_holder, cell,
         u = np.empty(ns)
         v = np.empty(ns)
         h = np.empty(ns)
-        order = np.empty(ns, dtype=np.int64)
+        sorted_ = np.empty((ns, 3))
         key = np.empty(ns, dtype=np.int64)
         for q in range(w, npair, nw):
             _sample_tool_pair(first[q], second[q], dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r,
-                              low_r, up_h, low_h, out, stats, u, v, h, order, key)
+                              low_r, up_h, low_h, out, stats, u, v, h, sorted_, key)
