@@ -170,23 +170,51 @@ def _bezier_cell(z, i, j, u, v, dx, dy, nx, ny, tangent, boundary):
     ``z`` may be a window of a larger map (:mod:`zmap.tiled`): ``nx``, ``ny`` are then the
     window's, and the slopes' edge rules act only at its edges.
     """
-    z2 = z[i, j]
-    z3 = z[i + 1, j]
-    z6 = z[i, j + 1]
-    z7 = z[i + 1, j + 1]
-    if math.isnan(z2) or math.isnan(z3) or math.isnan(z6) or math.isnan(z7):
+    if math.isnan(z[i, j]) or math.isnan(z[i + 1, j]) or math.isnan(z[i, j + 1]) or math.isnan(z[i + 1, j + 1]):
         return np.nan
+    return _bezier_patch(z[i, j], z[i + 1, j], z[i, j + 1], z[i + 1, j + 1],
+                         _slope(z, i, j, 1, 0, dx, nx, ny, tangent, boundary),
+                         _slope(z, i + 1, j, 1, 0, dx, nx, ny, tangent, boundary),
+                         _slope(z, i, j + 1, 1, 0, dx, nx, ny, tangent, boundary),
+                         _slope(z, i + 1, j + 1, 1, 0, dx, nx, ny, tangent, boundary),
+                         _slope(z, i, j, 0, 1, dy, nx, ny, tangent, boundary),
+                         _slope(z, i, j + 1, 0, 1, dy, nx, ny, tangent, boundary),
+                         _slope(z, i + 1, j, 0, 1, dy, nx, ny, tangent, boundary),
+                         _slope(z, i + 1, j + 1, 0, 1, dy, nx, ny, tangent, boundary), dx, dy, u, v)
+
+
+@njit(cache=True)
+def _bezier_patch(z2, z3, z6, z7, sx2, sx3, sx6, sx7, sy2, sy6, sy3, sy7, dx, dy, u, v):
+    """Eq. 4-7 from a cell's corner heights (z2 at (i, j), z3 at (i + 1, j), z6 at (i, j + 1),
+    z7 at (i + 1, j + 1)) and their slopes along x (sx) and y (sy)."""
     # x-direction curves V1 (row j) and V2 (row j+1), evaluated at u.
-    w1 = _bezier1d(z2, z3, _slope(z, i, j, 1, 0, dx, nx, ny, tangent, boundary),
-                   _slope(z, i + 1, j, 1, 0, dx, nx, ny, tangent, boundary), dx, u)
-    w2 = _bezier1d(z6, z7, _slope(z, i, j + 1, 1, 0, dx, nx, ny, tangent, boundary),
-                   _slope(z, i + 1, j + 1, 1, 0, dx, nx, ny, tangent, boundary), dx, u)
+    w1 = _bezier1d(z2, z3, sx2, sx3, dx, u)
+    w2 = _bezier1d(z6, z7, sx6, sx7, dx, u)
     # y-direction curves V3 (column i) and V4 (column i+1) between w1 and w2, at v.
-    w3 = _bezier1d(w1, w2, _slope(z, i, j, 0, 1, dy, nx, ny, tangent, boundary),
-                   _slope(z, i, j + 1, 0, 1, dy, nx, ny, tangent, boundary), dy, v)
-    w4 = _bezier1d(w1, w2, _slope(z, i + 1, j, 0, 1, dy, nx, ny, tangent, boundary),
-                   _slope(z, i + 1, j + 1, 0, 1, dy, nx, ny, tangent, boundary), dy, v)
+    w3 = _bezier1d(w1, w2, sy2, sy6, dy, v)
+    w4 = _bezier1d(w1, w2, sy3, sy7, dy, v)
     return (1.0 - u) * w3 + u * w4
+
+
+@njit(cache=True)
+def slope_tables(z, dx, dy, tangent, boundary, sx, sy):
+    """The slopes of every node of ``z`` along x (``sx``) and y (``sy``), as :func:`_bezier_cell`
+    takes them: with them :func:`bezier_cell_tabled` gives its heights for a fraction of the
+    work (a cell's eight slopes are most of it)."""
+    nx, ny = z.shape
+    for i in range(nx):
+        for j in range(ny):
+            sx[i, j] = _slope(z, i, j, 1, 0, dx, nx, ny, tangent, boundary)
+            sy[i, j] = _slope(z, i, j, 0, 1, dy, nx, ny, tangent, boundary)
+
+
+@njit(cache=True)
+def bezier_cell_tabled(z, sx, sy, i, j, u, v, dx, dy):
+    """:func:`_bezier_cell` with the slopes of :func:`slope_tables` (the same bits)."""
+    if math.isnan(z[i, j]) or math.isnan(z[i + 1, j]) or math.isnan(z[i, j + 1]) or math.isnan(z[i + 1, j + 1]):
+        return np.nan
+    return _bezier_patch(z[i, j], z[i + 1, j], z[i, j + 1], z[i + 1, j + 1], sx[i, j], sx[i + 1, j], sx[i, j + 1],
+                         sx[i + 1, j + 1], sy[i, j], sy[i, j + 1], sy[i + 1, j], sy[i + 1, j + 1], dx, dy, u, v)
 
 
 @njit(cache=True)

@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ._interp_kernels import _EDGE_SLACK, _bezier_cell, _locate, _to_local
+from ._interp_kernels import _EDGE_SLACK, _bezier_cell, _locate, _to_local, bezier_cell_tabled
 
-__all__ = ["model_heights", "bezier_at"]
+__all__ = ["model_heights", "bezier_at", "bezier_at_tabled"]
 
 
 @njit(cache=True)
@@ -23,6 +23,14 @@ def bezier_at(z, x0, y0, dx, dy, c, s, ox, oy, x, y, tangent, boundary):
     nx, ny = z.shape
     i, j, u, v = _locate(x, y, x0, y0, dx, dy, c, s, ox, oy, nx, ny)
     return np.nan if i < 0 else _bezier_cell(z, i, j, u, v, dx, dy, nx, ny, tangent, boundary)
+
+
+@njit(cache=True)
+def bezier_at_tabled(z, sx, sy, x0, y0, dx, dy, c, s, ox, oy, x, y):
+    """:func:`bezier_at` with the map's slope tables (:func:`zmap._interp_kernels.slope_tables`)."""
+    nx, ny = z.shape
+    i, j, u, v = _locate(x, y, x0, y0, dx, dy, c, s, ox, oy, nx, ny)
+    return np.nan if i < 0 else bezier_cell_tabled(z, sx, sy, i, j, u, v, dx, dy)
 
 
 @njit(cache=True)

@@ -84,23 +84,19 @@ def test_zmap_model_is_its_bezier():
 
 
 def test_kernel_bezier_options_are_not_compile_time_constants():
-    # height_at hands bezier_at the Bezier options as run-time ints (from pack_model):
-    # constants would be typed as literals, and numba would compile bezier_at and its
-    # callees once more for them (seconds of a cold compile) instead of sharing the
-    # signature PrecisionModel.height compiles
+    # pack_model hands the slopes' kernel the Bezier options as run-time ints: constants would
+    # be typed as literals, and numba would compile _slope and its callees once more for them
+    # (seconds of a cold compile) instead of sharing the signature PrecisionModel.height compiles
     from numba import types
 
-    from zmap import _model_kernels as MK
+    from zmap import _interp_kernels as IK
 
     z = ZMap.from_function(lambda x, y: x * y, (0, 0, 3, 3), 0.5)
-    M = ME.pack_model(z)
-    assert M[-1] == (0, 0) and all(type(v) is int for v in M[-1])
+    ME.pack_model(z)
     x = np.array([1.2, 2.7])
     np.testing.assert_array_equal(_kernel_heights(z, x, x), PrecisionModel(z).height(x, x))
-    # bezier_at's own signatures show only where height_at was compiled in this process (a
-    # cold cache, as CI's fresh clone has); from a warm cache its code comes inside height_at's
-    sigs = MK.bezier_at.signatures
-    assert not any(isinstance(a, types.Literal) for sig in sigs for a in sig), sigs
+    sigs = IK.slope_tables.signatures
+    assert sigs and not any(isinstance(a, types.Literal) for sig in sigs for a in sig), sigs
 
 
 def _wall_model(seed):
