@@ -27,7 +27,7 @@ from numba.core import types
 from numba.typed import List
 from numba.experimental import structref
 
-from .._interp_kernels import _locate, _to_local, slope_tables
+from .._interp_kernels import _bezier1d, _locate, _to_local, slope_tables
 from .._model_kernels import bezier_at_tabled, deepest_cz
 from ..refine import _ez_kernels as _ezk
 from ..sim._tool_kernels import _envelope
@@ -68,14 +68,31 @@ def threaded(kernel, n: int, *args, chunk: int = 256) -> None:
 
 
 def _ez_arrays(ez, base):
-    """``(z, par, edge_ids, offsets, hq, brk_kind, brk_t, ecell_ids, slots, nb, bk, bt, pts, arc, bub)``
-    of an EZ-map over ``base`` (its own tables and codes)."""
+    """``(z, par, edge_ids, offsets, hq, brk_kind, brk_t, ecell_ids, slots, nb, bk, bt, pts, arc, bub, plain)``
+    of an EZ-map over ``base`` (its own tables and codes; ``plain``: :func:`_plain_slopes`)."""
     a = ez._tables(base)
     off = ez._voff() if hasattr(ez, "_voff") else ez.offsets
     par = np.array([base.x0, base.y0, base.dx, base.dy, math.cos(base.angle), math.sin(base.angle),
                     base.origin[0], base.origin[1]], dtype=np.float64)
-    return (np.ascontiguousarray(base.z, dtype=np.float64), par, ez.edge_ids, off, ez._hq(), a["brk_kind"],
-            a["brk_t"], a["ecell_ids"], a["slots"], a["nb"], a["bk"], a["bt"], a["pts"], a["arc"], a["bub"])
+    z = np.ascontiguousarray(base.z, dtype=np.float64)
+    plain = np.full((len(a["ecell_ids"]), 4, 2), np.nan)
+    _plain_slopes(z, a["ecell_ids"], a["slots"], ez.edge_ids, a["brk_kind"], base.dx, base.dy, plain)
+    return (z, par, ez.edge_ids, off, ez._hq(), a["brk_kind"], a["brk_t"], a["ecell_ids"], a["slots"], a["nb"],
+            a["bk"], a["bt"], a["pts"], a["arc"], a["bub"], plain)
+
+
+@njit(cache=True)
+def _plain_slopes(z, ecell_ids, slots, edge_ids, brk_kind, dx, dy, out):
+    """``out[c, k]``: the end slopes of e-cell c's local edge k where it has no e-points
+    (:func:`zmap.refine._ez_kernels.plain_edge_slopes`), made once: :func:`_ez_at` reads them
+    instead of finding the edges' breaks and the slopes at every height."""
+    ny = z.shape[1]
+    for c in range(ecell_ids.shape[0]):
+        i = ecell_ids[c] // (ny - 1)
+        j = ecell_ids[c] % (ny - 1)
+        for k in range(4):
+            if slots[c, k] < 0:
+                out[c, k, 0], out[c, k, 1] = _ezk.plain_edge_slopes(z, i, j, k, edge_ids, brk_kind, dx, dy)
 
 
 def supported(model) -> bool:
@@ -117,7 +134,8 @@ def _copy_ez(E):
     """An EZ-map's arrays (:func:`_ez_arrays`; its fifth, the samples' ``_hq``, five arrays), copied."""
     hq = (E[4][0].copy(), E[4][1].copy(), E[4][2].copy(), E[4][3].copy(), E[4][4].copy())
     return (E[0].copy(), E[1].copy(), E[2].copy(), E[3].copy(), hq, E[5].copy(), E[6].copy(), E[7].copy(),
-            E[8].copy(), E[9].copy(), E[10].copy(), E[11].copy(), E[12].copy(), E[13].copy(), E[14].copy())
+            E[8].copy(), E[9].copy(), E[10].copy(), E[11].copy(), E[12].copy(), E[13].copy(), E[14].copy(),
+            E[15].copy())
 
 
 @njit(cache=True)
@@ -193,7 +211,7 @@ def pack_model(model) -> PackedModel:
 @njit(cache=True)
 def _ez_at(E, x, y):
     """One EZ-map's height at world xy (its kernel's rule); NaN outside its e-cells."""
-    z, par, edge_ids, offsets, hq, brk_kind, brk_t, ecell_ids, slots, nb, bk, bt, pts, arc, bub = E
+    z, par, edge_ids, offsets, hq, brk_kind, brk_t, ecell_ids, slots, nb, bk, bt, pts, arc, bub, plain = E
     nx, ny = z.shape
     i, j, u, v = _locate(x, y, par[0], par[1], par[2], par[3], par[4], par[5], par[6], par[7], nx, ny)
     if i < 0:
@@ -204,8 +222,25 @@ def _ez_at(E, x, y):
     if nb[c] == 2 and (pts[c, 0, 0] != pts[c, 2, 0] or pts[c, 0, 1] != pts[c, 2, 1]):
         return _ezk._split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, bk, bt, pts, arc,
                            par[2], par[3])
-    return _ezk._coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, par[2], par[3], nb[c] > 0,
-                       bub[c])
+    # _ezk._coons, with the plain edges' slopes from the table
+    bot = _edge_at(E, i, j, c, 0, u)
+    rgt = _edge_at(E, i, j, c, 1, v)
+    top = _edge_at(E, i, j, c, 2, u)
+    lft = _edge_at(E, i, j, c, 3, v)
+    return _ezk.coons_blend(z, i, j, u, v, bot, rgt, top, lft, nb[c] > 0, bub[c])
+
+
+@njit(cache=True, inline="always")
+def _edge_at(E, i, j, c, k, t):
+    """:func:`zmap.refine._ez_kernels._edge_value` of e-cell c's local edge k at t (side 0),
+    a plain edge from its slopes in the table (:func:`_plain_slopes`)."""
+    z, par, edge_ids, offsets, hq, brk_kind, brk_t, ecell_ids, slots, nb, bk, bt, pts, arc, bub, plain = E
+    slot = slots[c, k]
+    if slot < 0:
+        ia, ja, ib, jb = _ezk._edge_nodes(i, j, k)
+        return _bezier1d(z[ia, ja], z[ib, jb], plain[c, k, 0], plain[c, k, 1], par[2] if k == 0 or k == 2 else par[3],
+                         t)
+    return _ezk._edge_value(z, i, j, k, t, 0, slot, edge_ids, offsets, hq, brk_kind, brk_t, par[2], par[3])
 
 
 @njit(cache=True)

@@ -523,6 +523,32 @@ def _edge_slope(z, i, j, di, dj, h, outer, edge_ids, brk_kind):
 
 
 @njit(cache=True)
+def _edge_nodes(i, j, k):
+    """The grid nodes (ia, ja) and (ib, jb) at the ends of local edge ``k`` of cell (i, j)
+    (0 bottom, 1 right, 2 top, 3 left; each from its low end)."""
+    if k == 0:
+        return i, j, i + 1, j
+    if k == 1:
+        return i + 1, j, i + 1, j + 1
+    if k == 2:
+        return i, j + 1, i + 1, j + 1
+    return i, j, i, j + 1
+
+
+@njit(cache=True)
+def plain_edge_slopes(z, i, j, k, edge_ids, brk_kind, dx, dy):
+    """The slopes at the ends of local edge ``k`` of cell (i, j) along it, for an edge without
+    e-points (:func:`_edge_value`: the base's cubic Bezier along it, with the slopes of
+    :func:`_edge_slope`)."""
+    ia, ja, ib, jb = _edge_nodes(i, j, k)
+    if k == 0 or k == 2:
+        return (_edge_slope(z, ia, ja, 1, 0, dx, -1, edge_ids, brk_kind),
+                _edge_slope(z, ib, jb, 1, 0, dx, 1, edge_ids, brk_kind))
+    return (_edge_slope(z, ia, ja, 0, 1, dy, -1, edge_ids, brk_kind),
+            _edge_slope(z, ib, jb, 0, 1, dy, 1, edge_ids, brk_kind))
+
+
+@njit(cache=True)
 def _edge_value(z, i, j, k, t, side, slot, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy):
     """Boundary curve of local edge ``k`` of cell (i, j) at parameter t.
 
@@ -530,22 +556,10 @@ def _edge_value(z, i, j, k, t, side, slot, edge_ids, offsets, hq, brk_kind, brk_
     from its own last two samples (``side`` -1 low t, +1 high t, 0 by t). An edge without
     e-points is the base's cubic Bezier along it (as the base evaluates it).
     """
-    if k == 0:
-        ia, ja, ib, jb = i, j, i + 1, j
-    elif k == 1:
-        ia, ja, ib, jb = i + 1, j, i + 1, j + 1
-    elif k == 2:
-        ia, ja, ib, jb = i, j + 1, i + 1, j + 1
-    else:
-        ia, ja, ib, jb = i, j, i, j + 1
+    ia, ja, ib, jb = _edge_nodes(i, j, k)
     if slot < 0:
-        if k == 0 or k == 2:
-            sa = _edge_slope(z, ia, ja, 1, 0, dx, -1, edge_ids, brk_kind)
-            sb = _edge_slope(z, ib, jb, 1, 0, dx, 1, edge_ids, brk_kind)
-            return _bezier1d(z[ia, ja], z[ib, jb], sa, sb, dx, t)
-        sa = _edge_slope(z, ia, ja, 0, 1, dy, -1, edge_ids, brk_kind)
-        sb = _edge_slope(z, ib, jb, 0, 1, dy, 1, edge_ids, brk_kind)
-        return _bezier1d(z[ia, ja], z[ib, jb], sa, sb, dy, t)
+        sa, sb = plain_edge_slopes(z, i, j, k, edge_ids, brk_kind, dx, dy)
+        return _bezier1d(z[ia, ja], z[ib, jb], sa, sb, dx if k == 0 or k == 2 else dy, t)
     off = offsets[slot]
     n = offsets[slot + 1] - off
     m = n + 1
@@ -843,6 +857,12 @@ def _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, 
     rgt = _edge_value(z, i, j, 1, v, 0, slots[c, 1], edge_ids, offsets, hq, brk_kind, brk_t, dx, dy)
     top = _edge_value(z, i, j, 2, u, 0, slots[c, 2], edge_ids, offsets, hq, brk_kind, brk_t, dx, dy)
     lft = _edge_value(z, i, j, 3, v, 0, slots[c, 3], edge_ids, offsets, hq, brk_kind, brk_t, dx, dy)
+    return coons_blend(z, i, j, u, v, bot, rgt, top, lft, broken, bub)
+
+
+@njit(cache=True)
+def coons_blend(z, i, j, u, v, bot, rgt, top, lft, broken, bub):
+    """:func:`_coons` from the values of the cell's four boundary curves at (u, v)."""
     bil = ((1.0 - u) * ((1.0 - v) * z[i, j] + v * z[i, j + 1])
            + u * ((1.0 - v) * z[i + 1, j] + v * z[i + 1, j + 1]))
     h = (1.0 - v) * bot + v * top + (1.0 - u) * lft + u * rgt - bil
