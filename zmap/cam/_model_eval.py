@@ -335,6 +335,15 @@ def _pattern(M, code, R, rc, qx, qy, ux, uy, g, step, xtol, max_iter):
         bg = g
         bx = ux
         by = uy
+        # the polar moves' radius and angles, the same for all of them (dt = 0, 1 or -1)
+        r0 = math.hypot(ux - qx, uy - qy)
+        a0 = math.atan2(uy - qy, ux - qx)
+        t0 = a0 + s * 0.0 / max(r0, s)
+        tp = a0 + s * 1.0 / max(r0, s)
+        tm = a0 + s * -1.0 / max(r0, s)
+        c0, s0 = math.cos(t0), math.sin(t0)
+        cp, sp = math.cos(tp), math.sin(tp)
+        cm, sm = math.cos(tm), math.sin(tm)
         for m in range(24):
             if m < 8:
                 a = m
@@ -347,13 +356,13 @@ def _pattern(M, code, R, rc, qx, qy, ux, uy, g, step, xtol, max_iter):
                 dr = (1.0, -1.0, 0.0, 0.0, 1.0, -1.0, 1.0, -1.0, -0.25, -0.25, -0.0625, -0.0625, -1 / 64, -1 / 64,
                       -1 / 256, -1 / 256)[a]
                 dt = (0.0, 0.0, 1.0, -1.0, 1.0, 1.0, -1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0)[a]
-                ox = ux - qx
-                oy = uy - qy
-                r0 = math.hypot(ox, oy)
-                th = math.atan2(oy, ox) + s * dt / max(r0, s)
                 rr = min(max(r0 + s * dr, 0.0), R)
-                px = qx + rr * math.cos(th)
-                py = qy + rr * math.sin(th)
+                if dt > 0.0:
+                    px, py = qx + rr * cp, qy + rr * sp
+                elif dt < 0.0:
+                    px, py = qx + rr * cm, qy + rr * sm
+                else:
+                    px, py = qx + rr * c0, qy + rr * s0
             px, py = _onto_disk(qx, qy, R, px, py)
             gc = _g(M, code, R, rc, qx, qy, px, py)
             if gc > bg:
