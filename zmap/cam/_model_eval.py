@@ -43,9 +43,9 @@ _COARSE = 0.02
 def threaded(kernel, n: int, *args, chunk: int = 256) -> None:
     """``kernel(*args, k0, k1)`` over ``0:n`` in chunks on numba's thread count of threads
     (the kernels hold no GIL); one thread for a single chunk. Each thread takes its own copy of
-    a :class:`PackedModel` argument (:func:`_clone`): the kernels count references to its arrays
-    as they read them, and two threads counting on the same arrays wait for each other (an EZ
-    height took 5.2 us on two threads against 1.6 us on one)."""
+    a :class:`PackedModel` argument (:func:`_clone`): two threads reading the same arrays slowed
+    each other down (an EZ height took 5.2 us on two threads against 1.6 us on one; a base
+    height 0.53 us against 0.14 us), as the kernels count references to the arrays they read."""
     import numba
 
     nt = max(1, numba.get_num_threads())
@@ -120,8 +120,9 @@ class _PackedModelType(types.StructRef):
 
 class PackedModel(structref.StructRefProxy):
     """A model's arrays for the numba kernels (:func:`pack_model`), handed to them as one
-    reference: a tuple of its thirty-odd arrays cost every call that took it a reference count
-    per array, about 0.3 us of a base height's 0.4 us."""
+    reference. Handed a tuple of its thirty-odd arrays instead, a kernel spent about 0.3 us of a
+    base height's 0.4 us on taking it (the cost grew with the arrays in the tuple: numba counts
+    references to a function's array arguments)."""
 
 
 _FIELDS = ["bz", "bp", "cz_z", "cz_off", "cz_shape", "cz_par", "cell_ptr", "cell_cz", "ez_cell", "bsx", "bsy",
