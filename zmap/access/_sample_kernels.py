@@ -109,7 +109,7 @@ def _meets(pu, pv, ia0, ib0, h0, r, rim, sgn, sorted_, start, top, u0, v0, cell,
 
 @njit(cache=True)
 def _queries(d, sgn, ex, ey, ez, nx, ny, nz, top, local, centre, r_shank, stick, r_holder, cell, up_r, low_r, up_h,
-             low_h, out, stats, sorted_, start, u0, v0, na, nb):
+             low_h, rim_r, rim_h, out, stats, sorted_, start, u0, v0, na, nb):
     """The queries of direction d, whose heights are ``sgn`` times those along (nx, ny, nz)
     (the plane's basis e, with f = n x e, shared by a direction and its opposite)."""
     mb = centre.shape[0]
@@ -123,8 +123,6 @@ def _queries(d, sgn, ex, ey, ez, nx, ny, nz, top, local, centre, r_shank, stick,
     lowh = np.empty_like(top)
     if r_holder > 0:
         disc_max(top, up_h, low_h, uph, lowh)
-    rim_r = _rim(up_r, low_r)
-    rim_h = _rim(up_h, low_h)
     n_clear = 0
     n_blocked = 0
     n_scan = 0
@@ -164,8 +162,8 @@ def _queries(d, sgn, ex, ey, ez, nx, ny, nz, top, local, centre, r_shank, stick,
 
 
 @njit(cache=True)
-def _sample_tool_pair(i, j, dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h, out,
-                      stats, u, v, h, sorted_, key):
+def _sample_tool_pair(i, j, dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r, low_r, up_h, low_h, rim_r,
+                      rim_h, out, stats, u, v, h, sorted_, key):
     """Direction i of :func:`sample_tool_kernel` and its opposite j (-1: none), on one sort
     of the samples into cells across them (``u`` ... ``key``: its worker's space, one entry
     per sample)."""
@@ -207,10 +205,10 @@ def _sample_tool_pair(i, j, dirs, local, centre, pts, r_shank, stick, r_holder, 
     start = np.empty(na * nb + 1, dtype=np.int64)
     _cells(u, v, u0, v0, cell, na, nb, h, sorted_, start, top, topn, key)
     _queries(i, 1.0, ex, ey, ez, nx, ny, nz, top, local, centre, r_shank, stick, r_holder, cell, up_r, low_r, up_h,
-             low_h, out, stats, sorted_, start, u0, v0, na, nb)
+             low_h, rim_r, rim_h, out, stats, sorted_, start, u0, v0, na, nb)
     if j >= 0:
         _queries(j, -1.0, ex, ey, ez, nx, ny, nz, topn, local, centre, r_shank, stick, r_holder, cell, up_r, low_r,
-                 up_h, low_h, out, stats, sorted_, start, u0, v0, na, nb)
+                 up_h, low_h, rim_r, rim_h, out, stats, sorted_, start, u0, v0, na, nb)
 
 
 @njit(cache=True, parallel=True)
@@ -229,6 +227,8 @@ def sample_tool_kernel(dirs, local, centre, pts, r_shank, stick, r_holder, cell,
     ns = pts.shape[0]
     npair = first.shape[0]
     nw = max(1, min(npair, workers))
+    rim_r = _rim(up_r, low_r)
+    rim_h = _rim(up_h, low_h)
     # one worker per thread, its space for the samples allocated once, taking the pairs in turn
     for w in prange(nw):
         u = np.empty(ns)
@@ -238,4 +238,4 @@ def sample_tool_kernel(dirs, local, centre, pts, r_shank, stick, r_holder, cell,
         key = np.empty(ns, dtype=np.int64)
         for q in range(w, npair, nw):
             _sample_tool_pair(first[q], second[q], dirs, local, centre, pts, r_shank, stick, r_holder, cell, up_r,
-                              low_r, up_h, low_h, out, stats, u, v, h, sorted_, key)
+                              low_r, up_h, low_h, rim_r, rim_h, out, stats, u, v, h, sorted_, key)
