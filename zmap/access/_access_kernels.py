@@ -11,7 +11,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ._direction_kernels import lookup_one
+from ._direction_kernels import above_words, lookup_one
 
 __all__ = ["ball_fits", "accumulate", "paint_exterior", "skin_masks", "merge_runs", "self_blocking", "run_members", "pack_columns", "row_hash", "patch_slab", "piece_accumulate", "cast_directions", "dilate_bits", "bit_lists",
            "ball_conditions", "disc_max", "tool_kernel", "greedy_cover", "orientation_votes"]
@@ -30,16 +30,7 @@ def _hemisphere(dirs, nx, ny, nz, words, last):
     dx, dy, dz = nx - last[0], ny - last[1], nz - last[2]
     if math.sqrt(dx * dx + dy * dy + dz * dz) + 1e-12 < last[3]:
         return
-    k = dirs.shape[0]
-    margin = np.inf
-    for w in range(words.shape[0]):
-        acc = np.uint64(0)
-        for i in range(w * 64, min(k, w * 64 + 64)):
-            t = dirs[i, 0] * nx + dirs[i, 1] * ny + dirs[i, 2] * nz
-            margin = min(margin, abs(t))
-            if t > 0.0:
-                acc |= np.uint64(1) << np.uint64(i - w * 64)
-        words[w] = acc
+    margin = above_words(dirs, nx, ny, nz, 0.0, words)
     last[0], last[1], last[2], last[3] = nx, ny, nz, margin
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["lookup_kernel", "popcount_rows", "bits_to_bool", "bool_to_bits", "above_bits"]
+__all__ = ["lookup_kernel", "popcount_rows", "bits_to_bool", "bool_to_bits", "above_words", "above_bits"]
 
 
 @njit(cache=True)
@@ -117,15 +117,25 @@ def bool_to_bits(mask, out):
                 out[r, i >> 6] |= np.uint64(1) << np.uint64(i & 63)
 
 
+@njit(cache=True)
+def above_words(dirs, nx, ny, nz, floor, words):
+    """``words``: the bitset of the directions i with dirs[i] . (nx, ny, nz) > floor; returns
+    the margin, min_i |dirs[i] . n - floor| (within it no direction changes side)."""
+    k = dirs.shape[0]
+    margin = np.inf
+    for w in range(words.shape[0]):
+        acc = np.uint64(0)
+        for i in range(w * 64, min(k, w * 64 + 64)):
+            t = dirs[i, 0] * nx + dirs[i, 1] * ny + dirs[i, 2] * nz - floor
+            margin = min(margin, abs(t))
+            if t > 0.0:
+                acc |= np.uint64(1) << np.uint64(i - w * 64)
+        words[w] = acc
+    return margin
+
+
 @njit(cache=True, parallel=True)
 def above_bits(dirs, normals, floor, out):
     """out[r]: the bitset of the directions i with dirs[i] . normals[r] > floor."""
-    k = dirs.shape[0]
     for r in prange(normals.shape[0]):
-        nx, ny, nz = normals[r, 0], normals[r, 1], normals[r, 2]
-        for w in range(out.shape[1]):
-            acc = np.uint64(0)
-            for i in range(w * 64, min(k, w * 64 + 64)):
-                if dirs[i, 0] * nx + dirs[i, 1] * ny + dirs[i, 2] * nz > floor:
-                    acc |= np.uint64(1) << np.uint64(i - w * 64)
-            out[r, w] = acc
+        above_words(dirs, normals[r, 0], normals[r, 1], normals[r, 2], floor, out[r])
