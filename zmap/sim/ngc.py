@@ -6,8 +6,10 @@ O-word statement. Parameters live in a :class:`Parameters` store (numbered ``#1`
 local ``#<name>`` per subroutine call, global ``#<_name>``); expressions follow LinuxCNC's
 ``read_real_expression``: operators ``** * / MOD + - EQ NE GT GE LT LE AND OR XOR`` with its
 precedence, left to right within a level, and the functions ``ABS ACOS ASIN ATAN[y]/[x] COS
-EXP FIX FUP LN ROUND SIN SQRT TAN EXISTS`` (angles in degrees). :func:`program_structure`
-pairs the O-word statements of a file (``sub/endsub``, ``while/endwhile``, ``do/while``,
+EXP FIX FUP LN ROUND SIN SQRT TAN EXISTS`` (angles in degrees). A value is compiled into a
+postfix program and run on a stack, both without recursion, so nesting depth and length are
+bounded by memory only (``[[[...1...]]]`` 5,000 deep, a sum of 5,000 terms are tested).
+:func:`program_structure` pairs the O-word statements of a file (``sub/endsub``, ``while/endwhile``, ``do/while``,
 ``repeat/endrepeat``, ``if/elseif/else/endif``) before anything runs.
 
 Everything works on the *compact* line: upper case, comments blanked, blanks removed (as
@@ -207,152 +209,325 @@ def _const(v: float) -> Value:
     return lambda P: v
 
 
+# Opcodes of a compiled value: a postfix program run on a stack by _run (no recursion, so a
+# value nested 10,000 brackets deep or a sum of 10,000 terms compiles and runs like any other).
+_CONST = 0  # (op, value)
+_PARAM = 1  # (op, number): #n with a literal n, checked at compile time
+_PARAM_EXPR = 2  # (op, pos, word): #<value on the stack>
+_NAMED = 3  # (op, name, pos, word): #<name>
+_NEG = 4  # (op,)
+_BINARY = 5  # (op, operator, pos, word)
+_FUNCTION = 6  # (op, name, pos, word)
+_ATAN = 7  # (op,): ATAN[y]/[x] of the two values on the stack
+_EXISTS_NAMED = 8  # (op, name)
+_EXISTS_NUM = 9  # (op,): whether the value on the stack is a valid parameter number
+
+
+class _Group:
+    """An open ``[`` while compiling: a plain expression, a function's argument, EXISTS."""
+
+    __slots__ = ("kind", "pos", "fpos", "_word", "_c")
+
+    def __init__(self, kind: str, pos: int, fpos: int, c: str):
+        self.kind = kind  # "[" (plain), a function name, "ATAN2" (its second argument), "EXISTS"
+        self.pos = pos  # index of the "["
+        self.fpos = fpos  # index of the function name (pos for a plain group)
+        self._word: str | None = None
+        self._c = c
+
+    @property
+    def word(self) -> str:
+        """The group's text (at most 40 characters), named by messages of its operators."""
+        if self._word is None:
+            self._word = _snippet(self._c, self.pos)
+        return self._word
+
+
+class _Prefix(NamedTuple):
+    """A prefix waiting for its value: ``-`` or ``+``, ``#`` (parameter), or EXISTS's ``#``."""
+
+    kind: str  # "-", "+", "#", "E"
+    pos: int
+
+
+class _Operator(NamedTuple):
+    """A binary operator waiting for its right operand."""
+
+    op: str
+    prec: int
+    group: _Group
+
+
+def _snippet(c: str, i: int, j: int | None = None) -> str:
+    """The text of ``c`` from ``i``: to ``j``, or a whole ``[...]`` group, at most 40 characters."""
+    limit = i + 40
+    if i < len(c) and c[i] == "[":
+        depth = 0
+        for k in range(i, min(len(c), limit)):
+            depth += (c[k] == "[") - (c[k] == "]")
+            if depth == 0:
+                j = max(j or 0, k + 1)
+                break
+        else:
+            j = limit
+    return c[i:min(j if j is not None else i + 20, limit)] or "end of line"
+
+
 class _Compiler:
     """LinuxCNC's read_real_value / read_real_expression over one compact line, compiled once.
 
-    Each value becomes a closure over the parameters, so a line inside a loop is read once and
-    evaluated on every pass. Syntax errors raise at compile time, arithmetic errors (division
-    by zero, an undefined parameter) when the value is evaluated; both carry the index into
-    the compact line.
+    Each value becomes a postfix program over the parameters (run by :func:`_run`), so a line
+    inside a loop is read once and evaluated on every pass. Reading and running use explicit
+    stacks, never recursion: any nesting depth and any number of terms is taken. Syntax
+    errors raise at compile time, arithmetic errors (division by zero, an undefined parameter)
+    when the value is evaluated; both carry the index into the compact line.
     """
 
     def __init__(self, c: str):
         self.c = c
 
     def _snippet(self, i: int, j: int | None = None) -> str:
-        """The text from ``i``: to ``j``, or a whole ``[...]`` group, at most 40 characters."""
-        c = self.c
-        if i < len(c) and c[i] == "[":
-            depth = 0
-            for k in range(i, len(c)):
-                depth += (c[k] == "[") - (c[k] == "]")
-                if depth == 0:
-                    j = max(j or 0, k + 1)
-                    break
-        return c[i:(j if j is not None else i + 20)][:40] or "end of line"
+        return _snippet(self.c, i, j)
+
+    def _name(self, i: int) -> tuple[str, int]:
+        """``#<name>`` at ``c[i] == '#'``: ``"<NAME>"`` and the index after the ``>``."""
+        m = _NAME.match(self.c, i + 1)
+        if not m:
+            raise NgcError(i, self._snippet(i), "named parameter without a closing '>'")
+        if not m.group(1):
+            raise NgcError(i, self._snippet(i), "empty parameter name")
+        return "<" + m.group(1) + ">", m.end()
 
     def value(self, i: int) -> tuple[Value, int]:
+        """The value at ``c[i]``: a number, ``#parameter``, ``[expression]``, a function or a
+        signed value; returns it compiled and the index after it.
+
+        Operators follow LinuxCNC's precedence (``**`` 6; ``* / MOD`` 5; ``+ -`` 4;
+        comparisons 3; ``AND OR XOR`` 2), left to right within a level; a sign or a ``#``
+        applies to the value right after it.
+        """
         c = self.c
-        if i >= len(c):
-            raise NgcError(max(i - 1, 0), self._snippet(max(i - 1, 0)), "a value is missing")
-        ch = c[i]
-        nxt = c[i + 1] if i + 1 < len(c) else ""
-        if ch == "[":
-            return self.expression(i)
-        if ch == "#":
-            key, j = self.parameter(i)
-            word = self._snippet(i, j)
-            if isinstance(key, str):
-                def named(P: Parameters, key: str = key) -> float:
-                    try:
-                        return P.get(key)
-                    except KeyError:
-                        raise NgcError(i, word, f"named parameter #{key} is not defined") from None
-                return named, j
-            return (lambda P: P.get(key(P))), j
-        if ch in "+-" and nxt and not (nxt.isdigit() or nxt == "."):
-            inner, j = self.value(i + 1)
-            return ((lambda P: -inner(P)) if ch == "-" else inner), j
-        if ch.isalpha():
-            return self.unary(i)
-        m = _NUMBER.match(c, i)
-        if not m:
-            raise NgcError(i, self._snippet(i), f"a number, #parameter or [expression] was "
-                                                f"expected, got {ch!r}")
-        return _const(_checked(float(m.group()), i, m.group()[:40])), m.end()
+        n = len(c)
+        code: list[tuple] = []
+        stack: list[Any] = []  # _Group, _Prefix and _Operator entries, innermost last
+        groups: list[_Group] = []
+        while True:
+            # -- a value starts at i ---------------------------------------------------------
+            if i >= n:
+                raise NgcError(max(i - 1, 0), self._snippet(max(i - 1, 0)), "a value is missing")
+            ch = c[i]
+            nxt = c[i + 1] if i + 1 < n else ""
+            if ch == "[":
+                g = _Group("[", i, i, c)
+                stack.append(g)
+                groups.append(g)
+                i += 1
+                continue
+            if ch == "#":
+                if nxt == "<":
+                    name, j = self._name(i)
+                    code.append((_NAMED, name, i, self._snippet(i, j)))
+                    i = j
+                else:
+                    stack.append(_Prefix("#", i))
+                    i += 1
+                    continue
+            elif ch in "+-" and nxt and not (nxt.isdigit() or nxt == "."):
+                stack.append(_Prefix(ch, i))
+                i += 1
+                continue
+            elif ch.isalpha():
+                name = next((u for u in _UNARY if c.startswith(u, i)), None)
+                if name is None:
+                    m = re.match(r"[A-Z]+", c[i:i + 40])
+                    word = m.group() if m else ch
+                    raise NgcError(i, word, f"unknown function or word {word!r} in a value")
+                j = i + len(name)
+                if j >= n or c[j] != "[":
+                    raise NgcError(i, name, f"{name} needs its argument in [brackets]")
+                if name != "EXISTS":
+                    g = _Group(name, j, i, c)
+                    stack.append(g)
+                    groups.append(g)
+                    i = j + 1
+                    continue
+                k = j + 1
+                if not (k < n and c[k] == "#"):
+                    raise NgcError(i, name, "EXISTS needs a parameter: EXISTS[#<name>] or EXISTS[#n]")
+                if k + 1 < n and c[k + 1] == "<":
+                    key, k2 = self._name(k)
+                    if not (k2 < n and c[k2] == "]"):
+                        raise NgcError(i, name, "EXISTS needs a parameter: EXISTS[#<name>] or "
+                                                "EXISTS[#n]")
+                    code.append((_EXISTS_NAMED, key))
+                    i = k2 + 1
+                else:  # a numbered parameter exists when its number is in range (LinuxCNC)
+                    g = _Group("EXISTS", j, i, c)
+                    stack.append(g)
+                    groups.append(g)
+                    stack.append(_Prefix("E", k))
+                    i = k + 1
+                    continue
+            else:
+                m = _NUMBER.match(c, i)
+                if not m:
+                    raise NgcError(i, self._snippet(i), f"a number, #parameter or [expression] "
+                                                        f"was expected, got {ch!r}")
+                code.append((_CONST, _checked(float(m.group()), i, m.group()[:40])))
+                i = m.end()
+            # -- a value ends at i: apply its prefixes, then an operator or a "]" ------------
+            while True:
+                while stack and type(stack[-1]) is _Prefix:
+                    self._prefix(stack.pop(), code, i)
+                if not stack:
+                    return _finish(code), i
+                g = groups[-1]
+                if g.kind == "EXISTS":
+                    if not (i < n and c[i] == "]"):
+                        raise NgcError(g.fpos, "EXISTS", "EXISTS needs a parameter: "
+                                                         "EXISTS[#<name>] or EXISTS[#n]")
+                    stack.pop()
+                    groups.pop()
+                    i += 1
+                    continue
+                m = _OPERATOR_RE.match(c, i)
+                if m is not None:
+                    op = m.group()
+                    prec = _PRECEDENCE[op]
+                    while type(stack[-1]) is _Operator and stack[-1].prec >= prec:
+                        top = stack.pop()
+                        code.append((_BINARY, top.op, g.pos, g.word))
+                    stack.append(_Operator(op, prec, g))
+                    i = m.end()
+                    break  # its right operand starts at i
+                if not (i < n and c[i] == "]"):
+                    what = repr(c[i]) if i < n else "end of line"
+                    raise NgcError(g.pos, self._snippet(g.pos, i + 1), f"expression: ']' or an "
+                                                                       f"operator was expected, "
+                                                                       f"got {what}")
+                while type(stack[-1]) is _Operator:
+                    top = stack.pop()
+                    code.append((_BINARY, top.op, g.pos, g.word))
+                stack.pop()
+                groups.pop()
+                i += 1
+                if g.kind == "ATAN":
+                    word = c[g.fpos:i][:40]
+                    if i >= n or c[i] != "/":
+                        raise NgcError(g.fpos, word, "ATAN needs two arguments: ATAN[y]/[x]")
+                    if i + 1 >= n or c[i + 1] != "[":
+                        raise NgcError(i, word, "ATAN's second argument must be in [brackets]")
+                    g2 = _Group("ATAN2", i + 1, g.fpos, c)
+                    stack.append(g2)
+                    groups.append(g2)
+                    i += 2
+                    break  # its second argument starts at i
+                if g.kind == "ATAN2":
+                    code.append((_ATAN,))
+                elif g.kind != "[":
+                    code.append((_FUNCTION, g.kind, g.fpos, c[g.fpos:i][:40]))
+
+    def _prefix(self, p: _Prefix, code: list[tuple], j: int) -> None:
+        """Apply a prefix to the value just compiled (it ends at ``j``)."""
+        if p.kind == "-":
+            code.append((_NEG,))
+        elif p.kind == "E":
+            code.append((_EXISTS_NUM,))
+        elif p.kind == "#":
+            word = self._snippet(p.pos, j)
+            if self.c[p.pos + 1].isdigit():  # a literal number (the last constant): check it once
+                code[-1] = (_PARAM, _parameter_number(code[-1][1], p.pos, word))
+            else:
+                code.append((_PARAM_EXPR, p.pos, word))
 
     def parameter(self, i: int) -> tuple[str | Callable[["Parameters"], int], int]:
         """``#n``, ``#<name>``, ``##n`` or ``#[expr]`` at ``c[i] == '#'``: the name, or a
         function of the parameters that gives the (checked) number."""
         c = self.c
-        j = i + 1
-        if j < len(c) and c[j] == "<":
-            m = _NAME.match(c, j)
-            if not m:
-                raise NgcError(i, self._snippet(i), "named parameter without a closing '>'")
-            name = m.group(1)
-            if not name:
-                raise NgcError(i, self._snippet(i), "empty parameter name")
-            return "<" + name + ">", m.end()
-        number, j = self.value(j)
+        if i + 1 < len(c) and c[i + 1] == "<":
+            return self._name(i)
+        number, j = self.value(i + 1)
         word = self._snippet(i, j)
 
-        def key(P: Parameters) -> int:
-            v = number(P)
-            n = round(v)
-            if abs(v - n) > 1e-4:
-                raise NgcError(i, word, f"parameter number {v:.6g} is not an integer")
-            if not 1 <= n <= MAX_PARAMETER:
-                raise NgcError(i, word, f"parameter number {n} is out of range (1..{MAX_PARAMETER})")
-            return int(n)
-
         if c[i + 1].isdigit():  # a literal number: check it now, once
-            n = key(Parameters())
+            n = _parameter_number(number(Parameters()), i, word)
             return (lambda P: n), j
-        return key, j
-
-    def unary(self, i: int) -> tuple[Value, int]:
-        c = self.c
-        name = next((u for u in _UNARY if c.startswith(u, i)), None)
-        if name is None:
-            m = re.match(r"[A-Z]+", c[i:])
-            word = m.group() if m else c[i]
-            raise NgcError(i, word, f"unknown function or word {word!r} in a value")
-        j = i + len(name)
-        if j >= len(c) or c[j] != "[":
-            raise NgcError(i, name, f"{name} needs its argument in [brackets]")
-        if name == "EXISTS":
-            k = j + 1
-            if k < len(c) and c[k] == "#":
-                if c.startswith("#<", k):
-                    key, k2 = self.parameter(k)
-                    if k2 < len(c) and c[k2] == "]":
-                        return (lambda P: 1.0 if P.exists(key) else 0.0), k2 + 1
-                else:  # a numbered parameter exists when its number is in range (LinuxCNC)
-                    number, k2 = self.value(k + 1)
-                    if k2 < len(c) and c[k2] == "]":
-                        def exists(P: Parameters) -> float:
-                            v = number(P)
-                            n = round(v)
-                            return 1.0 if abs(v - n) <= 1e-4 and 1 <= n <= MAX_PARAMETER else 0.0
-                        return exists, k2 + 1
-            raise NgcError(i, name, "EXISTS needs a parameter: EXISTS[#<name>] or EXISTS[#n]")
-        a, j = self.expression(j)
-        word = self.c[i:j][:40]
-        if name == "ATAN":
-            if j >= len(c) or c[j] != "/":
-                raise NgcError(i, word, "ATAN needs two arguments: ATAN[y]/[x]")
-            if j + 1 >= len(c) or c[j + 1] != "[":
-                raise NgcError(j, word, "ATAN's second argument must be in [brackets]")
-            b, j = self.expression(j + 1)
-            return (lambda P: math.degrees(math.atan2(a(P), b(P)))), j
-        return (lambda P: _checked(_function(name, a(P), i, word), i, word)), j
+        return (lambda P: _parameter_number(number(P), i, word)), j
 
     def expression(self, i: int) -> tuple[Value, int]:
         """``[ ... ]`` at ``c[i] == '['``: the value and the index after the closing bracket."""
-        v, j = self._binary(i + 1, 0, i)
-        if j >= len(self.c) or self.c[j] != "]":
-            what = repr(self.c[j]) if j < len(self.c) else "end of line"
-            raise NgcError(i, self._snippet(i, j + 1), f"expression: ']' or an operator was "
-                                                       f"expected, got {what}")
-        return v, j + 1
-
-    def _binary(self, i: int, min_prec: int, start: int) -> tuple[Value, int]:
-        left, i = self.value(i)
-        while True:
-            m = _OPERATOR_RE.match(self.c, i)
-            if m is None or _PRECEDENCE[m.group()] < min_prec:
-                return left, i
-            op = m.group()
-            right, i = self._binary(m.end(), _PRECEDENCE[op] + 1, start)
-            word = self._snippet(start, i)
-            left = _binary_op(op, left, right, start, word)
+        return self.value(i)
 
 
-def _binary_op(op: str, left: Value, right: Value, pos: int, word: str) -> Value:
-    def f(P: Parameters) -> float:
-        return _checked(_apply(op, left(P), right(P), pos, word), pos, word)
-    return f
+def _parameter_number(v: float, pos: int, word: str) -> int:
+    """The parameter number ``v`` names, checked: an integer in 1..MAX_PARAMETER."""
+    n = round(v)
+    if abs(v - n) > 1e-4:
+        raise NgcError(pos, word, f"parameter number {v:.6g} is not an integer")
+    if not 1 <= n <= MAX_PARAMETER:
+        raise NgcError(pos, word, f"parameter number {n} is out of range (1..{MAX_PARAMETER})")
+    return int(n)
+
+
+def _run(code: tuple[tuple, ...], P: "Parameters") -> float:
+    """Run a compiled value (postfix, on a stack) with the parameters ``P``."""
+    s: list[float] = []
+    push = s.append
+    for ins in code:
+        k = ins[0]
+        if k == _CONST:
+            push(ins[1])
+        elif k == _BINARY:
+            b = s.pop()
+            v = _apply(ins[1], s[-1], b, ins[2], ins[3])
+            if not abs(v) <= MAX_MAGNITUDE:
+                _checked(v, ins[2], ins[3])
+            s[-1] = v
+        elif k == _PARAM:
+            push(P.get(ins[1]))
+        elif k == _NAMED:
+            try:
+                push(P.get(ins[1]))
+            except KeyError:
+                raise NgcError(ins[2], ins[3], f"named parameter #{ins[1]} is not "
+                                               f"defined") from None
+        elif k == _NEG:
+            s[-1] = -s[-1]
+        elif k == _FUNCTION:
+            s[-1] = _checked(_function(ins[1], s[-1], ins[2], ins[3]), ins[2], ins[3])
+        elif k == _PARAM_EXPR:
+            s[-1] = P.get(_parameter_number(s[-1], ins[1], ins[2]))
+        elif k == _ATAN:
+            b = s.pop()
+            s[-1] = math.degrees(math.atan2(s[-1], b))
+        elif k == _EXISTS_NAMED:
+            push(1.0 if P.exists(ins[1]) else 0.0)
+        else:  # _EXISTS_NUM
+            v = s[-1]
+            n = round(v)
+            s[-1] = 1.0 if abs(v - n) <= 1e-4 and 1 <= n <= MAX_PARAMETER else 0.0
+    return s[-1]
+
+
+_READS_PARAMETERS = frozenset((_PARAM, _PARAM_EXPR, _NAMED, _EXISTS_NAMED))
+
+
+def _finish(code: list[tuple]) -> Value:
+    """The compiled value as a function of the parameters (a constant folded once)."""
+    if len(code) == 1:
+        ins = code[0]
+        if ins[0] == _CONST:
+            return _const(ins[1])
+        if ins[0] == _PARAM:
+            n = ins[1]
+            return lambda P: P.get(n)
+    prog = tuple(code)
+    if not any(ins[0] in _READS_PARAMETERS for ins in prog):
+        try:  # no parameters: the value is known now (an error waits for the line to run)
+            return _const(_run(prog, Parameters()))
+        except NgcError:
+            pass
+    return lambda P: _run(prog, P)
 
 
 def _function(name: str, a: float, pos: int, word: str) -> float:

@@ -388,3 +388,49 @@ def test_source_as_path_and_text(tmp_path):
     assert info.value.file == "shown.nc"
     with pytest.raises(TypeError, match="lenient"):
         parse("G0 X1", lenient="yes")
+
+
+# ------------------------------------------------------------------ deep expressions --------
+def test_deeply_nested_and_long_expressions_in_a_block():
+    # beyond Python's recursion limit: the reader's expression evaluator uses explicit stacks
+    p = parse("G0 X" + "[" * 400 + "1" + "]" * 400)
+    assert p.moves["end"].tolist() == [[1.0, 0.0, 0.0]]
+    p = parse("G0 X[" + "+".join(["1"] * 1000) + "]")
+    assert p.moves["end"].tolist() == [[1000.0, 0.0, 0.0]]
+    p = parse("#1=[" + "+".join(["0.5"] * 4000) + "]\nG0 Y[#1 - " + "[" * 3000 + "1"
+              + "]" * 3000 + "]\n")
+    assert p.moves["end"].tolist() == [[0.0, 1999.0, 0.0]]
+
+
+def test_deeply_nested_expression_errors_are_located():
+    with pytest.raises(GCodeError, match="expected, got end of line") as info:
+        parse("G0 X1\nG0 X" + "[" * 3000 + "1" + "]" * 2999 + "\n")
+    assert (info.value.line, info.value.column) == (2, 5)
+    p = parse("G0 X1\nG0 X" + "[" * 3000 + "1/0" + "]" * 3000 + "\nG0 X2\n", lenient=True)
+    assert p.moves["end"][:, 0].tolist() == [1.0, 2.0]
+    assert len(p.warnings) == 1 and p.warnings[0].startswith("<string>:2:")
+    assert "division by zero" in p.warnings[0]
+
+
+_LOCATED = re.compile(r"^.+:\d+:\d+: .+: .+")
+_EXPR_PIECES = ("[", "]", "[", "]", "1", "0", "2.5", "-", "+", "*", "/", "**", " MOD ", " GT ",
+                " OR ", "#", "#1", "#<_a>", "#<b>", "ABS[", "COS[", "ATAN[", "]/[", "EXISTS[",
+                "LN[", ".", "<", ">", "=", "X", "G", "O", "(", ")")
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.sampled_from(_EXPR_PIECES), max_size=50), st.integers(0, 2500),
+       st.integers(0, 2500), st.sampled_from(["G0 X", "#1=", "G1 F100 Y", "O1 if "]),
+       st.booleans())
+def test_random_nested_expressions_raise_only_gcode_errors(pieces, opening, closing, head,
+                                                           lenient):
+    body = "[" * opening + "".join(pieces) + "]" * closing
+    text = f"#<_a>=1\n{head}{body}\n" + ("O1 endif\n" if head.startswith("O1") else "")
+    try:
+        p = parse(text, lenient=lenient)
+    except GCodeError as e:
+        assert not lenient, f"lenient parse raised {e}"
+        assert _LOCATED.match(str(e)), str(e)
+    else:
+        assert np.isfinite(p.moves["end"]).all()
+        assert all(_LOCATED.match(w) for w in p.warnings)

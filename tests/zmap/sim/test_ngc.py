@@ -229,3 +229,68 @@ def test_math_functions_match_libm_in_degrees():
     for a in (-170.0, -33.3, 0.0, 12.5, 89.0, 271.0):
         assert evaluate(f"SIN[{a}]") == pytest.approx(math.sin(math.radians(a)), abs=1e-15)
         assert evaluate(f"COS[{a}]") == pytest.approx(math.cos(math.radians(a)), abs=1e-15)
+
+
+# ------------------------------------------------------------------ depth and length --------
+# Reading and running a value use explicit stacks: nesting and length are limited by memory
+# only, far beyond Python's recursion limit (1,000 frames by default).
+@pytest.mark.parametrize("text,want", [
+    ("[" * 400 + "1" + "]" * 400, 1.0),
+    ("[" * 5000 + "2" + "]" * 5000, 2.0),
+    ("[" + "+".join(["1"] * 1000) + "]", 1000.0),
+    ("[" + " - ".join(["1"] * 5000) + "]", -4998.0),          # left to right: 1 - 1 - ... - 1
+    ("[" + "*".join(["1"] * 3000) + " + 1]", 2.0),
+    ("[" + "1 + " * 2000 + "2 * 3]", 2006.0),                  # * before + at the end of a chain
+    ("ABS[" * 2000 + "-3" + "]" * 2000, 3.0),
+    ("-[" * 3001 + "1" + "]" * 3001, -1.0),                    # 3001 signs: odd, negative
+    ("[" + "[1 + " * 1500 + "1" + "]" * 1500 + "]", 1501.0),   # right-nested sums
+    ("ATAN[" * 500 + "1" + "]/[1]" * 500, 45.0),               # ATAN[ATAN[...]/[1]]/[1]...
+])
+def test_deep_and_long_expressions_evaluate(text, want):
+    got = evaluate(text)
+    if "ATAN" in text:  # ATAN[45]/[1] != 45: compare with the same fold in Python
+        v = 1.0
+        for _ in range(500):
+            v = math.degrees(math.atan2(v, 1.0))
+        want = v
+    assert got == pytest.approx(want, rel=1e-12)
+
+
+def test_deep_parameter_indirection_and_exists():
+    p = Parameters()
+    p.set(1, 1.0)  # #1 = 1: ##...#1 is 1 at any depth
+    assert evaluate("#" * 3000 + "1", p) == 1.0
+    assert evaluate("EXISTS[#" + "[" * 2000 + "1" + "]" * 2000 + "]") == 1.0
+    assert evaluate("EXISTS[#" + "[" * 2000 + "0" + "]" * 2000 + "]") == 0.0
+
+
+@pytest.mark.parametrize("text,key", [
+    ("[" * 3000 + "1" + "]" * 2999, "expected, got end of line"),
+    ("[" + "1+" * 3000 + "]", "expected"),
+    ("[" + "[1/0]+" * 1000 + "1]", "division by zero"),
+    ("EXISTS[#1+1]", "EXISTS needs a parameter"),
+    ("ATAN[1]/2", "second argument"),
+])
+def test_deep_and_long_expression_errors_are_clean(text, key):
+    with pytest.raises(NgcError, match=key):
+        evaluate(text)
+
+
+_PIECES = ("[", "]", "[", "]", "1", "2.5", "-", "+", "*", "/", "**", " MOD ", " EQ ", " AND ",
+           "#", "#1", "#<_a>", "#<b>", "ABS[", "SIN[", "ATAN[", "]/[", "EXISTS[", "SQRT[",
+           ".", "<", ">", "=", "X")
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.sampled_from(_PIECES), max_size=60), st.integers(0, 3000),
+       st.integers(0, 3000))
+def test_random_expressions_raise_only_ngc_errors(pieces, opening, closing):
+    text = "[" * opening + "".join(pieces) + "]" * closing
+    p = Parameters()
+    p.set("<_A>", 1.0)
+    try:
+        v = evaluate(text, p)
+    except NgcError as e:
+        assert 0 <= e.pos <= len(text) and e.word and e.problem
+    else:
+        assert math.isfinite(v)
