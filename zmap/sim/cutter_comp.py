@@ -61,6 +61,14 @@ _NAN = math.nan
 class CompError(ZMapError):
     """A compensation problem (the reader turns it into GCodeError at the current block's line).
 
+    Parameters
+    ----------
+    problem : str
+        What is wrong.
+    line : int, optional
+        Source line of the held-back move the problem is about, when it is not the move being
+        added (an inside corner found when the next move or G40 fixes its end); 0 otherwise.
+
     Examples
     --------
     >>> from zmap.sim.cutter_comp import CutterComp, CompError
@@ -68,9 +76,17 @@ class CompError(ZMapError):
     >>> try:
     ...     cc.straight(1, (1.0, 0.0, 0.0), 100.0, 1, 5)
     ... except CompError as e:
-    ...     print("entry" in str(e))
-    True
+    ...     print("entry" in str(e), e.line)
+    True 0
     """
+
+    def __init__(self, problem: str, line: int = 0):
+        super().__init__(problem)
+        self.problem = problem
+        self.line = int(line)
+
+    def __reduce__(self):
+        return type(self), (self.problem, self.line)
 
 
 class _Move:
@@ -326,6 +342,23 @@ class CutterComp:
         """
         self._move_endpoint_and_flush(self._cur[0], self._cur[1])
         self._dequeue()
+
+    def discard(self) -> list[int]:
+        """Drop the held-back moves unemitted (the reader's lenient mode, when :meth:`flush`
+        fails at the end of a program); return their source lines.
+
+        Examples
+        --------
+        >>> rows = []
+        >>> cc = CutterComp("left", 1.0, (0.0, 0.0, 0.0), rows.append)
+        >>> cc.straight(1, (10.0, 0.0, 0.0), 100.0, 1, 4)
+        >>> cc.discard(), rows, cc.pending
+        ([4], [], 0)
+        """
+        lines = [q.line for q in self._queue]
+        self._queue.clear()
+        self._endpoint_valid = False
+        return lines
 
     # -- LinuxCNC's convert_straight_comp1 / comp2 ----------------------------------------
 
@@ -584,16 +617,17 @@ class CutterComp:
                 if abs(r1 - r2) > 0.01:
                     raise CompError(
                         f"internal error: compensation made an arc with mismatched radii "
-                        f"{r1:.6g} and {r2:.6g} mm")
+                        f"{r1:.6g} and {r2:.6g} mm", q.line)
                 if q.sweep0 and self._endpoint_valid:
                     sweep = _find_turn(ex, ey, q.cx, q.cy, q.turn, x, y)
                     if abs(sweep) > abs(q.sweep0) + 0.001:
                         raise CompError("an arc ending in an inside corner cannot be cut "
-                                        "without gouging (the tool does not fit the corner)")
+                                        "without gouging (the tool does not fit the corner)",
+                                        q.line)
             elif self._endpoint_valid and q.dx * (x - ex) + q.dy * (y - ey) < 0.0:
                 what = "straight traverse" if q.kind == 0 else "straight feed"
                 raise CompError(f"a {what} ending in an inside corner cannot be cut without "
-                                f"gouging (the move would run backwards)")
+                                f"gouging (the move would run backwards)", q.line)
         for q in self._queue:
             q.x, q.y = x, y
         self._dequeue()

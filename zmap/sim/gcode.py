@@ -317,6 +317,7 @@ class _Interp:
         self.call: tuple[int, int] | None = None  # M98 P L of the block just run
         self.max_moves = MAX_MOVES
         self.m99 = False
+        self.stop: tuple[str, int] | None = None  # word and column of the block's M2/M30/M99
         self.params = Parameters()
         self._install_system_parameters()
 
@@ -406,7 +407,12 @@ def parse(
         False (default): the first unsupported or invalid block raises
         :class:`~zmap.errors.GCodeError`. True: such blocks are skipped, the machine state is
         left as before the block, and one ``file:line:column: word: problem`` line per skipped
-        block is appended to :attr:`Program.warnings`.
+        block is appended to :attr:`Program.warnings`. Cutter-compensation errors count as the
+        block's (a corner the tool cannot cut is found by the block after it, or by G40);
+        when compensation is still on as the program ends and its held-back move cannot be
+        cut, the error names the ``M2``/``M30``/``M99`` block or the file's last line, and
+        under ``lenient`` those held-back moves are dropped. Only the limits
+        (``max_blocks``, ``max_moves``) and unreadable files stop a lenient parse.
     tool_table : mapping of int to Cutter, or path of a TOML tool table, optional
         When given, every tool loaded by M6 must be in it (T0, no tool, always may be).
     filename : str, optional
@@ -468,7 +474,7 @@ def parse(
     runner.sub_dirs = _subroutine_dirs(subroutine_path, fname)
     runner.run()
     if st.comp is not None:
-        st.comp.flush()
+        _end_compensation(st, runner.end_at, lenient, warnings)
 
     rows = st.rows
     moves = np.empty(len(rows), dtype=MOVE_DTYPE)
@@ -496,6 +502,35 @@ def parse(
     )
 
 
+
+
+def _end_compensation(st: _Interp, end_at: tuple[str, int, int, str], lenient: bool,
+                      warnings: list[str]) -> None:
+    """Flush cutter compensation left on when the program ends (as LinuxCNC at M2).
+
+    A move held back that cannot be cut raises GCodeError at the block that ended the program
+    (``M2``, ``M30``, ``M99``) or at the last line of the file; under ``lenient`` it becomes a
+    warning and the held-back moves are dropped, as a skipped block's would be.
+    """
+    try:
+        st.comp.flush()
+    except CompError as e:
+        file, line, col, word = end_at
+        err = GCodeError(file, line, col, word,
+                         f"{_comp_problem(e, line)}; cutter compensation was still on when the "
+                         f"program ended (G40 ends it)")
+        if not lenient:
+            raise err from None
+        warnings.append(str(err))
+        st.comp.discard()
+    st.comp = None
+
+
+def _comp_problem(e: CompError, lineno: int) -> str:
+    """A CompError's problem, naming the held-back move's line when it is not ``lineno``."""
+    if e.line and e.line != lineno:
+        return f"{e.problem}; the move is on line {e.line}"
+    return e.problem
 
 
 def _subroutine_dirs(path: Any, fname: str) -> list[Path]:
@@ -646,6 +681,10 @@ class _Runner:
         st.max_moves = max_moves
         self.files: dict[str, _Source | None] = {}
         self.sub_dirs: list[Path] = []
+        #: where the program ended: (file, line, column, word) of its M2/M30/M99, or the end
+        #: of the file
+        self.end_at: tuple[str, int, int, str] = (main.name, max(len(main.lines), 1), 1,
+                                                  "end of file")
 
     def run(self) -> None:
         st = self.st
@@ -659,8 +698,12 @@ class _Runner:
             if i >= len(src.lines):
                 if frames:
                     f = frames[-1]
-                    raise GCodeError(src.name, len(src.lines), 1, f"O{f.label}",
+                    err = GCodeError(src.name, max(len(src.lines), 1), 1, f"O{f.label}",
                                      "subroutine runs off the end of the file")
+                    if not self.lenient:
+                        raise err
+                    self.warnings.append(str(err) + "; the program ends here")
+                self.end_at = (src.name, max(len(src.lines), 1), 1, "end of file")
                 return
             item = src.lines[i]
             if item is None:
@@ -673,6 +716,7 @@ class _Runner:
                                  f"loop?); parse(max_blocks=...) or zmap simulate "
                                  f"--max-blocks allows more")
             st.file = src.name
+            st.stop = None
             was_jumped, jumped = jumped, False
             snap = st.snapshot(src.special[i]) if self.lenient else None
             try:
@@ -695,6 +739,8 @@ class _Runner:
                 st.call, st.m99 = None, False
                 i += 1
                 continue
+            if st.stop is not None:
+                self.end_at = (src.name, i + 1, st.stop[1], st.stop[0])
             i += 1
             if st.call is not None:
                 p, count = st.call
@@ -1148,7 +1194,7 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
         try:
             comp.flush()
         except CompError as e:
-            raise gerr(400, str(e)) from None
+            raise gerr(400, _comp_problem(e, lineno)) from None
         comp = None
     if st.comp is not None and comp is not None:
         if 12 in groups:
@@ -1260,7 +1306,8 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
                         else:
                             comp.arc(motion == 30, cend, ccen, row[8], feed_v, tool, lineno)
                     except CompError as e:
-                        raise _err(file, lineno, gk.get(motion), _gname(motion), str(e)) from None
+                        raise _err(file, lineno, gk.get(motion), _gname(motion),
+                                   _comp_problem(e, lineno)) from None
                 new_pos = end
         else:
             if comp is not None:
@@ -1305,6 +1352,9 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
         st.cycle_il = math.nan
     st.call = call
     st.m99 = mgroups.get(10) == 99
+    stop = mgroups.get(4) if ended else 99 if st.m99 else None
+    if stop is not None:
+        st.stop = (f"M{stop}", next(k for code, k in mcodes if code == stop))
     if ended:
         st.ended = True
 

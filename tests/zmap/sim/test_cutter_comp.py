@@ -744,3 +744,66 @@ def test_offset_of_convex_polygon_stays_at_tool_radius(poly_r, outside):
                 assert _contour_dist(q, poly) == pytest.approx(r, rel=1e-9, abs=1e-9)
     # outside: one arc per corner; inside: none (corners are intersections)
     assert n_arcs == (n if outside else 0)
+
+
+# ------------------------------------------------------------------ through the reader -----
+# LinuxCNC's ccomp-gouging case as a program: a 0.25 mm tool (tool table) under G41 cannot
+# follow a 0.1 mm step back (line 8 would make the held-back move of line 7 run backwards).
+_GOUGE = ("T1 M6\nG0 X0 Y0 Z1\nG1 Z-1 F100\nG41 D1\nG1 X1 Y0\nG1 X2\nG1 Y0.1\nG1 X1\nG1 Y5\n"
+          "G40\nG0 Z5\nM2\n")
+
+
+def _table():
+    from zmap.sim.tools import Cutter
+
+    return {1: Cutter("flat", 0.25)}
+
+
+def test_reader_comp_error_strict_names_file_line_column():
+    from zmap.errors import GCodeError
+    from zmap.sim.gcode import parse
+
+    with pytest.raises(GCodeError, match="gouging") as info:
+        parse(_GOUGE, tool_table=_table(), filename="step.ngc")
+    e = info.value
+    assert (e.file, e.line, e.column, e.word) == ("step.ngc", 8, 1, "G1")
+    assert str(e).startswith("step.ngc:8:1: G1: a straight feed ending in an inside corner")
+    assert "the move is on line 7" in str(e)
+
+
+def test_reader_comp_error_lenient_skips_the_block_and_warns():
+    from zmap.sim.gcode import parse
+
+    p = parse(_GOUGE, tool_table=_table(), lenient=True, filename="step.ngc")
+    assert len(p.warnings) == 1
+    assert re.match(r"^step\.ngc:8:1: G1: a straight feed ending in an inside corner .*gouging",
+                    p.warnings[0])
+    assert 8 not in p.moves["line"].tolist()  # the block is skipped, the rest is read
+    assert p.moves["line"].tolist()[-1] == 11 and p.moves["end"][-1, 2] == 5.0
+
+
+def _arc_gouge(tail: str) -> str:
+    # test_arc_in_concave_corner_that_would_gouge_raises as a program: the gouge is found
+    # only when the held-back arc (line 5) is flushed
+    ex, ey = _on_circle(1, 3, (0, 0), -30)
+    return f"G0 X-5 Y0 Z1\nF100\nG41.1 D2\nG1 X0 Y0\nG2 X{ex:.9f} Y{ey:.9f} I1 J3\n{tail}"
+
+
+@pytest.mark.parametrize("tail,line,col,word", [
+    ("G40\nG0 X-5\n", 6, 1, "G40"),        # flushed by G40
+    ("G0 Z5 M2\n", 6, 7, "M2"),            # flushed at the program's end (M2)
+    ("", 5, 1, "end of file"),             # the file ends with compensation on
+])
+def test_reader_comp_error_at_flush_strict_and_lenient(tail, line, col, word):
+    from zmap.errors import GCodeError
+    from zmap.sim.gcode import parse
+
+    text = _arc_gouge(tail)
+    with pytest.raises(GCodeError, match="arc ending in an inside corner") as info:
+        parse(text)
+    e = info.value
+    assert (e.line, e.column, e.word) == (line, col, word)
+    p = parse(text, lenient=True)  # never aborts, every problem a located warning
+    assert p.warnings and all(re.match(r"^<string>:\d+:\d+: .+: .+", w) for w in p.warnings)
+    assert p.warnings[0].startswith(f"<string>:{line}:{col}: {word}: ")
+    assert 5 not in p.moves["line"].tolist()  # the arc that cannot be cut is dropped

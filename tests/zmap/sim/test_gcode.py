@@ -434,3 +434,14 @@ def test_random_nested_expressions_raise_only_gcode_errors(pieces, opening, clos
     else:
         assert np.isfinite(p.moves["end"]).all()
         assert all(_LOCATED.match(w) for w in p.warnings)
+
+
+def test_lenient_subprogram_running_off_the_end_warns_and_ends():
+    # the M99 block is skipped: O7 runs off the end of the file
+    text = "G0 X1\nM98 P7\nG0 X3\nM2\nO7\nG0 X2\nM99 X\n"
+    with pytest.raises(GCodeError, match="no number"):
+        parse(text)
+    p = parse(text, lenient=True)
+    assert p.moves["line"].tolist() == [1, 6]
+    assert p.warnings[0].startswith("<string>:7:5: X: ")
+    assert p.warnings[1].startswith("<string>:7:1: O7: subroutine runs off the end of the file")
