@@ -5,13 +5,22 @@ feed, clockwise or counter-clockwise arc) in a numpy structured array, in millim
 the program's units, with the active work offset (G54-G59.3, G10 L2) applied. Canned drilling
 cycles (G81, G82, G83 with G98/G99, L repeats, G91 incremental semantics) are expanded into
 the rapids and feeds LinuxCNC's interpreter would command. Positions are tool-tip positions:
-G43 H is recorded but does not move the tip.
+G43 H shifts the tip's programmed Z by the tool's length offset, as LinuxCNC does.
 
-Anything the reader does not support (cutter compensation, O-word subroutines, ``#``
-parameters, expressions, unknown G or M codes, extra axes) raises
-:class:`zmap.errors.GCodeError` naming ``file:line:column`` and the word; with
-``lenient=True`` such blocks are skipped and counted in :attr:`Program.warnings`. See
-``docs/gcode.md`` for the full list.
+Supported beyond that: arcs in G17/G18/G19 (I J K or R, helical, P turns), G20/G21, G90/G91,
+G90.1/G91.1, G53, rigid tapping (G33.1), tools (T, M6, G43 H, G49, a tool table), cutter
+radius compensation (G40, G41/G42 D, G41.1/G42.1 D) in G17 and G18 as LinuxCNC's
+interpreter performs it (:mod:`zmap.sim.cutter_comp`), LinuxCNC's ``#`` parameters,
+``[...]`` expressions and O-word control flow (``sub``/``call``/``return``, ``while``,
+``do``, ``repeat``, ``if``/``elseif``/``else``, subroutines from ``<name>.ngc`` files; see
+:mod:`zmap.sim.ngc`) and Fanuc-style ``M98 P L`` / ``O<n>`` ... ``M99`` subprograms.
+
+Refused, with :class:`zmap.errors.GCodeError` naming ``file:line:column`` and the word:
+cutter compensation in G19, G5.x splines, G7/G8, G28/G30, G33, G38.x, G43.1/G43.2, G73,
+G74, G76, G84-G89, G92, G93, G95, G10 other than L2, any other unknown G or M code, axes
+other than X Y Z, and invalid blocks (compensation errors such as an inside corner the tool
+cannot cut included). With ``lenient=True`` such blocks are skipped and counted in
+:attr:`Program.warnings`. See ``docs/gcode.md`` for the full list.
 
 Examples
 --------
