@@ -54,6 +54,7 @@ __all__ = [
     "Program",
     "ToolChange",
     "MOVE_DTYPE",
+    "KNOWN_ALL",
     "RAPID",
     "LINEAR",
     "ARC_CW",
@@ -68,7 +69,8 @@ MM_PER_INCH = 25.4
 
 #: One row per motion. ``sweep`` (added to the contract) is the signed angle of an arc in
 #: radians about the plane normal (positive counter-clockwise, full turns included), NaN for
-#: lines.
+#: lines. ``known`` is the bitmask of the axes (X=1, Y=2, Z=4) whose position the program had
+#: set before the move starts (7: the start is fully known; see :class:`Program`).
 MOVE_DTYPE = np.dtype(
     [
         ("kind", np.int8),
@@ -81,8 +83,13 @@ MOVE_DTYPE = np.dtype(
         ("tool", np.int32),
         ("line", np.int32),
         ("sweep", np.float64),
+        ("known", np.int8),
     ]
 )
+
+#: bits of MOVE_DTYPE's ``known``
+KNOWN_X, KNOWN_Y, KNOWN_Z = 1, 2, 4
+KNOWN_ALL = 7
 
 # (first, second, normal) axis indices of each plane, right-handed as LinuxCNC: G18 is (Z, X).
 _PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
@@ -198,6 +205,14 @@ class Program:
     moves : ndarray of MOVE_DTYPE, shape (n_moves,)
         One row per motion, in mm, tool-tip positions after work offsets; ``start`` of a row
         is the ``end`` of the previous one (the first starts at the origin).
+        ``known`` (int8) is the bitmask of the axes, X=1, Y=2, Z=4, whose position the
+        program had set before the row starts: by an axis word of a move (absolute, or
+        incremental), ``G53``, or a canned cycle (its R plane sets the drilling axis). Until
+        a program has set all three (``known == 7``) the tool's position is unknown, and the
+        reader stands in 0 for each unknown coordinate of ``start`` and ``end``. A simulator
+        should start the tool clear above the stock and not cut with moves whose start is not
+        fully known (see ``docs/gcode.md``, "Tool start"). Rows with ``known == 7`` are
+        exactly the moves from a known start.
     units_input : {"mm", "inch"}
         Length units the program was written in (its first G20/G21; "mm" if none).
     warnings : list of str
@@ -327,6 +342,8 @@ class _Interp:
         self.max_moves = MAX_MOVES
         self.m99 = False
         self.stop: tuple[str, int] | None = None  # word and column of the block's M2/M30/M99
+        self.known = 0  # axes set by the program so far (X=1, Y=2, Z=4)
+        self.known_from: list[int | None] = [None, None, None]  # first row that starts known
         self.params = Parameters()
         self._install_system_parameters()
 
@@ -355,6 +372,15 @@ class _Interp:
             for i in range(3):
                 sysp[5221 + 20 * cs + i] = (lambda cs=cs, i=i: self.offsets[cs][i] / self.scale())
 
+    def mark(self, axes: int, at: int) -> None:
+        """The program set ``axes`` (bitmask): rows from index ``at`` on start with them known."""
+        new = axes & ~self.known
+        if new:
+            for i in range(3):
+                if new >> i & 1:
+                    self.known_from[i] = at
+            self.known |= new
+
     def scale(self) -> float:
         """mm per program unit."""
         return MM_PER_INCH if self.units == "inch" else 1.0
@@ -373,6 +399,7 @@ class _Interp:
         for k in ("rows", "tool_changes", "tool_table", "params"):
             del state[k]
         state["pos"] = list(self.pos)
+        state["known_from"] = list(self.known_from)
         state["offsets"] = [list(o) for o in self.offsets]
         if self.comp is not None:
             state["comp"] = copy.deepcopy(self.comp)
@@ -500,6 +527,10 @@ def parse(
         moves["tool"] = arr[:, 10]
         moves["line"] = arr[:, 11]
         moves["sweep"] = arr[:, 12]
+    moves["known"] = 0
+    for i in range(3):
+        if st.known_from[i] is not None:
+            moves["known"][st.known_from[i]:] |= 1 << i
     return Program(
         moves=moves,
         units_input=st.units_seen or "mm",
@@ -1006,6 +1037,8 @@ def _fast_block(st: _Interp, toks: list, lineno: int) -> bool:
         st.rows.append((0, x, y, z, nan, nan, nan, st.plane, 0, nan, st.tool, lineno, nan))
     else:
         st.rows.append((1, x, y, z, nan, nan, nan, st.plane, 0, feed, st.tool, lineno, nan))
+    if st.known != KNOWN_ALL:
+        st.mark(("X" in vals) | ("Y" in vals) << 1 | ("Z" in vals) << 2, len(st.rows))
     st.pos = [x, y, z]
     st.feed = feed
     st.motion = motion
@@ -1261,6 +1294,7 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
     pos[2] -= tlo - st.tlo  # G43/G49 move the tip's programmed Z, not the machine
     rows = st.rows
     n_before = len(rows)
+    set_axes, set_at = 0, 0  # axes the block's move sets, and the first row that starts so
     new_pos = pos
     g53 = nonmodal == 530
     if g53:
@@ -1301,8 +1335,10 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
                     row = _arc(st, words, widx, gk, s, lineno, motion, plane, pos, end, f, off,
                                ijk_absolute, units, feed_v, tool, used)
                     _check_envelope(row[4:7], words, werr, gerr, motion)
+                set_axes = ("X" in words) | ("Y" in words) << 1 | ("Z" in words) << 2
                 if comp is None:
                     rows.append(row)
+                    set_at = len(rows)
                 else:
                     if g53:
                         raise gerr(530, "G53 with cutter compensation on")
@@ -1317,6 +1353,7 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
                     except CompError as e:
                         raise _err(file, lineno, gk.get(motion), _gname(motion),
                                    _comp_problem(e, lineno)) from None
+                    set_at = len(rows) + comp.pending  # the rows held back come first
                 new_pos = end
         else:
             if comp is not None:
@@ -1338,6 +1375,7 @@ def _block(st: _Interp, toks: list, s: str, lineno: int) -> None:
 
     # commit
     st.pos = list(new_pos)
+    st.mark(set_axes, set_at)
     st.units = units
     if 6 in groups and st.units_seen is None:
         st.units_seen = units
@@ -1574,8 +1612,13 @@ def _cycle(st, words, widx, gk, s, lineno, motion, plane, pos, f, off, absolute,
         rows.append((1, x, y, z, math.nan, math.nan, math.nan, pl, 0, feed, tool, lineno,
                      math.nan))
 
+    # axes the cycle sets (MOVE_DTYPE's known): the drilling axis once at R, the plane axes
+    # given by words once over the hole
+    bit_n = 1 << n
+    bits_ab = (_XYZ[a] in words) << a | (_XYZ[b] in words) << b
     if old_cc < r:
         trav(pos[a], pos[b], r)
+        st.mark(bit_n, len(rows))
         old_cc = r
     clear_cc = r if retract_r else old_cc
     cur = list(pos)
@@ -1584,8 +1627,10 @@ def _cycle(st, words, widx, gk, s, lineno, motion, plane, pos, f, off, absolute,
         aa += aa_inc
         bb += bb_inc
         trav(aa, bb, old_cc)
+        st.mark(bits_ab | (bit_n if old_cc == r else 0), len(rows))
         if old_cc != r:
             trav(aa, bb, r)
+            st.mark(bit_n, len(rows))
         if motion in (810, 820):
             fd(aa, bb, cc)
             trav(aa, bb, clear_cc)

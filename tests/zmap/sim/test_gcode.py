@@ -445,3 +445,26 @@ def test_lenient_subprogram_running_off_the_end_warns_and_ends():
     assert p.moves["line"].tolist() == [1, 6]
     assert p.warnings[0].startswith("<string>:7:5: X: ")
     assert p.warnings[1].startswith("<string>:7:1: O7: subroutine runs off the end of the file")
+
+
+# ------------------------------------------------------------------ known start --------------
+@pytest.mark.parametrize("text,known", [
+    ("G0 Z30\nG0 X1 Y2\nG1 Z-1 F100\n", [0, 4, 7]),
+    ("G1 X1 F10\nG2 Y2 J1\nG0 Z[1]\nG0 X0\n", [0, 1, 3, 7]),              # full interpreter
+    ("G91 G0 X1\nG0 Y1 Z1\nG0 X1\n", [0, 1, 7]),                          # incremental words
+    ("G53 G0 X0 Y0 Z0\nG0 X1\n", [0, 7]),
+    ("G81 X1 Y2 Z-1 R1 F100\nG0 X0\n", [0, 4, 7, 7, 7]),                  # rise to R, then over
+    ("G0 Z5\nG81 X1 Z-1 R1 F100\nY3\nG80 G0 X0\n", [0, 4, 5, 5, 5, 5, 7, 7, 7, 7]),
+    ("G0 X1 Y1\nG41.1 D2\nG1 X5 F10\nG1 Z-1\nG1 Y5\nG40\nG0 X0\n", [0, 3, 3, 7, 7]),
+])
+def test_known_axes_before_each_move(text, known):
+    p = parse(text)
+    assert p.moves["known"].tolist() == known
+    assert p.moves.dtype == MOVE_DTYPE and MOVE_DTYPE["known"] == np.int8
+
+
+def test_known_is_kept_across_skipped_blocks():
+    # the skipped block's axis is not set; the block after sets it
+    p = parse("G0 X1 Y1\nG0 Z1 Q1\nG0 Z2\nG0 X3\n", lenient=True)
+    assert p.moves["known"].tolist() == [0, 3, 7]
+    assert len(p.warnings) == 1
