@@ -198,13 +198,18 @@ def collisions(run: Any, program: Any, *, holders: Any = None, kinds: Any = COLL
         if holders is None:
             raise ToolError("holder collisions need holder data (stickout, diameter, length) for tools "
                             + ", ".join(f"T{n}" for n in run.tool_numbers)
-                            + ": give [holder.N] tables (zmap compare --holders FILE), or leave out the holder check")
+                            + ": give a holder table with [holder.N] tables (zmap compare --holders FILE; "
+                            "holders= here), or skip the holder check (zmap compare --no-holder; "
+                            "kinds= without 'holder' here)")
         if isinstance(holders, (str, os.PathLike)):
             holders = load_holders(holders)
         missing = [n for n in run.tool_numbers if n not in holders]
         if missing:
             raise ToolError("no holder data for tool " + ", ".join(f"T{n}" for n in missing)
-                            + f" (holder tables have {', '.join(f'T{n}' for n in sorted(holders)) or 'none'})")
+                            + f" (holder tables have {', '.join(f'T{n}' for n in sorted(holders)) or 'none'}): "
+                            + "add " + ", ".join(f"[holder.{n}]" for n in missing)
+                            + " to the holder table (zmap compare --holders FILE), or skip the holder "
+                            "check (zmap compare --no-holder)")
     st = run.structure
     n = run.n_stages
     found: list[Collision] = []

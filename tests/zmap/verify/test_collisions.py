@@ -54,6 +54,18 @@ def test_shank_above_cutting_length(tmp_path):
     assert collisions(run, p, kinds=["shank"]) == []
 
 
+def test_missing_holder_data_names_the_ways_out(tmp_path):
+    prog = "G21 G90\nG0 X10 Y10 Z2\nG1 Z-3 F50\nG1 X12\nG0 Z5\n"
+    p, run = _run(tmp_path, prog, Cutter("ball", 2, length=10.0))
+    with pytest.raises(ToolError, match="holder data") as info:
+        collisions(run, p)
+    assert "--no-holder" in str(info.value) and "--holders FILE" in str(info.value)
+    with pytest.raises(ToolError, match=r"no holder data for tool T0") as info:
+        collisions(run, p, holders={7: Holder(20, 10)})
+    assert "[holder.0]" in str(info.value) and "--no-holder" in str(info.value)
+    assert "--holders FILE" in str(info.value)
+
+
 def test_holder_needs_data_and_finds_contact(tmp_path):
     prog = "G21 G90\nG0 X10 Y10 Z2\nG1 Z-3 F50\nG1 X12\nG0 Z5\n"
     p, run = _run(tmp_path, prog, Cutter("ball", 2, length=10.0))

@@ -56,6 +56,11 @@ def test_compare_missing_holder_data(files, capsys):
     rc = main(["compare", str(d / "r.zsim"), str(d / "d.zmap.npz"), "--program", str(prog), "--collisions"])
     err = capsys.readouterr().err
     assert rc == 1 and "holder data" in err
+    # the message names both ways out: a holder table, or no holder check
+    last = err.strip().splitlines()[-1]
+    assert "--no-holder" in last and "--holders FILE" in last
+    assert main(["compare", str(d / "r.zsim"), str(d / "d.zmap.npz"), "--program", str(prog),
+                 "--collisions", "--no-holder"]) == 0
 
 
 def test_compare_missing_design(files, capsys):
