@@ -17,7 +17,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._tool_kernels import _envelope
+from . import _sweep_kernels as _sk
 
 __all__: list[str] = []
 
@@ -193,43 +193,66 @@ def cut_ray(r, a, b, stage, near, far, cnt,
             stats[ST_TT_N] = k + 1
 
 
+@njit(cache=True, inline="always")
+def f32_up(v):
+    """``v`` rounded up to float32: a cut's bottom never lies below the exact sweep."""
+    f = np.float32(v)
+    if np.float64(f) < v:
+        f = np.float32(np.nextafter(f, np.float32(np.inf)))
+    return f
+
+
 @njit(cache=True)
-def cut_positions(xyz, tslot, tcode, trad, tcr, tlen, start, stop, stage0,
-                  x0, y0, pitch, nx, ny, near, far, cnt,
-                  rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
-                  rec_t, tt_z, tt_s, tt_ray,
-                  rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats):
-    """Cut positions ``start..stop-1``; position p makes stage ``stage0 + p + 1``.
+def cut_pieces(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tlen, start, stop, stage0,
+               x0, y0, pitch, nx, ny, near, far, cnt,
+               rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+               rec_t, tt_z, tt_s, tt_ray,
+               rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats):
+    """Cut stages ``start..stop-1``; stage p's piece makes stage ``stage0 + p + 1``.
 
-    Returns the index of the first position not (fully) cut: ``stop`` when done, else the
-    position to resume from after growing what ``stats[ST_STATUS]`` names.
+    Returns the index of the first stage not (fully) cut: ``stop`` when done, else the
+    stage to resume from after growing what ``stats[ST_STATUS]`` names.
     """
-    return cut_positions_window(xyz, tslot, tcode, trad, tcr, tlen, _NO_GPOS, start, stop, stage0,
-                                x0, y0, pitch, 0, 0, nx, ny, near, far, cnt,
-                                rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
-                                rec_t, tt_z, tt_s, tt_ray,
-                                rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats)
+    return cut_pieces_window(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tlen, _NO_GPOS,
+                             start, stop, stage0, x0, y0, pitch, 0, 0, nx, ny, near, far, cnt,
+                             rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+                             rec_t, tt_z, tt_s, tt_ray,
+                             rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats)
 
 
-#: ``gpos`` of a run over the whole program: position p is stage ``stage0 + p + 1``
+#: ``gpos`` of a run over the whole program: stage p is stage ``stage0 + p + 1``
 _NO_GPOS = np.zeros(0, dtype=np.int64)
 
 
-@njit(cache=True, nogil=True)  # nogil: a Dask worker sends results while a tile cuts
-def cut_positions_window(xyz, tslot, tcode, trad, tcr, tlen, gpos, start, stop, stage0,
-                         x0, y0, pitch, gi0, gj0, tnx, tny, near, far, cnt,
-                         rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
-                         rec_t, tt_z, tt_s, tt_ray,
-                         rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats):
-    """Cut positions ``start..stop-1`` into the rays ``gi0 <= i < gi0 + tnx``, ``gj0 <= j < gj0 + tny``.
+@njit(cache=True, inline="always")
+def piece_window(pkind, pgeo, mv, t0, t1, R, x0, y0, pitch, gi0, gj0, tnx, tny):
+    """Rays ``i0..i1, j0..j1`` (clipped to the window) one piece's tool can reach."""
+    xmin, xmax, ymin, ymax = _sk.piece_box(pkind[mv], pgeo[mv], t0, t1)
+    i0 = max(int(math.ceil((xmin - R - x0) / pitch)) - 1, gi0)
+    i1 = min(int(math.floor((xmax + R - x0) / pitch)) + 1, gi0 + tnx - 1)
+    j0 = max(int(math.ceil((ymin - R - y0) / pitch)) - 1, gj0)
+    j1 = min(int(math.floor((ymax + R - y0) / pitch)) + 1, gj0 + tny - 1)
+    return i0, i1, j0, j1
 
-    Ray (i, j) sits at ``(x0 + i*pitch, y0 + j*pitch)`` with the whole stock's global index
-    and is stored at ``(i - gi0) * tny + (j - gj0)`` of ``near``/``far``/``cnt``: the whole
-    stock is the window ``(0, 0, nx, ny)``, a tile of it (:mod:`zmap.sim.tiled`) any other.
-    Position p makes stage ``stage0 + gpos[p] + 1`` (``stage0 + p + 1`` when ``gpos`` is
-    empty), so a tile's positions keep their stages in the whole program. Returns the index
-    of the first position not (fully) cut: ``stop`` when done, else the position to resume
-    from after growing what ``stats[ST_STATUS]`` names.
+
+@njit(cache=True, nogil=True)  # nogil: a Dask worker sends results while a tile cuts
+def cut_pieces_window(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tlen, gpos, start, stop,
+                      stage0, x0, y0, pitch, gi0, gj0, tnx, tny, near, far, cnt,
+                      rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+                      rec_t, tt_z, tt_s, tt_ray,
+                      rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats):
+    """Cut stages ``start..stop-1`` into the rays ``gi0 <= i < gi0 + tnx``, ``gj0 <= j < gj0 + tny``.
+
+    Stage p cuts the exact sweep of the tool ``tslot[p]`` over its piece: parameters
+    ``st0[p]..st1[p]`` of row ``smove[p]`` of the piece table ``pkind``/``pgeo``
+    (:mod:`zmap.sim._sweep_kernels`). Ray (i, j) sits at ``(x0 + i*pitch, y0 + j*pitch)``
+    with the whole stock's global index and is stored at ``(i - gi0) * tny + (j - gj0)`` of
+    ``near``/``far``/``cnt``: the whole stock is the window ``(0, 0, nx, ny)``, a tile of it
+    (:mod:`zmap.sim.tiled`) any other. Stage p is stage ``stage0 + gpos[p] + 1``
+    (``stage0 + p + 1`` when ``gpos`` is empty), so a tile's stages keep their numbers in
+    the whole program. Returns the index of the first stage not (fully) cut: ``stop`` when
+    done, else the stage to resume from after growing what ``stats[ST_STATUS]`` names.
+    Cutting is idempotent, so a stage cut again after a resume changes nothing twice.
     """
     K = near.shape[1]
     zt_cap = zt_z.shape[0]
@@ -237,57 +260,53 @@ def cut_positions_window(xyz, tslot, tcode, trad, tcr, tlen, gpos, start, stop, 
     tr_cap = tr_z.shape[0]
     has_gpos = gpos.shape[0] > 0
     stats[ST_STATUS] = OK
+    buf = np.empty((_sk.MAX_INTERVALS, 2), dtype=np.float64)
+    ts = np.empty(_sk.MAX_INTERVALS, dtype=np.float64)
     for p in range(start, stop):
+        mv = smove[p]
+        kind = pkind[mv]
+        if kind == _sk.NO_CUT:
+            continue
         s = tslot[p]
         code = tcode[s]
         R = trad[s]
         rc = tcr[s]
         L = tlen[s]
-        tx = xyz[p, 0]
-        ty = xyz[p, 1]
-        tz = xyz[p, 2]
+        g = pgeo[mv]
+        t0 = st0[p]
+        t1 = st1[p]
         stage = np.int32(stage0 + (gpos[p] if has_gpos else p) + 1)
-        i0 = int(math.ceil((tx - R - x0) / pitch)) - 1
-        i1 = int(math.floor((tx + R - x0) / pitch)) + 1
-        j0 = int(math.ceil((ty - R - y0) / pitch)) - 1
-        j1 = int(math.floor((ty + R - y0) / pitch)) + 1
-        if i0 < gi0:
-            i0 = gi0
-        if j0 < gj0:
-            j0 = gj0
-        if i1 > gi0 + tnx - 1:
-            i1 = gi0 + tnx - 1
-        if j1 > gj0 + tny - 1:
-            j1 = gj0 + tny - 1
-        b = np.float32(tz + L)
-        R2 = R * R
+        i0, i1, j0, j1 = piece_window(pkind, pgeo, mv, t0, t1, R, x0, y0, pitch, gi0, gj0, tnx, tny)
         for i in range(i0, i1 + 1):
-            dxr = x0 + i * pitch - tx
+            qx = x0 + i * pitch
             for j in range(j0, j1 + 1):
-                dyr = y0 + j * pitch - ty
-                d2 = dxr * dxr + dyr * dyr
-                if d2 > R2:
-                    continue
                 r = (i - gi0) * tny + (j - gj0)
                 c = cnt[r]
                 if c == 0:
                     continue
-                a = np.float32(tz + _envelope(code, R, rc, math.sqrt(d2)))
-                # quick reject: conditions (1)/(2) against the whole ray
-                if far[r, c - 1] <= a or near[r, 0] >= b:
-                    continue
-                if c >= K:
-                    stats[ST_STATUS] = NEED_SLOTS
-                    return p
-                if (rec_z and stats[ST_ZT_N] + 2 > zt_cap) or (rec_t and stats[ST_TT_N] + 1 > tt_cap) \
-                        or (rec_tr and stats[ST_TR_N] + 2 > tr_cap):
-                    stats[ST_STATUS] = NEED_POOL
-                    return p
-                stats[ST_RAYS_CUT] += 1
-                cut_ray(r, a, b, stage, near, far, cnt,
-                        rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
-                        rec_t, tt_z, tt_s, tt_ray,
-                        rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats)
+                qy = y0 + j * pitch
+                n = _sk.piece_rays(kind, code, R, rc, L, g, t0, t1, qx, qy, buf, ts)
+                for m in range(n):
+                    a = f32_up(buf[m, 0])
+                    b = np.float32(buf[m, 1])
+                    c = cnt[r]
+                    if c == 0:
+                        break
+                    # quick reject: conditions (1)/(2) against the whole ray
+                    if far[r, c - 1] <= a or near[r, 0] >= b:
+                        continue
+                    if c >= K:
+                        stats[ST_STATUS] = NEED_SLOTS
+                        return p
+                    if (rec_z and stats[ST_ZT_N] + 2 > zt_cap) or (rec_t and stats[ST_TT_N] + 1 > tt_cap) \
+                            or (rec_tr and stats[ST_TR_N] + 2 > tr_cap):
+                        stats[ST_STATUS] = NEED_POOL
+                        return p
+                    stats[ST_RAYS_CUT] += 1
+                    cut_ray(r, a, b, stage, near, far, cnt,
+                            rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+                            rec_t, tt_z, tt_s, tt_ray,
+                            rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats)
     return stop
 
 
@@ -300,30 +319,30 @@ def top_of(near, far, cnt, out):
 
 
 @njit(cache=True)
-def heightfield_cut(xyz, tslot, tcode, trad, tcr, x0, y0, dx, dy, z):
-    """Height-field cut: ``z[i, j] = min(z[i, j], tip_z + envelope(d))`` (NaN stays NaN)."""
+def heightfield_cut(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tlen, x0, y0, dx, dy, z):
+    """Height-field cut: ``z[i, j] = min(z[i, j], bottom of the sweep)`` (NaN stays NaN)."""
     nx = z.shape[0]
     ny = z.shape[1]
-    for p in range(xyz.shape[0]):
+    buf = np.empty((_sk.MAX_INTERVALS, 2), dtype=np.float64)
+    ts = np.empty(_sk.MAX_INTERVALS, dtype=np.float64)
+    for p in range(smove.shape[0]):
+        mv = smove[p]
+        kind = pkind[mv]
+        if kind == _sk.NO_CUT:
+            continue
         s = tslot[p]
         code = tcode[s]
         R = trad[s]
         rc = tcr[s]
-        tx = xyz[p, 0]
-        ty = xyz[p, 1]
-        tz = xyz[p, 2]
-        i0 = max(int(math.ceil((tx - R - x0) / dx)) - 1, 0)
-        i1 = min(int(math.floor((tx + R - x0) / dx)) + 1, nx - 1)
-        j0 = max(int(math.ceil((ty - R - y0) / dy)) - 1, 0)
-        j1 = min(int(math.floor((ty + R - y0) / dy)) + 1, ny - 1)
-        R2 = R * R
+        g = pgeo[mv]
+        xmin, xmax, ymin, ymax = _sk.piece_box(kind, g, st0[p], st1[p])
+        i0 = max(int(math.ceil((xmin - R - x0) / dx)) - 1, 0)
+        i1 = min(int(math.floor((xmax + R - x0) / dx)) + 1, nx - 1)
+        j0 = max(int(math.ceil((ymin - R - y0) / dy)) - 1, 0)
+        j1 = min(int(math.floor((ymax + R - y0) / dy)) + 1, ny - 1)
         for i in range(i0, i1 + 1):
-            ddx = x0 + i * dx - tx
+            qx = x0 + i * dx
             for j in range(j0, j1 + 1):
-                ddy = y0 + j * dy - ty
-                d2 = ddx * ddx + ddy * ddy
-                if d2 > R2:
-                    continue
-                h = tz + _envelope(code, R, rc, math.sqrt(d2))
-                if h < z[i, j]:
-                    z[i, j] = h
+                n = _sk.piece_rays(kind, code, R, rc, tlen[s], g, st0[p], st1[p], qx, y0 + j * dy, buf, ts)
+                if n > 0 and buf[0, 0] < z[i, j]:
+                    z[i, j] = buf[0, 0]

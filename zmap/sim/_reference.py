@@ -2,7 +2,7 @@
 
 Each ray is a Python list of ``[near, far]`` pairs; the cutter at each position is
 subtracted by plain interval arithmetic. The cutter shape comes from the same formula as
-the kernels (``_envelope.py_func``) and heights are rounded to float32 the same way, so the
+the kernels (``_envelope.py_func``) and bottoms are rounded up to float32 as there, so the
 results must agree with the fast kernels exactly.
 """
 
@@ -18,6 +18,14 @@ from ._tool_kernels import _envelope
 __all__ = ["dexel_lists", "cut_reference", "heightfield_reference"]
 
 _env = _envelope.py_func
+
+
+def _f32_up(v: float) -> float:
+    """``v`` rounded up to float32 (the kernels keep the stock above the exact cut)."""
+    f = np.float32(v)
+    if float(f) < v:
+        f = np.nextafter(f, np.float32(np.inf))
+    return float(f)
 
 
 def dexel_lists(wp: Any) -> list[list[tuple[float, float]]]:
@@ -67,7 +75,7 @@ def cut_reference(lists: list, x0: float, y0: float, pitch: float, nx: int, ny: 
                 d2 = dx * dx + dy * dy
                 if d2 > R * R:
                     continue
-                a = float(np.float32(tz + _env(int(c.code), R, float(c.corner_radius), math.sqrt(d2))))
+                a = _f32_up(tz + _env(int(c.code), R, float(c.corner_radius), math.sqrt(d2)))
                 r = i * ny + j
                 rays[r] = _subtract(rays[r], a, b)
     return rays

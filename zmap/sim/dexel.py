@@ -8,7 +8,9 @@ when a cut splits a dexel in a full ray. Heights are float32 (about 4 µm at 33 
 reconstruction from a history is bit-identical to a fresh simulation.
 
 The cutter occupies, along a ray at distance ``d`` from its axis, ``[tip_z + envelope(d),
-tip_z + length]``; subtracting it covers the four cases of paper 001 (create by split,
+tip_z + length]``; a stage removes the union of that over its path piece, the exact swept
+volume (:mod:`zmap.sim._sweep_kernels`), rounded up to float32 so that the stock never lies
+below the exact sweep. Subtracting it covers the four cases of paper 001 (create by split,
 delete, shorten the front, shorten the back).
 """
 
@@ -292,6 +294,29 @@ class DexelWorkpiece:
         run_cut(self, xyz, slot, cutter_table(cutters), 0, len(xyz), 0, None)
         return self
 
+    def sweep(self, pieces: Any, cutter: Any, tool_slot: np.ndarray | None = None) -> "DexelWorkpiece":
+        """Subtract the exact sweep of the cutter along path pieces, in order (no history).
+
+        Parameters
+        ----------
+        pieces : zmap.sim.pieces.Pieces
+            The pieces of a program's positions (:meth:`zmap.sim.pieces.Pieces.of`).
+        cutter : Cutter or sequence of Cutter
+            One cutter, or a list indexed by ``tool_slot``.
+        tool_slot : ndarray of shape (n,), int, optional
+            Index into ``cutter`` per stage (default all 0).
+
+        Returns
+        -------
+        DexelWorkpiece
+            ``self``, cut in place.
+        """
+        cutters = list(cutter) if isinstance(cutter, (list, tuple)) else [cutter]
+        slot = (np.zeros(len(pieces), dtype=np.int32) if tool_slot is None
+                else np.ascontiguousarray(tool_slot, dtype=np.int32))
+        run_cut(self, pieces, slot, cutter_table(cutters), 0, len(pieces), 0, None)
+        return self
+
 
 def _widen(a: np.ndarray, slots: int) -> np.ndarray:
     out = np.zeros((a.shape[0], slots), dtype=a.dtype)
@@ -309,13 +334,19 @@ def _check_pitch(pitch: Any) -> float:
     return p
 
 
-def run_cut(wp: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, table: tuple, start: int, stop: int,
+def run_cut(wp: DexelWorkpiece, pieces: Any, slot: np.ndarray, table: tuple, start: int, stop: int,
             stage0: int, recorder: Any, progress: Any = None, chunk: int = 4096) -> np.ndarray:
-    """Cut positions ``start..stop-1`` into ``wp``, growing slots and pools as needed.
+    """Cut stages ``start..stop-1`` into ``wp``, growing slots and pools as needed.
 
-    ``recorder`` is a :class:`zmap.sim.history.Recorder` (or None for no history); it owns
-    the per-dexel ids and the pools. Returns the kernel's stats vector of this call.
+    ``pieces`` is a :class:`zmap.sim.pieces.Pieces` (each stage cuts the exact sweep of its
+    path piece) or an (n, 3) array of tool tips (each stamps the tool there). ``recorder``
+    is a :class:`zmap.sim.history.Recorder` (or None for no history); it owns the per-dexel
+    ids and the pools. Returns the kernel's stats vector of this call.
     """
+    from .pieces import Pieces
+
+    if not isinstance(pieces, Pieces):
+        pieces = Pieces.stamps(pieces)
     code, radius, corner, length = table
     stats = np.zeros(_k.N_STATS, dtype=np.int64)
     if recorder is not None:
@@ -323,10 +354,12 @@ def run_cut(wp: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, table: tuple,
     p = start
     while p < stop:
         q = min(stop, p + chunk)
+        mv, t0, t1 = pieces.params(p, q)
+        sl = np.ascontiguousarray(slot[p:q])
         args = recorder.kernel_args() if recorder is not None else _empty_history_args()
-        nxt = _k.cut_positions(xyz, slot, code, radius, corner, length, p, q, stage0,
-                               wp.x0, wp.y0, wp.pitch, wp.nx, wp.ny, wp.near, wp.far, wp.cnt,
-                               *args, stats)
+        nxt = p + _k.cut_pieces(pieces.kind, pieces.geo, mv, t0, t1, sl, code, radius, corner, length,
+                                0, q - p, stage0 + p, wp.x0, wp.y0, wp.pitch, wp.nx, wp.ny, wp.near,
+                                wp.far, wp.cnt, *args, stats)
         status = stats[_k.ST_STATUS]
         if status == _k.NEED_SLOTS:
             wp.grow(2 * wp.slots)

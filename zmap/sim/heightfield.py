@@ -1,7 +1,9 @@
 """Height-field workpiece: the top surface only, on a ZMap grid.
 
 Each grid point keeps one height; a cutter at tip ``(tx, ty, tz)`` lowers it to
-``min(z, tz + envelope(d))`` where ``d`` is the point's distance to the cutter axis. It
+``min(z, tz + envelope(d))`` where ``d`` is the point's distance to the cutter axis, and a
+cutter moving along a path piece to the lowest such height over the piece (the exact sweep,
+:mod:`zmap.sim._sweep_kernels`). It
 cannot show undercuts or holes through the stock (use :mod:`zmap.sim.dexel` for that), but it
 is the cheapest workpiece and works directly on any :class:`zmap.ZMap`.
 """
@@ -70,17 +72,30 @@ class HeightField:
     def nbytes(self) -> int:
         return int(self.z.nbytes)
 
-    def cut(self, xyz: np.ndarray, cutter: Any, tool_slot: np.ndarray | None = None) -> "HeightField":
-        """Lower the surface under each cutter position, in place; returns self."""
+    def cut(self, xyz: Any, cutter: Any, tool_slot: np.ndarray | None = None) -> "HeightField":
+        """Lower the surface under the cutter, in place; returns self.
+
+        ``xyz`` is an (n, 3) array of tool tips (each stamps the tool there) or a
+        :class:`zmap.sim.pieces.Pieces` (each stage lowers the surface to the exact sweep of
+        its path piece).
+        """
+        from .pieces import Pieces
+
         cutters = list(cutter) if isinstance(cutter, (list, tuple)) else [cutter]
-        xyz = np.ascontiguousarray(xyz, dtype=np.float64).reshape(-1, 3)
-        if not np.isfinite(xyz).all():
-            raise ValueError("tool positions hold NaN or infinite coordinates")
-        slot = (np.zeros(len(xyz), dtype=np.int32) if tool_slot is None
+        if isinstance(xyz, Pieces):
+            pieces = xyz
+        else:
+            xyz = np.ascontiguousarray(xyz, dtype=np.float64).reshape(-1, 3)
+            if not np.isfinite(xyz).all():
+                raise ValueError("tool positions hold NaN or infinite coordinates")
+            pieces = Pieces.stamps(xyz)
+        slot = (np.zeros(len(pieces), dtype=np.int32) if tool_slot is None
                 else np.ascontiguousarray(tool_slot, dtype=np.int32))
-        code, radius, corner, _ = cutter_table(cutters)
+        code, radius, corner, length = cutter_table(cutters)
         zm = self.template
-        _k.heightfield_cut(xyz, slot, code, radius, corner, zm.x0, zm.y0, zm.dx, zm.dy, self.z)
+        mv, t0, t1 = pieces.params(0, len(pieces))
+        _k.heightfield_cut(pieces.kind, pieces.geo, mv, t0, t1, slot, code, radius, corner, length,
+                           zm.x0, zm.y0, zm.dx, zm.dy, self.z)
         return self
 
     def to_zmap(self) -> ZMap:

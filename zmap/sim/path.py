@@ -1,17 +1,20 @@
-"""Moves to elementary tool positions: arcs to chords, then 3D DDA at the ray pitch.
+"""Moves to the stages of a simulation: tool positions at most one pitch apart on the path.
 
 Paper 001 §2: a toolpath is discretised into elementary positions of the tool by a 3D DDA
 (Bresenham's algorithm generalised to 3D); the successive positions are the stages of the
-simulation. Here every straight segment (a G0/G1 move, or one chord of an arc) from ``a`` to
-``b`` is cut into ``n = ceil(max(|b - a|) / pitch)`` equal steps: the dominant axis advances
-by at most ``pitch`` per position (one ray spacing), the other axes follow proportionally,
-and the last position is ``b`` exactly. Arcs (any plane, helical, multi-turn) are first split
-into chords whose sagitta is at most ``chord_tol``.
+simulation. Here every straight move from ``a`` to ``b`` is cut into ``n = ceil(max(|b -
+a|) / pitch)`` equal steps: the dominant axis advances by at most ``pitch`` per position
+(one ray spacing), the other axes follow proportionally, and the last position is ``b``
+exactly. Arcs and helices (any plane, multi-turn) are cut into equal steps of their angle,
+no longer than ``pitch`` along the path; their positions lie on the arc (no chords).
+``stages="move"`` makes one position per move instead.
 
-Stage ``k`` (1..n) is the state after the cutter has been at ``xyz[k-1]``; stage 0 is the
-stock.
+Stage ``k`` (1..n) is the state after the cutter has moved to ``xyz[k-1]``: it cuts the
+exact swept volume of the tool along the path from the previous position
+(:mod:`zmap.sim.pieces`), so the pitch sets only how far apart the stages are, never the
+depth of the cut. Stage 0 is the stock.
 
-Limits: the number of positions is estimated in float64 (chords, then DDA steps) before
+Limits: the number of positions is computed in float64 before
 anything is allocated; above ``max_positions`` (default :data:`DEFAULT_MAX_POSITIONS`,
 2e8) or above 80 % of the memory available, :class:`zmap.errors.PathTooLargeError` names
 the line of the move that crosses the limit. Non-finite coordinates and negative tool
@@ -37,7 +40,7 @@ import numpy as np
 from ..errors import PathError, PathTooLargeError
 from .gcode import ARC_CW, MOVE_DTYPE, Program, _PLANE_AXES, arc_sweep
 
-__all__ = ["DEFAULT_MAX_POSITIONS", "Positions", "arc_chords", "dda", "positions"]
+__all__ = ["DEFAULT_MAX_POSITIONS", "STAGE_MODES", "Positions", "arc_chords", "dda", "positions"]
 
 #: Default cap on the tool positions of one program: 2e8 positions (7.2 GB of
 #: :class:`Positions`, about 24 GB of working memory while they are made) is a 1 m x 1 m
@@ -66,12 +69,16 @@ class Positions:
         Index into ``program.moves`` of the move each position belongs to.
     line : ndarray of shape (n,), int32
         1-based source line of that move (0 when unknown).
+    moves : ndarray of MOVE_DTYPE, optional
+        The program's moves (the geometry each stage sweeps); None for bare positions,
+        which are stamps of the tool.
     """
 
     xyz: np.ndarray
     tool: np.ndarray
     move: np.ndarray
     line: np.ndarray
+    moves: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.xyz = np.ascontiguousarray(self.xyz, dtype=np.float64)
@@ -329,6 +336,32 @@ class _ArcGeometry:
                             - self.s[np.arange(self.s.shape[0]), self.inn])
             return np.maximum(np.floor(np.maximum(plane, normal) / pitch), 0.0)
 
+    def path_steps(self, pitch: float) -> np.ndarray:
+        """Positions of each arc at most ``pitch`` apart along the path (float64, >= 1): its
+        length is at most ``hypot(|sweep| * max radius, normal travel) + |radius change|``."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            normal = np.abs(self.e[np.arange(self.e.shape[0]), self.inn]
+                            - self.s[np.arange(self.s.shape[0]), self.inn])
+            length = (np.hypot(np.abs(self.sw) * np.maximum(self.r0, self.r1), normal)
+                      + np.abs(self.r1 - self.r0))
+            n = np.ceil(length / pitch - 1e-9)
+        n = np.where(np.isnan(n), np.inf, n)
+        return np.maximum(n, 1.0)
+
+    def points(self, row: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Points of arcs ``row`` at parameters ``t`` (angle, radius and normal coordinate
+        linear in t), as the sweep kernels evaluate them."""
+        ia, ib, inn = self.ia[row], self.ib[row], self.inn[row]
+        c, s, e = self.c[row], self.s[row], self.e[row]
+        ang = np.arctan2(self.db0, self.da0)[row] + self.sw[row] * t
+        rad = self.r0[row] + (self.r1 - self.r0)[row] * t
+        rr = np.arange(row.shape[0])
+        v = np.empty((row.shape[0], 3), dtype=np.float64)
+        v[rr, ia] = c[rr, ia] + rad * np.cos(ang)
+        v[rr, ib] = c[rr, ib] + rad * np.sin(ang)
+        v[rr, inn] = s[rr, inn] + (e[rr, inn] - s[rr, inn]) * t
+        return v
+
     def vertices(self) -> tuple[np.ndarray, np.ndarray]:
         with np.errstate(over="ignore", invalid="ignore"):  # extreme finite input: refused later
             return self._vertices()
@@ -354,10 +387,13 @@ class _ArcGeometry:
         return v, arc
 
 
+STAGE_MODES = ("pitch", "move")
+
+
 def positions(program_or_moves: Program | np.ndarray, *, pitch: float = 0.26,
               chord_tol: float | None = None,
-              max_positions: float = DEFAULT_MAX_POSITIONS) -> Positions:
-    """Elementary tool-tip positions of a program by 3D DDA at the ray pitch.
+              max_positions: float = DEFAULT_MAX_POSITIONS, stages: str = "pitch") -> Positions:
+    """Tool-tip positions (the stages) of a program: at most one pitch apart along the path.
 
     Parameters
     ----------
@@ -365,20 +401,28 @@ def positions(program_or_moves: Program | np.ndarray, *, pitch: float = 0.26,
         Parsed program (see :func:`zmap.sim.gcode.parse`) or its ``moves``. A moves array
         without a ``sweep`` field has its arc angles computed as LinuxCNC does.
     pitch : float, keyword-only
-        Largest step of the dominant axis between consecutive positions, mm (default 0.26,
-        the paper's ray spacing). Rapids (G0) are discretised too: a rapid into material is a
+        Largest step between consecutive positions, mm (default 0.26, the paper's ray
+        spacing): on a line the dominant axis advances by at most ``pitch`` (3D DDA); on an
+        arc or helix the positions split its angle into equal steps no longer than
+        ``pitch`` along the path. Rapids (G0) are cut too: a rapid into material is a
         collision to show.
     chord_tol : float, optional, keyword-only
-        Largest chord error of arcs in mm (default ``pitch / 10``).
+        Kept for compatibility and checked (> 0), but no longer used: arcs are cut as arcs.
     max_positions : float, keyword-only
         Most positions allowed (default :data:`DEFAULT_MAX_POSITIONS`, 2e8; ``math.inf``
-        leaves only the memory check). The count is estimated in float64 from the moves
-        before chords or positions are allocated.
+        leaves only the memory check). The count is computed in float64 from the moves
+        before positions are allocated.
+    stages : {"pitch", "move"}, keyword-only
+        ``"pitch"`` (default): positions at most one pitch apart, as above; ``"move"``: one
+        position per move, at its end (a coarser, smaller history). Either way each stage
+        cuts the exact sweep of the path since the previous one
+        (:class:`zmap.sim.pieces.Pieces`).
 
     Returns
     -------
     Positions
         In move order; each move ends exactly on its end point; zero-length moves add none.
+        ``moves`` holds the program's moves, the geometry of the pieces.
 
     Raises
     ------
@@ -395,13 +439,18 @@ def positions(program_or_moves: Program | np.ndarray, *, pitch: float = 0.26,
     >>> p = positions(parse("G0 X0 Y0 Z1\\nG1 X0.5 F100\\n"), pitch=0.26)
     >>> len(p), p.move.tolist()[-2:], p.xyz[-1].tolist()
     (6, [1, 1], [0.5, 0.0, 1.0])
+    >>> len(positions(parse("G0 X0 Y0 Z1\\nG1 X0.5 F100\\n"), stages="move"))
+    2
     >>> positions(parse("G0 X1000\\n", filename="fine.nc"), pitch=1e-6)
     Traceback (most recent call last):
     ...
     zmap.errors.PathTooLargeError: fine.nc:1: this program needs 1e+09 tool positions ...
     """
     pitch = _check_positive("pitch", pitch)
-    tol = pitch / 10.0 if chord_tol is None else _check_positive("chord_tol", chord_tol)
+    if chord_tol is not None:
+        _check_positive("chord_tol", chord_tol)
+    if stages not in STAGE_MODES:
+        raise ValueError(f"stages={stages!r} is not one of 'pitch', 'move'")
     cap = _check_cap(max_positions)
     is_program = isinstance(program_or_moves, Program)
     moves = program_or_moves.moves if is_program else program_or_moves
@@ -412,7 +461,6 @@ def positions(program_or_moves: Program | np.ndarray, *, pitch: float = 0.26,
     if missing:
         raise ValueError(f"moves lack fields {sorted(missing)}; expected {MOVE_DTYPE.names}")
     fname = program_or_moves.filename if is_program else "<moves>"
-    n_moves = moves.shape[0]
     kind = moves["kind"]
     start = np.ascontiguousarray(moves["start"], dtype=np.float64)
     end = np.ascontiguousarray(moves["end"], dtype=np.float64)
@@ -426,41 +474,42 @@ def positions(program_or_moves: Program | np.ndarray, *, pitch: float = 0.26,
             sweep = _sweeps(moves[arcs])
     _check_moves(moves, start, end, arcs, sweep, fname)
 
-    # Estimate before allocating: lines exactly, arcs by lower bounds of their positions; all
-    # in float64 so that no count can overflow. Then arcs exactly once their chords exist.
+    # Count before allocating, in float64 so that no count can overflow.
     d, steps = _dda_steps(start, end, pitch)
     geom = None
     if arcs.size:
         geom = _ArcGeometry(start[arcs], end[arcs], np.asarray(moves["center"][arcs], np.float64),
-                            np.asarray(moves["plane"][arcs]), sweep, tol)
-        # chords (each makes a position unless of zero length), the arc's length, and its
-        # chord's straight-line count less one (the steps of chords sum to at least that)
-        steps[arcs] = np.maximum(np.maximum(geom.nseg, geom.min_steps(pitch)), steps[arcs] - 1)
+                            np.asarray(moves["plane"][arcs]), sweep, pitch / 10.0)
+        steps[arcs] = geom.path_steps(pitch)
+    if stages == "move":
+        steps = np.minimum(steps, 1.0)
     _check_size(steps, moves["line"], fname, pitch, cap)
-    if geom is None:
-        xyz, mv = _dda_fill(start, end, d, steps.astype(np.int64))
-        return Positions(xyz=xyz, tool=moves["tool"][mv], move=mv, line=moves["line"][mv])
+    xyz, mv = _dda_fill(start, end, d, steps.astype(np.int64))
+    if geom is not None:
+        on_arc = is_arc[mv]
+        arc_row = np.searchsorted(arcs, mv[on_arc])
+        n_arc = steps[arcs].astype(np.int64)
+        first = np.cumsum(steps.astype(np.int64)) - steps.astype(np.int64)
+        j = np.arange(xyz.shape[0], dtype=np.int64)[on_arc] - first[mv[on_arc]] + 1
+        xyz[on_arc] = geom.points(arc_row, j / n_arc[arc_row])
+        last = j == n_arc[arc_row]
+        rows = np.flatnonzero(on_arc)[last]
+        xyz[rows] = end[mv[rows]]
+    # a copy with the sweeps: the pieces' geometry
+    mv_moves = moves if "sweep" in moves.dtype.names or not arcs.size else _with_sweep(moves, arcs, sweep)
+    return Positions(xyz=xyz, tool=moves["tool"][mv], move=mv, line=moves["line"][mv], moves=mv_moves)
 
-    # Segment end points: one per line move, one per chord of an arc, in move order.
-    verts, arc_of = geom.vertices()
-    lines = np.flatnonzero(~is_arc)
-    seg_end = np.concatenate([end[lines], verts])
-    seg_move = np.concatenate([lines, arcs[arc_of]])
-    order = np.argsort(seg_move, kind="stable")
-    seg_end, seg_move = seg_end[order], seg_move[order]
-    # Each segment starts at the previous vertex of the same move, or at the move's start.
-    seg_start = np.empty_like(seg_end)
-    if seg_end.shape[0]:
-        seg_start[1:] = seg_end[:-1]
-        new_move = np.ones(seg_end.shape[0], dtype=bool)
-        new_move[1:] = seg_move[1:] != seg_move[:-1]
-        seg_start[new_move] = start[seg_move[new_move]]
-    d, seg_steps = _dda_steps(seg_start, seg_end, pitch)
-    _check_size(np.bincount(seg_move, weights=seg_steps, minlength=n_moves), moves["line"],
-                fname, pitch, cap)
-    xyz, seg = _dda_fill(seg_start, seg_end, d, seg_steps.astype(np.int64))
-    mv = seg_move[seg]
-    return Positions(xyz=xyz, tool=moves["tool"][mv], move=mv, line=moves["line"][mv])
+
+def _with_sweep(moves: np.ndarray, arcs: np.ndarray, sweep: np.ndarray) -> np.ndarray:
+    out = np.zeros(moves.shape[0], dtype=MOVE_DTYPE)
+    for name in moves.dtype.names:
+        if name in MOVE_DTYPE.names:
+            out[name] = moves[name]
+    out["sweep"] = np.nan
+    out["sweep"][arcs] = sweep
+    if "known" in MOVE_DTYPE.names and "known" not in moves.dtype.names:
+        out["known"] = 7
+    return out
 
 
 def _check_cap(v: Any) -> float:

@@ -1,7 +1,9 @@
 """A simulation run: cut a program into a dexel stock, keep a history, go to any stage.
 
 Stages are integers from 0 (the stock) to ``n_stages`` (the end); stage k is the workpiece
-after the cutter has been at the first k elementary positions. The history chosen per run
+after the cutter has moved along the program up to the k-th tool position: each stage cuts
+the exact swept volume of the tool along the path since the previous one
+(:mod:`zmap.sim.pieces`), so stage k is the exact sweep of the program up to there. The history chosen per run
 decides how a stage is read back:
 
 ========  =============================  =================================================
@@ -33,6 +35,7 @@ from .._npzfile import read_npz, write_npz
 from ..grid import ZMap
 from .dexel import DexelWorkpiece, cutter_table, run_cut
 from .history import HISTORY_KINDS, IntervalTreap, Recorder, TimeTrace, ZTrace
+from .pieces import Pieces
 
 __all__ = ["simulate", "Run", "HISTORY_KINDS", "FORMAT_NAME", "FORMAT_VERSION", "parse_stage",
            "stock_from_spec"]
@@ -52,30 +55,34 @@ class _Path:
     line: np.ndarray
     n_moves: int | None
     name: str = "the program"
+    pieces: Pieces | None = None
 
 
-def _as_positions(obj: Any, pitch: float) -> _Path:
+def _as_positions(obj: Any, pitch: float, stages: str = "pitch") -> _Path:
     """Tool-tip positions from a program file/text, a Program, a Positions or an (n, 3) array."""
     if isinstance(obj, (str, os.PathLike)):
         from .gcode import parse
 
         obj = parse(obj)
     name = "the program"
-    if hasattr(obj, "moves"):  # a Program
+    if hasattr(obj, "moves") and not hasattr(obj, "xyz"):  # a Program
         from .path import positions
 
         name = str(getattr(obj, "filename", name))
         name = "the program" if name == "<string>" else name
         n_moves = int(len(obj.moves))
-        obj = positions(obj, pitch=pitch)
+        obj = positions(obj, pitch=pitch, stages=stages)
     else:
         n_moves = None
+    pieces = None
     if hasattr(obj, "xyz"):  # a Positions
         xyz = np.ascontiguousarray(obj.xyz, dtype=np.float64)
         tool = np.ascontiguousarray(getattr(obj, "tool", np.zeros(len(xyz))), dtype=np.int32)
         line = np.ascontiguousarray(getattr(obj, "line", np.zeros(len(xyz))), dtype=np.int32)
         if n_moves is None and getattr(obj, "move", None) is not None and len(obj.move):
             n_moves = int(np.unique(obj.move).size)
+        if getattr(obj, "moves", None) is not None:
+            pieces = Pieces.of(obj)
     else:
         xyz = np.asarray(obj, dtype=np.float64)
         if xyz.ndim != 2 or xyz.shape[1] != 3:
@@ -85,7 +92,7 @@ def _as_positions(obj: Any, pitch: float) -> _Path:
         line = np.zeros(len(xyz), dtype=np.int32)
     if not np.isfinite(xyz).all():
         raise ValueError("tool positions hold NaN or infinite coordinates")
-    return _Path(xyz, tool, line, n_moves, name)
+    return _Path(xyz, tool, line, n_moves, name, Pieces.stamps(xyz) if pieces is None else pieces)
 
 
 def _as_cutter(tool: Any) -> Any:
@@ -245,6 +252,8 @@ class Run:
     cutters : list of Cutter
     structure : ZTrace, TimeTrace, IntervalTreap or None
     summary : dict
+    pieces : Pieces
+        The path piece each stage sweeps (stamps for bare positions).
         moves, positions, rays, dexels_created, dexels_deleted, dexels_final, history,
         history_bytes, history_elements, history_bytes_per_element, seconds.
     """
@@ -259,6 +268,11 @@ class Run:
     cutters: list
     structure: Any
     summary: dict = field(default_factory=dict)
+    pieces: Any = None
+
+    def __post_init__(self) -> None:
+        if self.pieces is None:
+            self.pieces = Pieces.stamps(self.xyz)
 
     @property
     def n_stages(self) -> int:
@@ -274,7 +288,7 @@ class Run:
 
     def _replay(self, k: int) -> DexelWorkpiece:
         wp = self.stock.copy()
-        run_cut(wp, self.xyz, self.slot, cutter_table(self.cutters), 0, k, 0, None)
+        run_cut(wp, self.pieces, self.slot, cutter_table(self.cutters), 0, k, 0, None)
         return wp
 
     def reconstruct(self, stage: Any) -> DexelWorkpiece:
@@ -363,6 +377,7 @@ class Run:
     def save(self, path: str | os.PathLike) -> Path:
         """Write the run to a ``.zsim`` file (npz + JSON header), atomically."""
         arrays: dict[str, np.ndarray] = {"xyz": self.xyz, "slot": self.slot, "line": self.line}
+        arrays.update({"p_" + k: v for k, v in self.pieces.to_arrays().items()})
         for name, wp in (("stock", self.stock), ("final", self.final)):
             off, near, far = wp.to_csr()
             arrays[f"{name}_off"], arrays[f"{name}_near"], arrays[f"{name}_far"] = off, near, far
@@ -423,15 +438,17 @@ class Run:
                 off = structure.node_off if kind == "treap" else structure.offsets
                 if off.shape != (nx * ny + 1,):
                     raise ValueError(f"history offsets have shape {off.shape}, expected ({nx * ny + 1},)")
+        pieces = (Pieces.from_arrays({k[2:]: v for k, v in a.items() if k.startswith("p_")}, len(xyz))
+                  if "p_kind" in a else Pieces.stamps(xyz))
         return cls(kind, wps["stock"], wps["final"], xyz, slot, np.ascontiguousarray(a["line"], dtype=np.int32),
-                   numbers, cutters, structure, dict(header.get("summary", {})))
+                   numbers, cutters, structure, dict(header.get("summary", {})), pieces)
 
 
 # ---- the front door ------------------------------------------------------------------------
 
 def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: Any = None,
              pitch: float = 0.26, history: str = "treap", progress: bool = False, tiles: int | None = None,
-             scheduler: str | None = None, workers: int = 2) -> Run:
+             scheduler: str | None = None, workers: int = 2, stages: str = "pitch") -> Run:
     """Cut an NC program into a stock with the extended z-buffer, recording a history.
 
     Parameters
@@ -445,7 +462,11 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
         Cutter for positions whose tool number is not in ``tools`` (e.g. ``"ball:3"``).
     tools : dict of int to Cutter, or path of a TOML tool table, optional
     pitch : float
-        Ray pitch and DDA step in mm (paper: 0.26).
+        Ray pitch and stage spacing in mm (paper: 0.26). It sets the lateral resolution
+        (the rays) and how far apart the stages are, never the depth: each stage of a
+        program cuts the exact sweep of the tool along the path since the previous stage,
+        exact at each ray to 1e-6 mm (heights are stored as float32, rounded up).
+        Bare positions (an (n, 3) array) are stamps of the tool, with nothing between.
     history : {'none', 'ztrace', 'ttrace', 'treap'}
     progress : bool
         Show a tqdm progress bar.
@@ -458,6 +479,9 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
         ``workers`` worker processes.
     workers : int
         With ``tiles`` and no scheduler: worker processes of the LocalCluster.
+    stages : {'pitch', 'move'}
+        ``'pitch'`` (default): a stage every pitch along the path; ``'move'``: one stage per
+        G-code move (a coarser, smaller history; the same final stock).
 
     Returns
     -------
@@ -467,7 +491,9 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
     -----
     UserWarning
         When there is no tool position to cut (a program without moves): the run is the
-        stock alone.
+        stock alone. When a move made before the program set all three axes (the tool's
+        start is unknown: it is taken to be above the stock, and such moves do not cut)
+        ends where the tool would cut the stock: the warning names its file and line.
 
     Examples
     --------
@@ -481,7 +507,9 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
     if not (isinstance(pitch, (int, float, np.floating)) and math.isfinite(pitch) and pitch > 0):
         got = float(pitch) if isinstance(pitch, (int, float, np.floating)) else pitch
         raise ValueError(f"pitch must be a positive number of mm, got {got!r}")
-    path = _as_positions(program_or_positions, float(pitch))
+    if stages not in ("pitch", "move"):
+        raise ValueError(f"stages={stages!r} is not one of 'pitch', 'move'")
+    path = _as_positions(program_or_positions, float(pitch), stages)
     if len(path.xyz) == 0:
         what = "no moves" if not path.n_moves else f"{path.n_moves} moves but no tool positions"
         warnings.warn(f"{path.name} has {what}; the run is the stock alone", UserWarning, stacklevel=2)
@@ -492,6 +520,7 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
     else:
         extent = None
     wp = stock_from_spec(stock, pitch=float(pitch), xy_extent=extent)
+    _warn_unknown_start(path, wp, cutters, slot)
     stock0 = wp.copy()
     created0, deleted0 = wp.created, wp.deleted
     n = len(path.xyz)
@@ -503,8 +532,8 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
 
         if tiles is None:
             raise ValueError("scheduler needs tiles (the tiled simulation)")
-        wp, structure, tiled = simulate_tiles(wp, path.xyz, slot, cutters, history, tiles=tiles, scheduler=scheduler,
-                                              workers=workers, progress=progress)
+        wp, structure, tiled = simulate_tiles(wp, path.pieces, slot, cutters, history, tiles=tiles,
+                                              scheduler=scheduler, workers=workers, progress=progress)
     else:
         if history != "none":
             struct = _STRUCTS[history].start(wp, capacity=_capacity_guess(history, wp, n))
@@ -515,7 +544,7 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
 
             bar = tqdm(total=n, unit="pos", desc="simulate", leave=False)
         try:
-            run_cut(wp, path.xyz, slot, cutter_table(cutters), 0, n, 0, rec, progress=bar)
+            run_cut(wp, path.pieces, slot, cutter_table(cutters), 0, n, 0, rec, progress=bar)
         finally:
             if bar is not None:
                 bar.close()
@@ -541,7 +570,39 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
     }
     if tiled is not None:
         summary["tiles"] = tiled
-    return Run(history, stock0, wp, path.xyz, slot, path.line, numbers, cutters, structure, summary)
+    return Run(history, stock0, wp, path.xyz, slot, path.line, numbers, cutters, structure, summary,
+               path.pieces)
+
+
+def _warn_unknown_start(path: _Path, wp: DexelWorkpiece, cutters: list, slot: np.ndarray) -> None:
+    """Warn, naming its line, of the first move from an unknown start whose end would cut."""
+    from . import _sweep_kernels as _sk
+
+    pieces = path.pieces
+    if pieces is None or len(pieces) == 0:
+        return
+    blind = pieces.kind[pieces.move] == _sk.NO_CUT
+    if not blind.any():
+        return
+    top = wp.top()
+    for k in np.flatnonzero(blind):
+        if k + 1 < len(pieces) and pieces.move[k + 1] == pieces.move[k]:
+            continue  # not the move's end
+        c = cutters[int(slot[k])]
+        x, y, z = path.xyz[k]
+        i = np.clip(np.round((np.array([x - c.radius, x + c.radius]) - wp.x0) / wp.pitch).astype(int), 0, wp.nx - 1)
+        j = np.clip(np.round((np.array([y - c.radius, y + c.radius]) - wp.y0) / wp.pitch).astype(int), 0, wp.ny - 1)
+        I, J = np.meshgrid(np.arange(i[0], i[1] + 1), np.arange(j[0], j[1] + 1), indexing="ij")
+        bottom = z + c.lower_envelope(np.hypot(wp.x0 + I * wp.pitch - x, wp.y0 + J * wp.pitch - y))
+        with np.errstate(invalid="ignore"):
+            hit = top[I, J] > bottom
+        if hit.any():
+            where = f"{path.name}:{int(path.line[k])}"
+            warnings.warn(f"{where}: this move ends {float(np.nanmax(top[I, J] - bottom)):.3g} mm inside the "
+                          "stock, but the tool's start is still unknown (the program has not set X, Y and Z "
+                          "yet), so it is taken to come from above and nothing is cut up to here; set all "
+                          "three axes (e.g. G0 Z.. then G0 X.. Y..) before cutting", UserWarning, stacklevel=3)
+            return
 
 
 def _capacity_guess(history: str, wp: DexelWorkpiece, n: int) -> int:

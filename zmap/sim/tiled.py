@@ -1,7 +1,7 @@
 """Tiled NC simulation on Dask: the stock split in xy tiles of rays, one task per tile.
 
-The cut of a ray depends only on that ray and the positions whose cutter footprint covers
-it, so each tile simulates, in program order, only the positions whose footprint window
+The cut of a ray depends only on that ray and the stages whose swept footprint covers
+it, so each tile simulates, in program order, only the stages whose piece's window
 reaches it, on its own rays, with its own history (z-trace, time-trace or Interval Treap).
 The tile kernel (:mod:`zmap.sim._tiled_kernels`) computes every ray's xy from its global
 index and gives every position its global stage, so each tile's rays end up with the
@@ -26,6 +26,8 @@ from .history import IntervalTreap, Recorder, TimeTrace, ZTrace
 __all__ = ["TiledHistory", "simulate_tiles", "tile_positions"]
 
 _STRUCTS = {"ztrace": ZTrace, "ttrace": TimeTrace, "treap": IntervalTreap}
+#: what every tile task reads: the piece table, each stage's piece and tool, the stock
+_SHARED = ("kind", "geo", "move", "t0", "t1", "slot", "off", "near", "far")
 
 
 def _check_tiles(tiles: Any) -> int:
@@ -47,9 +49,11 @@ def _tile_rays(nx: int, ny: int, tile: int, ti: int, tj: int) -> tuple[int, int,
     return gi0, gj0, tnx, tny, idx
 
 
-def tile_positions(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cutters: list,
+def tile_positions(stock: DexelWorkpiece, xyz: Any, slot: np.ndarray, cutters: list,
                    tile: int) -> tuple[tuple[int, int], list[np.ndarray]]:
-    """The positions whose footprint window reaches each tile, in program order.
+    """The stages whose piece's footprint window reaches each tile, in program order.
+
+    ``xyz`` is a :class:`zmap.sim.pieces.Pieces` or an (n, 3) array of stamps.
 
     Returns
     -------
@@ -63,18 +67,19 @@ def tile_positions(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
     tile = _check_tiles(tile)
     ntx, nty = -(-stock.nx // tile), -(-stock.ny // tile)
     _code, radius, _corner, _length = cutter_table(cutters)
-    n = len(xyz)
+    pieces = _as_pieces(xyz)
+    n = len(pieces)
     counts = np.zeros(n, dtype=np.int64)
     none = np.zeros(0, dtype=np.int64)
-    xyz = np.ascontiguousarray(xyz, dtype=np.float64)
     slot = np.ascontiguousarray(slot, dtype=np.int32)
-    K.positions_reaching(xyz, slot, radius, stock.x0, stock.y0, stock.pitch, stock.nx, stock.ny, tile, nty,
-                         counts, none, False)
+    mv, t0, t1 = pieces.params(0, n)
+    args = (pieces.kind, pieces.geo, mv, t0, t1, slot, radius, stock.x0, stock.y0, stock.pitch, stock.nx,
+            stock.ny, tile, nty)
+    K.positions_reaching(*args, counts, none, False)
     starts = np.zeros(n, dtype=np.int64)
     np.cumsum(counts[:-1], out=starts[1:]) if n else None
     tile_of = np.empty(int(counts.sum()), dtype=np.int64)
-    K.positions_reaching(xyz, slot, radius, stock.x0, stock.y0, stock.pitch, stock.nx, stock.ny, tile, nty,
-                         starts, tile_of, True)
+    K.positions_reaching(*args, starts, tile_of, True)
     pos_of = np.repeat(np.arange(n, dtype=np.int64), counts)
     order = np.argsort(tile_of, kind="stable")  # stable: program order within each tile
     bounds = np.searchsorted(tile_of[order], np.arange(ntx * nty + 1))
@@ -117,10 +122,18 @@ def _assemble(stock: DexelWorkpiece, tile: int, nty: int, results: dict) -> Dexe
                           stock.deleted + sum(r["deleted"] for r in results.values()))
 
 
-def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, xyz: np.ndarray, slot: np.ndarray,
+def _as_pieces(xyz: Any) -> Any:
+    from .pieces import Pieces
+
+    return xyz if isinstance(xyz, Pieces) else Pieces.stamps(xyz)
+
+
+def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, pieces: tuple, slot: np.ndarray,
               gpos: np.ndarray, table: tuple, history: str, x0: float, y0: float, pitch: float, gi0: int, gj0: int,
               tnx: int, tny: int, chunk: int = 4096, handoff: str | None = None) -> dict:
-    """One Dask task: cut the tile's positions into its rays, recording its own history.
+    """One Dask task: cut the tile's stages into its rays, recording its own history.
+
+    ``pieces`` is ``(kind, geo, move, t0, t1)``: the piece table and the tile's stages.
 
     With ``handoff`` (a folder the client sees, :class:`zmap.tiled.handoff.Handoff`) the
     tile's stock and history are written there and the result holds their reference
@@ -140,18 +153,19 @@ def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, xyz: np.ndarra
     n_dexels0 = wp.n_dexels
     rec = None
     if history != "none":
-        struct = _STRUCTS[history].start(wp, capacity=int(2 * n_dexels0 + 24 * len(xyz) + 1024))
+        struct = _STRUCTS[history].start(wp, capacity=int(2 * n_dexels0 + 24 * len(slot) + 1024))
         rec = Recorder(**{history: struct})
     code, radius, corner, length = table
     stats = np.zeros(_k.N_STATS, dtype=np.int64)
     if rec is not None:
         rec.load_counts(stats)
-    p, stop = 0, len(xyz)
+    pkind, pgeo, smove, st0, st1 = pieces
+    p, stop = 0, len(slot)
     while p < stop:
         q = min(stop, p + chunk)
         args = rec.kernel_args() if rec is not None else _empty_history_args()
-        nxt = K.cut_positions_tile(xyz, slot, code, radius, corner, length, gpos, p, q, 0, x0, y0, pitch,
-                                   gi0, gj0, tnx, tny, wp.near, wp.far, wp.cnt, *args, stats)
+        nxt = K.cut_pieces_tile(pkind, pgeo, smove, st0, st1, slot, code, radius, corner, length, gpos, p, q, 0,
+                                x0, y0, pitch, gi0, gj0, tnx, tny, wp.near, wp.far, wp.cnt, *args, stats)
         status = stats[_k.ST_STATUS]
         if status == _k.NEED_SLOTS:
             wp.grow(2 * wp.slots)
@@ -175,7 +189,7 @@ def _sim_tile(near: np.ndarray, far: np.ndarray, cnt: np.ndarray, xyz: np.ndarra
             arrays.update({"s_" + k: v for k, v in structure.to_arrays().items()})
         out = {"arrays": save_arrays(handoff, f"tile_{gi0}_{gj0}", arrays)}
     return {**out, "created": int(stats[_k.ST_CREATED]),
-            "deleted": int(stats[_k.ST_DELETED]), "positions": int(len(xyz)),
+            "deleted": int(stats[_k.ST_DELETED]), "positions": int(len(slot)),
             "rays_cut": int(stats[_k.ST_RAYS_CUT]), "seconds": time.perf_counter() - t0,
             "wall_span": (wall0, time.time()),
             "cpu_seconds": time.process_time() - c0, "thread_cpu_seconds": time.thread_time() - th0,
@@ -186,7 +200,8 @@ def _sim_tile_of(shared: tuple | dict, pos: np.ndarray, table: tuple, history: s
                  pitch: float, gi0: int, gj0: int, tnx: int, tny: int, ny: int, handoff: str | None = None) -> dict:
     """One Dask task: tile (gi0, gj0, tnx, tny) of the whole stock and program sent once per worker.
 
-    ``shared`` is ``(xyz, slot, offsets, near, far)`` of the whole run, the stock as compact
+    ``shared`` is ``(kind, geo, move, t0, t1, slot, offsets, near, far)`` of the whole run:
+    the piece table, the stages' pieces and tools, and the stock as compact
     per-ray lists (:func:`zmap.tiled.cluster.share`), or the reference of those arrays
     written to the ``handoff`` folder (mapped here, read-only); the task takes its rays and
     its positions ``pos`` from it.
@@ -195,8 +210,8 @@ def _sim_tile_of(shared: tuple | dict, pos: np.ndarray, table: tuple, history: s
         from zmap.tiled.handoff import load_arrays
 
         a = load_arrays(shared, writeable=False)
-        shared = (a["xyz"], a["slot"], a["off"], a["near"], a["far"])
-    xyz, slot, off, near, far = shared
+        shared = tuple(a[k] for k in _SHARED)
+    pkind, pgeo, smove, st0, st1, slot, off, near, far = shared
     idx = (np.arange(gi0, gi0 + tnx, dtype=np.int64)[:, None] * ny
            + np.arange(gj0, gj0 + tny, dtype=np.int64)[None, :]).ravel()
     cnt = off[idx + 1] - off[idx]
@@ -204,7 +219,9 @@ def _sim_tile_of(shared: tuple | dict, pos: np.ndarray, table: tuple, history: s
     np.cumsum(cnt, out=sub[1:])
     src = np.repeat(off[idx], cnt) + (np.arange(int(sub[-1])) - np.repeat(sub[:-1], cnt))
     wp = DexelWorkpiece.from_csr(x0, y0, pitch, tnx, tny, sub, near[src], far[src])
-    return _sim_tile(wp.near, wp.far, wp.cnt, np.ascontiguousarray(xyz[pos]), np.ascontiguousarray(slot[pos]), pos,
+    pieces = (pkind, pgeo, np.ascontiguousarray(smove[pos]), np.ascontiguousarray(st0[pos]),
+              np.ascontiguousarray(st1[pos]))
+    return _sim_tile(wp.near, wp.far, wp.cnt, pieces, np.ascontiguousarray(slot[pos]), pos,
                      table, history, x0, y0, pitch, gi0, gj0, tnx, tny, handoff=handoff)
 
 
@@ -302,14 +319,15 @@ class TiledHistory:
 def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cutters: list, history: str, *,
                    tiles: int, scheduler: str | None = None, workers: int = 2, client: Any = None,
                    progress: bool = False, _on_result: Callable | None = None):
-    """Cut ``xyz`` into ``stock`` tile by tile as Dask tasks; the single-process result, exactly.
+    """Cut a program's stages into ``stock`` tile by tile as Dask tasks; the single-process result, exactly.
 
     Parameters
     ----------
     stock : DexelWorkpiece
         The stock (not changed).
     xyz, slot, cutters
-        Positions (n, 3) in mm, cutter slot per position, cutters (as :func:`zmap.sim.session.simulate`).
+        The stages' path pieces (:class:`zmap.sim.pieces.Pieces`, or an (n, 3) array of
+        stamps in mm), cutter slot per stage, cutters (as :func:`zmap.sim.session.simulate`).
     history : {'none', 'ztrace', 'ttrace', 'treap'}
     tiles : int
         Tile side in rays (at least 2).
@@ -336,7 +354,8 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
     tile = _check_tiles(tiles)
     (ntx, nty), lists = tile_positions(stock, xyz, slot, cutters, tile)
     table = cutter_table(cutters)
-    xyz = np.ascontiguousarray(xyz, dtype=np.float64)
+    pieces = _as_pieces(xyz)
+    smove, st0, st1 = pieces.params(0, len(pieces))
     slot = np.ascontiguousarray(slot, dtype=np.int32)
     results: dict[int, dict] = {}
     ctx = contextlib.nullcontext(client) if client is not None else dask_client(scheduler, workers=workers)
@@ -355,11 +374,11 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
         folder = handoff.path if handoff is not None else None
         try:
             off0, near0, far0 = stock.to_csr()
+            arrays = (pieces.kind, pieces.geo, smove, st0, st1, slot, off0, near0, far0)
             if handoff is not None:
-                shared = save_arrays(folder, "shared", {"xyz": xyz, "slot": slot, "off": off0, "near": near0,
-                                                        "far": far0})
+                shared = save_arrays(folder, "shared", dict(zip(_SHARED, arrays)))
             else:
-                shared = share(cl, (xyz, slot, off0, near0, far0))
+                shared = share(cl, arrays)
             for k in sorted(range(ntx * nty), key=lambda k: -weight[k]):
                 ti, tj = divmod(k, nty)
                 gi0, gj0 = ti * tile, tj * tile

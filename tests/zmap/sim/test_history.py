@@ -41,9 +41,10 @@ def cutters(draw):
 
 
 def _fresh(run, k):
-    """A fresh simulation of the same positions stopped at stage k."""
+    """A fresh simulation of the same stages (each its path piece's sweep) stopped at stage k."""
     wp = run.stock.copy()
-    return wp.cut(run.xyz[:k], run.cutters, run.slot[:k])
+    run_cut(wp, run.pieces, run.slot, cutter_table(run.cutters), 0, k, 0, None)
+    return wp
 
 
 @SETTINGS

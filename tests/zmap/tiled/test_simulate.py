@@ -135,7 +135,7 @@ def test_a_worker_killed_mid_run_is_recovered_and_the_result_is_exact(job, singl
         killed.update(addr=addr, pid=pid, done=done)
         os.kill(pid, signal.SIGKILL)
 
-    final, structure, rep = simulate_tiles(stock, path.xyz, slot, cutters, "treap", tiles=12, client=dask_client,
+    final, structure, rep = simulate_tiles(stock, path.pieces, slot, cutters, "treap", tiles=12, client=dask_client,
                                            _on_result=kill_one)
     assert killed and killed["done"] < rep["tiles"]  # killed while tiles were still to come
     assert isinstance(structure, TiledHistory) and rep["tiles"] == 100

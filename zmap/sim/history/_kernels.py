@@ -10,7 +10,8 @@ import math
 import numpy as np
 from numba import njit
 
-from .._tool_kernels import _envelope
+from .. import _sweep_kernels as _sk
+from .._dexel_kernels import f32_up, piece_window
 
 __all__: list[str] = []
 
@@ -388,37 +389,35 @@ def treap_cut_ray(r, a, b, stage, root_off, root_hi, tz, ts, tk, tr_ray, counts,
 
 
 @njit(cache=True)
-def treap_cut_positions(xyz, tslot, tcode, trad, tcr, tlen, start, stop, stage0, x0, y0, pitch, nx, ny,
-                        root_off, root_hi, tz, ts, tk, tr_ray, counts, stack_n, stack_lo, stack_hi):
-    """Cut positions start..stop-1 into the treap forest; returns the first position not done.
+def treap_cut_pieces(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tlen, start, stop, stage0,
+                     x0, y0, pitch, nx, ny, root_off, root_hi, tz, ts, tk, tr_ray, counts,
+                     stack_n, stack_lo, stack_hi):
+    """Cut stages start..stop-1 (each the exact sweep of its path piece, as
+    :func:`zmap.sim._dexel_kernels.cut_pieces_window`) into the treap forest; returns the
+    first stage not done.
 
     ``counts`` = [nodes used, created, deleted, status]; status 1: pool full, 2: stack full.
     """
     counts[3] = 0
+    buf = np.empty((_sk.MAX_INTERVALS, 2), dtype=np.float64)
+    scratch = np.empty(_sk.MAX_INTERVALS, dtype=np.float64)
     for p in range(start, stop):
+        mv = smove[p]
+        kind = pkind[mv]
+        if kind == _sk.NO_CUT:
+            continue
         s = tslot[p]
         R = trad[s]
-        tx = xyz[p, 0]
-        ty = xyz[p, 1]
-        tz_ = xyz[p, 2]
         stage = np.int32(stage0 + p + 1)
-        i0 = max(int(math.ceil((tx - R - x0) / pitch)) - 1, 0)
-        i1 = min(int(math.floor((tx + R - x0) / pitch)) + 1, nx - 1)
-        j0 = max(int(math.ceil((ty - R - y0) / pitch)) - 1, 0)
-        j1 = min(int(math.floor((ty + R - y0) / pitch)) + 1, ny - 1)
-        b = np.float32(tz_ + tlen[s])
-        R2 = R * R
+        i0, i1, j0, j1 = piece_window(pkind, pgeo, mv, st0[p], st1[p], R, x0, y0, pitch, 0, 0, nx, ny)
         for i in range(i0, i1 + 1):
-            dxr = x0 + i * pitch - tx
             for j in range(j0, j1 + 1):
-                dyr = y0 + j * pitch - ty
-                d2 = dxr * dxr + dyr * dyr
-                if d2 > R2:
-                    continue
-                a = np.float32(tz_ + _envelope(tcode[s], R, tcr[s], math.sqrt(d2)))
-                st = treap_cut_ray(i * ny + j, a, b, stage, root_off, root_hi, tz, ts, tk, tr_ray, counts,
-                                   stack_n, stack_lo, stack_hi)
-                if st != 0:
-                    counts[3] = st
-                    return p
+                n = _sk.piece_rays(kind, tcode[s], R, tcr[s], tlen[s], pgeo[mv], st0[p], st1[p],
+                                   x0 + i * pitch, y0 + j * pitch, buf, scratch)
+                for m in range(n):
+                    st = treap_cut_ray(i * ny + j, f32_up(buf[m, 0]), np.float32(buf[m, 1]), stage, root_off,
+                                       root_hi, tz, ts, tk, tr_ray, counts, stack_n, stack_lo, stack_hi)
+                    if st != 0:
+                        counts[3] = st
+                        return p
     return stop

@@ -209,7 +209,8 @@ def simulate_treap(stock: Any, xyz: np.ndarray, cutters: Any, tool_slot: np.ndar
     ----------
     stock : DexelWorkpiece
         Stage 0 (not modified).
-    xyz : ndarray of shape (n, 3), float64 — tool-tip positions, mm.
+    xyz : ndarray of shape (n, 3), float64, or Pieces — tool-tip positions (stamps), mm, or
+        the path pieces of a program (each stage its exact sweep).
     cutters : Cutter or list of Cutter; tool_slot : ndarray of shape (n,), int, optional.
 
     Returns
@@ -228,21 +229,25 @@ def simulate_treap(stock: Any, xyz: np.ndarray, cutters: Any, tool_slot: np.ndar
     (-1.0, 10)
     """
     from ..dexel import cutter_table
+    from ..pieces import Pieces
 
     cs = list(cutters) if isinstance(cutters, (list, tuple)) else [cutters]
-    xyz = np.ascontiguousarray(xyz, dtype=np.float64).reshape(-1, 3)
-    slot = (np.zeros(len(xyz), dtype=np.int32) if tool_slot is None
+    pieces = xyz if isinstance(xyz, Pieces) else Pieces.stamps(xyz)
+    n = len(pieces)
+    slot = (np.zeros(n, dtype=np.int32) if tool_slot is None
             else np.ascontiguousarray(tool_slot, dtype=np.int32))
     code, radius, corner, length = cutter_table(cs)
-    it = IntervalTreap.start(stock, capacity=capacity or 2 * stock.n_dexels + 24 * len(xyz) + 1024)
+    mv, t0, t1 = pieces.params(0, n)
+    it = IntervalTreap.start(stock, capacity=capacity or 2 * stock.n_dexels + 24 * n + 1024)
     counts = np.zeros(4, dtype=np.int64)
     counts[0] = it.n
     stacks = [np.empty(16, dtype=np.int64), np.empty(16, dtype=np.float32), np.empty(16, dtype=np.float32)]
-    p, n = 0, len(xyz)
+    p = 0
     while p < n:
-        p = int(_hk.treap_cut_positions(xyz, slot, code, radius, corner, length, p, n, 0, stock.x0, stock.y0,
-                                        stock.pitch, stock.nx, stock.ny, it.root_off, it.root_hi, it.b_z,
-                                        it.b_s, it.b_k, it.b_ray, counts, *stacks))
+        p = int(_hk.treap_cut_pieces(pieces.kind, pieces.geo, mv, t0, t1, slot, code, radius, corner, length,
+                                     p, n, 0, stock.x0, stock.y0, stock.pitch, stock.nx, stock.ny,
+                                     it.root_off, it.root_hi, it.b_z, it.b_s, it.b_k, it.b_ray, counts,
+                                     *stacks))
         if counts[3] == 1:
             it.grow_pool()
         elif counts[3] == 2:
