@@ -261,7 +261,7 @@ def cut_pieces_window(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tle
     has_gpos = gpos.shape[0] > 0
     stats[ST_STATUS] = OK
     buf = np.empty((_sk.MAX_INTERVALS, 2), dtype=np.float64)
-    ts = np.empty(_sk.MAX_INTERVALS, dtype=np.float64)
+    ts = np.empty(_sk.SCRATCH, dtype=np.float64)
     for p in range(start, stop):
         mv = smove[p]
         kind = pkind[mv]
@@ -276,24 +276,36 @@ def cut_pieces_window(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tle
         t0 = st0[p]
         t1 = st1[p]
         stage = np.int32(stage0 + (gpos[p] if has_gpos else p) + 1)
-        i0, i1, j0, j1 = piece_window(pkind, pgeo, mv, t0, t1, R, x0, y0, pitch, gi0, gj0, tnx, tny)
+        R2 = R * R
+        if kind == _sk.LINE or kind == _sk.STAMP:
+            sx, sy, sz, ex, ey, ez = _sk.line_ends(kind, g, t0, t1)
+            lxy, ux, uy, m, kb = _sk.line_setup(sx, sy, sz, ex, ey, ez)
+            xmin, xmax = min(sx, ex), max(sx, ex)
+            ymin, ymax = min(sy, ey), max(sy, ey)
+        else:
+            xmin, xmax, ymin, ymax = _sk.piece_box(kind, g, t0, t1)
+        i0 = max(int(math.ceil((xmin - R - x0) / pitch)) - 1, gi0)
+        i1 = min(int(math.floor((xmax + R - x0) / pitch)) + 1, gi0 + tnx - 1)
         for i in range(i0, i1 + 1):
             qx = x0 + i * pitch
-            for j in range(j0, j1 + 1):
-                r = (i - gi0) * tny + (j - gj0)
-                c = cnt[r]
-                if c == 0:
-                    continue
-                qy = y0 + j * pitch
-                n = _sk.piece_rays(kind, code, R, rc, L, g, t0, t1, qx, qy, buf, ts)
-                for m in range(n):
-                    a = f32_up(buf[m, 0])
-                    b = np.float32(buf[m, 1])
+            ddx = max(xmin - qx, qx - xmax, 0.0)
+            if ddx > R:
+                continue
+            hy = math.sqrt(R2 - ddx * ddx)  # the rays of this column within R of the piece's box
+            ja = max(int(math.ceil((ymin - hy - y0) / pitch)) - 1, gj0)
+            jb = min(int(math.floor((ymax + hy - y0) / pitch)) + 1, gj0 + tny - 1)
+            if kind == _sk.LINE or kind == _sk.STAMP:
+                for j in range(ja, jb + 1):
+                    r = (i - gi0) * tny + (j - gj0)
+                    ok, lo, hi = _sk.line_bottom(code, R, rc, L, sx, sy, sz, ex, ey, ez, lxy, ux, uy, m, kb,
+                                                 qx, y0 + j * pitch)
+                    if not ok:
+                        continue
+                    a = f32_up(lo)
+                    b = np.float32(hi)
                     c = cnt[r]
-                    if c == 0:
-                        break
                     # quick reject: conditions (1)/(2) against the whole ray
-                    if far[r, c - 1] <= a or near[r, 0] >= b:
+                    if c == 0 or far[r, c - 1] <= a or near[r, 0] >= b:
                         continue
                     if c >= K:
                         stats[ST_STATUS] = NEED_SLOTS
@@ -307,6 +319,31 @@ def cut_pieces_window(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tle
                             rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
                             rec_t, tt_z, tt_s, tt_ray,
                             rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats)
+            else:
+                for j in range(ja, jb + 1):
+                    r = (i - gi0) * tny + (j - gj0)
+                    if cnt[r] == 0:
+                        continue
+                    n = _sk.piece_rays(kind, code, R, rc, L, g, t0, t1, qx, y0 + j * pitch, buf, ts)
+                    for k in range(n):
+                        a = f32_up(buf[k, 0])
+                        b = np.float32(buf[k, 1])
+                        c = cnt[r]
+                        # quick reject: conditions (1)/(2) against the whole ray
+                        if c == 0 or far[r, c - 1] <= a or near[r, 0] >= b:
+                            continue
+                        if c >= K:
+                            stats[ST_STATUS] = NEED_SLOTS
+                            return p
+                        if (rec_z and stats[ST_ZT_N] + 2 > zt_cap) or (rec_t and stats[ST_TT_N] + 1 > tt_cap) \
+                                or (rec_tr and stats[ST_TR_N] + 2 > tr_cap):
+                            stats[ST_STATUS] = NEED_POOL
+                            return p
+                        stats[ST_RAYS_CUT] += 1
+                        cut_ray(r, a, b, stage, near, far, cnt,
+                                rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+                                rec_t, tt_z, tt_s, tt_ray,
+                                rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats)
     return stop
 
 
@@ -324,7 +361,7 @@ def heightfield_cut(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tlen,
     nx = z.shape[0]
     ny = z.shape[1]
     buf = np.empty((_sk.MAX_INTERVALS, 2), dtype=np.float64)
-    ts = np.empty(_sk.MAX_INTERVALS, dtype=np.float64)
+    ts = np.empty(_sk.SCRATCH, dtype=np.float64)
     for p in range(smove.shape[0]):
         mv = smove[p]
         kind = pkind[mv]

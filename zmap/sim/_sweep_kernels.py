@@ -73,6 +73,8 @@ LINE = 2
 #: most disjoint intervals one piece removes from one ray (a helix whose turns are farther
 #: apart than the tool is long leaves one per turn)
 MAX_INTERVALS = 64
+#: scratch floats of the arc search: cell ends of a piece on one ray (16 per turn and more)
+SCRATCH = 8192
 
 _HALF_PI = 0.5 * math.pi
 _MAX_CELL = math.pi / 8.0
@@ -141,6 +143,68 @@ def _root_increasing(code, R, rc, m, e, a, b, fa, fb):
     return 0.5 * (a + b)
 
 
+@njit(cache=True, inline="always")
+def line_setup(sx, sy, sz, ex, ey, ez):
+    """Per-piece constants of a line: xy length, unit xy direction, slope dz/dxy and the
+    ball's ``-m / sqrt(1 + m^2)``."""
+    dx = ex - sx
+    dy = ey - sy
+    lxy = math.sqrt(dx * dx + dy * dy)
+    if lxy <= 1e-12:
+        return 0.0, 0.0, 0.0, 0.0, 0.0
+    m = (ez - sz) / lxy
+    return lxy, dx / lxy, dy / lxy, m, -m / math.sqrt(1.0 + m * m)
+
+
+@njit(cache=True, inline="always")
+def line_bottom(code, R, rc, L, sx, sy, sz, ex, ey, ez, lxy, ux, uy, m, kb, qx, qy):
+    """``(reached, bottom, top)`` of the cutter moving its tip from s to e on ray (qx, qy);
+    ``lxy, ux, uy, m, kb`` from :func:`line_setup`."""
+    if lxy == 0.0:
+        d2 = (qx - ex) ** 2 + (qy - ey) ** 2
+        if d2 > R * R:
+            return False, 0.0, 0.0
+        return True, min(sz, ez) + _h(code, R, rc, math.sqrt(d2)), max(sz, ez) + L
+    vx = qx - sx
+    vy = qy - sy
+    s = vx * ux + vy * uy
+    e = vx * uy - vy * ux
+    e2 = e * e
+    R2 = R * R
+    if e2 > R2:
+        return False, 0.0, 0.0
+    w = math.sqrt(R2 - e2)
+    lo = max(-s, -w)
+    hi = min(lxy - s, w)
+    if lo > hi:
+        return False, 0.0, 0.0
+    top = max(m * (s + lo), m * (s + hi))
+    if code == 0:
+        sig = lo if m > 0.0 else hi
+        hsig = 0.0
+    else:
+        if code == 1:
+            sig = min(max(kb * w, lo), hi)
+        else:
+            e = abs(e)
+            glo = _line_gprime(code, R, rc, m, e, lo)
+            ghi = _line_gprime(code, R, rc, m, e, hi)
+            if glo >= 0.0:
+                sig = lo
+            elif ghi <= 0.0:
+                sig = hi
+            else:
+                sig = _root_increasing(code, R, rc, m, e, lo, hi, glo, ghi)
+        hsig = _h(code, R, rc, math.sqrt(sig * sig + e2))
+    # the tip's height at sig, from whichever end is nearer (the same number at both ends)
+    tau = s + sig
+    if tau <= 0.5 * lxy:
+        ztip = sz + m * tau
+    else:
+        ztip = ez - m * (lxy - tau)
+    return True, ztip + hsig, sz + top + L
+
+
 @njit(cache=True)
 def line_ray(code, R, rc, L, sx, sy, sz, ex, ey, ez, qx, qy, out):
     """Interval the cutter removes from ray ``(qx, qy)`` moving its tip from s to e.
@@ -148,53 +212,12 @@ def line_ray(code, R, rc, L, sx, sy, sz, ex, ey, ez, qx, qy, out):
     Writes ``out[0] = bottom, out[1] = top`` and returns 1, or returns 0 when the cutter
     never reaches the ray.
     """
-    dx = ex - sx
-    dy = ey - sy
-    dz = ez - sz
-    lxy = math.sqrt(dx * dx + dy * dy)
-    if lxy <= 1e-12:
-        d = math.sqrt((qx - ex) ** 2 + (qy - ey) ** 2)
-        if d > R:
-            return 0
-        out[0] = min(sz, ez) + _h(code, R, rc, d)
-        out[1] = max(sz, ez) + L
-        return 1
-    ux = dx / lxy
-    uy = dy / lxy
-    vx = qx - sx
-    vy = qy - sy
-    s = vx * ux + vy * uy
-    e = abs(vx * uy - vy * ux)
-    if e > R:
+    lxy, ux, uy, m, kb = line_setup(sx, sy, sz, ex, ey, ez)
+    ok, lo, hi = line_bottom(code, R, rc, L, sx, sy, sz, ex, ey, ez, lxy, ux, uy, m, kb, qx, qy)
+    if not ok:
         return 0
-    w = math.sqrt(max(R * R - e * e, 0.0))
-    lo = max(-s, -w)
-    hi = min(lxy - s, w)
-    if lo > hi:
-        return 0
-    m = dz / lxy
-    if code == 0:
-        sig = lo if m > 0.0 else hi
-    elif code == 1:
-        sig = -m * w / math.sqrt(1.0 + m * m)
-        sig = min(max(sig, lo), hi)
-    else:
-        glo = _line_gprime(code, R, rc, m, e, lo)
-        ghi = _line_gprime(code, R, rc, m, e, hi)
-        if glo >= 0.0:
-            sig = lo
-        elif ghi <= 0.0:
-            sig = hi
-        else:
-            sig = _root_increasing(code, R, rc, m, e, lo, hi, glo, ghi)
-    # the tip's height at sig, from whichever end is nearer (the same number at both ends)
-    tau = s + sig
-    if tau <= 0.5 * lxy:
-        ztip = sz + m * tau
-    else:
-        ztip = ez - m * (lxy - tau)
-    out[0] = ztip + _h(code, R, rc, math.sqrt(sig * sig + e * e))
-    out[1] = max(sz + m * (s + lo), sz + m * (s + hi)) + L
+    out[0] = lo
+    out[1] = hi
     return 1
 
 
@@ -289,26 +312,32 @@ def _arc_cells(plane, ca, cb, th0, sw, ra, dr, qx, qy, t0, t1, ts):
                 p = math.acos(v)
                 n = _angle_splits(ts, n, p, th0, sw, t0, t1)
                 n = _angle_splits(ts, n, -p, th0, sw, t0, t1)
-    out = np.sort(ts[:n])
-    # no cell wider than _MAX_CELL of angle
-    m = 0
-    res = ts
-    tmp = out.copy()
-    res[0] = tmp[0]
-    m = 1
-    for i in range(1, tmp.shape[0]):
-        a = tmp[i - 1]
-        b = tmp[i]
-        if b <= a:
-            continue
+    # insertion sort (few entries), then no cell wider than _MAX_CELL of angle
+    for i in range(1, n):
+        v = ts[i]
+        k = i - 1
+        while k >= 0 and ts[k] > v:
+            ts[k + 1] = ts[k]
+            k -= 1
+        ts[k + 1] = v
+    cap = ts.shape[0] // 2
+    m = n
+    for i in range(n - 1):
+        a = ts[i]
+        b = ts[i + 1]
         k = int(math.ceil(abs(sw) * (b - a) / _MAX_CELL))
         for j in range(1, k):
-            if m < res.shape[0] - 1:
-                res[m] = a + (b - a) * j / k
+            if m < cap:
+                ts[m] = a + (b - a) * j / k
                 m += 1
-        if m < res.shape[0]:
-            res[m] = b
-            m += 1
+    if m > n:  # the extra points after the sorted ones: sort again
+        for i in range(1, m):
+            v = ts[i]
+            k = i - 1
+            while k >= 0 and ts[k] > v:
+                ts[k + 1] = ts[k]
+                k -= 1
+            ts[k + 1] = v
     return m
 
 
@@ -377,7 +406,7 @@ def arc_ray(code, R, rc, L, plane, ca, cb, th0, sw, ra, rb, na, nb, t0, t1, qx, 
     ``sweep``, radius from ``ra`` to ``rb`` and normal coordinate from ``na`` to ``nb``
     linear in the angle) is cut from parameter ``t0`` to ``t1``. Writes disjoint sorted
     ``[bottom, top]`` rows into ``out`` (shape (MAX_INTERVALS, 2)) and returns their count;
-    ``ts`` is scratch of at least 64 floats.
+    ``ts`` is scratch of SCRATCH floats.
     """
     dr = rb - ra
     dn = nb - na
@@ -483,6 +512,20 @@ def arc_box(plane, ca, cb, th0, sw, ra, rb, na, nb, t0, t1):
     # a tiny margin covers rounding
     eps = 1e-9 * (1.0 + abs(xmin) + abs(xmax) + abs(ymin) + abs(ymax))
     return xmin - eps, xmax + eps, ymin - eps, ymax + eps
+
+
+@njit(cache=True, inline="always")
+def line_ends(kind, g, t0, t1):
+    """Start and end of a LINE piece (or a STAMP's tip twice)."""
+    if kind == STAMP:
+        return g[0], g[1], g[2], g[0], g[1], g[2]
+    sx = g[0] + (g[3] - g[0]) * t0
+    sy = g[1] + (g[4] - g[1]) * t0
+    sz = g[2] + (g[5] - g[2]) * t0
+    if t1 == 1.0:
+        return sx, sy, sz, g[3], g[4], g[5]
+    return (sx, sy, sz, g[0] + (g[3] - g[0]) * t1, g[1] + (g[4] - g[1]) * t1,
+            g[2] + (g[5] - g[2]) * t1)
 
 
 @njit(cache=True)

@@ -400,7 +400,7 @@ def treap_cut_pieces(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tlen
     """
     counts[3] = 0
     buf = np.empty((_sk.MAX_INTERVALS, 2), dtype=np.float64)
-    scratch = np.empty(_sk.MAX_INTERVALS, dtype=np.float64)
+    scratch = np.empty(_sk.SCRATCH, dtype=np.float64)
     for p in range(start, stop):
         mv = smove[p]
         kind = pkind[mv]
