@@ -1,13 +1,24 @@
 """Stock against design: deviation per ray, gouge / within / excess, regions, first offending line.
 
 Per ray of the simulated stock, ``deviation = stock top - (design height + offset)``; the ray
-is a *gouge* below ``-tol``, *within* in ``[-tol, tol]`` and *excess* above ``tol`` (the
-classification of 3DEXPERIENCE's and Vericut's stock-to-design comparisons; ``offset`` is a
-stock allowance left on purpose). Connected gouge and excess rays (8-neighbours) form
-regions with area, volume, depth and bounding box, largest volume first. For every gouge ray
-the history tells the first stage at which its top went below ``design + offset - tol``
-(:func:`first_offending`), and the run's ``line`` array the G-code line of that stage, with
-no re-simulation.
+is *within* in ``[-tol, tol]``, *excess* above ``tol`` and below ``-tol`` a *gouge* where the
+program cut it (the classification of 3DEXPERIENCE's and Vericut's stock-to-design
+comparisons; ``offset`` is a stock allowance left on purpose). A gouge is material the program
+removed: a ray below ``-tol`` that no cut has touched (its top is the stock's top at stage 0)
+was short before the program began, because stock and design were sampled differently (the
+stock interpolated from a map across a wall or a rim, say) or the stock is too small. Such a
+ray is *outline* when it lies along the part's outline (next to a ray where stock and design
+are not both defined), *short* elsewhere. A ray where only one of stock and design has a
+height inside the design's extent (its map's bounds, the part's box; next to a compared ray
+for a design given as a function) is *outline* too: the part's outline sampled differently
+by the two, or stock beside the part. Outside the design's extent a ray is *uncovered*.
+Neither outline nor short is ever a gouge.
+
+Connected gouge and excess rays (8-neighbours) form regions with area, volume, depth and
+bounding box, largest volume first. For every gouge ray the history tells the first stage at
+which the program cut it below ``design + offset - tol`` (:func:`first_offending`), and the
+run's ``line`` array the G-code line of that stage, with no re-simulation: a first line is
+always a line of the program (stage >= 1), never the stock as it stood at stage 0.
 """
 
 from __future__ import annotations
@@ -26,8 +37,8 @@ from ..errors import ZMapError
 __all__ = ["compare", "Comparison", "Region", "design_heights", "first_offending", "CLASSES",
            "load_design"]
 
-#: class codes of :attr:`Comparison.classes`
-CLASSES = {"uncovered": 0, "gouge": 1, "within": 2, "excess": 3}
+#: class codes of :attr:`Comparison.classes` (see the module's description)
+CLASSES = {"uncovered": 0, "gouge": 1, "within": 2, "excess": 3, "outline": 4, "short": 5}
 _MM_PER_INCH = 25.4
 
 
@@ -45,8 +56,9 @@ class Region:
     depth : float — mm, the largest |deviation| in the region.
     bbox : (xmin, ymin, xmax, ymax) — mm, ray centres.
     deepest : (x, y) — mm, the ray of the largest |deviation|.
-    first_stage, first_line : int — gouges: the earliest stage (and its G-code line) at which
-        any ray of the region went below ``design + offset - tol``; -1 when unknown.
+    first_stage, first_line : int — gouges: the earliest stage (>= 1) at which the program cut
+        a ray of the region below ``design + offset - tol``, and its G-code line (>= 1); -1
+        when unknown (a run of bare positions has no lines).
     first_xy : (x, y) — mm, the ray that went first (NaN when unknown).
     """
 
@@ -85,9 +97,13 @@ class Comparison:
         uncovered.
     classes : ndarray of shape (nx, ny), int8 — :data:`CLASSES` codes.
     first_stage, first_line : ndarray of shape (nx, ny), int32 — per gouge ray, the first
-        stage below ``design + offset - tol`` and its G-code line; -1 elsewhere.
+        stage (>= 1) at which the program cut it below ``design + offset - tol``, and its
+        G-code line (>= 1, -1 when the run has no lines); -1 elsewhere.
     regions : list of Region — gouges and excesses, each kind by volume, largest first.
-    totals : dict — figures of the whole comparison (never NaN).
+    totals : dict — figures of the whole comparison (never NaN): rays, area (and for gouges
+        and excesses volume) of each class, ``outline_rays``/``outline_area_mm2`` and
+        ``short_rays``/``short_area_mm2`` among them; ``first_gouge_stage`` and
+        ``first_gouge_line`` when a gouge has a known line of the program.
     """
 
     x0: float
@@ -293,6 +309,49 @@ def _check_tol(tol: Any, offset: Any) -> tuple[float, float]:
     return t, o
 
 
+def _classify(covered: np.ndarray, dev: np.ndarray, tol: float, has_design: np.ndarray, has_stock: np.ndarray,
+              cut: np.ndarray, inside: np.ndarray | None = None) -> np.ndarray:
+    """:data:`CLASSES` code of each ray (see the module's description).
+
+    Parameters
+    ----------
+    covered : ndarray of shape (nx, ny), bool — stock and design both have a height.
+    dev : ndarray of shape (nx, ny), float64 — deviation, mm (NaN where not covered).
+    tol : float — mm.
+    has_design, has_stock : ndarray of shape (nx, ny), bool — the design has a height; the
+        stock has (or had, at stage 0) material.
+    cut : ndarray of shape (nx, ny), bool — the program has lowered the ray's top.
+    inside : ndarray of shape (nx, ny), bool, optional — rays inside the design's extent
+        (default: the compared rays and their 8 neighbours).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> cov = np.array([[True, True, True, False]])
+    >>> dev = np.array([[-0.5, -0.5, -0.5, np.nan]])
+    >>> _classify(cov, dev, 0.01, cov, np.ones((1, 4), bool), np.array([[True, False, False, False]])).tolist()
+    [[1, 5, 4, 4]]
+    """
+    from scipy import ndimage
+
+    eight = np.ones((3, 3), bool)
+    one_sided = has_design ^ has_stock
+    classes = np.zeros(covered.shape, dtype=np.int8)
+    with np.errstate(invalid="ignore"):
+        below = covered & (dev < -tol)
+        classes[covered & (dev >= -tol) & (dev <= tol)] = CLASSES["within"]
+        classes[covered & (dev > tol)] = CLASSES["excess"]
+    classes[below & cut] = CLASSES["gouge"]
+    # never cut, yet below: the stock began short of the design (sampled differently)
+    edge = ndimage.binary_dilation(~covered, structure=eight) & covered
+    classes[below & ~cut] = np.where(edge[below & ~cut], CLASSES["outline"], CLASSES["short"])
+    # one of stock and design without a height within the design's extent: the part's outline
+    if inside is None:
+        inside = ndimage.binary_dilation(covered, structure=eight)
+    classes[one_sided & (inside | has_design)] = CLASSES["outline"]
+    return classes
+
+
 def compare(run: Any, design: Any, *, stage: Any = "end", tol: float = 0.01, offset: float = 0.0,
             connectivity: int = 8, first: bool = True) -> Comparison:
     """Compare a simulated stock at ``stage`` with a design surface.
@@ -357,6 +416,9 @@ def compare(run: Any, design: Any, *, stage: Any = "end", tol: float = 0.01, off
     floor[had] = near[off[:-1][had]]  # stock bottom of each ray (its first dexel's NaerZ)
     floor = floor.reshape(nx, ny)
     top = np.where(np.isnan(top), floor, top)
+    # the stock before the program: a ray whose top is still this was never cut
+    top0 = top if k == 0 else np.asarray(run.display(0), dtype=np.float64).reshape(nx, ny)
+    top0 = np.where(np.isnan(top0), floor, top0)
     X, Y = np.meshgrid(s.x, s.y, indexing="ij")
     t2 = time.perf_counter()
     dz = np.asarray(heights(X.ravel(), Y.ravel()), dtype=np.float64).reshape(nx, ny)
@@ -364,11 +426,12 @@ def compare(run: Any, design: Any, *, stage: Any = "end", tol: float = 0.01, off
 
     covered = np.isfinite(dz) & np.isfinite(top)
     dev = np.where(covered, top - (dz + offset), np.nan)
-    classes = np.zeros((nx, ny), dtype=np.int8)
-    with np.errstate(invalid="ignore"):
-        classes[covered & (dev < -tol)] = CLASSES["gouge"]
-        classes[covered & (dev >= -tol) & (dev <= tol)] = CLASSES["within"]
-        classes[covered & (dev > tol)] = CLASSES["excess"]
+    box = _design_bounds(design)
+    inside = None
+    if box is not None:
+        eps = 1e-9 * max(1.0, *map(abs, box))
+        inside = (X >= box[0] - eps) & (X <= box[2] + eps) & (Y >= box[1] - eps) & (Y <= box[3] + eps)
+    classes = _classify(covered, dev, tol, np.isfinite(dz), np.isfinite(top), top < top0, inside)
     cell = p * p
     n_cov = int(covered.sum())
     unc = nx * ny - n_cov
@@ -376,8 +439,10 @@ def compare(run: Any, design: Any, *, stage: Any = "end", tol: float = 0.01, off
         warnings.warn(f"design {where} covers none of the stock's {nx * ny} rays: nothing to compare",
                       UserWarning, stacklevel=2)
     elif unc:
+        n_edge = int((~covered & (classes == CLASSES["outline"])).sum())
         warnings.warn(f"design {where} does not cover {unc} of {nx * ny} stock rays "
-                      f"({unc * cell:.4g} mm^2); they are left out of the comparison", UserWarning, stacklevel=2)
+                      f"({unc * cell:.4g} mm^2; {n_edge} of them inside its extent, along the part's outline); "
+                      f"they are left out of the comparison", UserWarning, stacklevel=2)
 
     # first offending stage per gouge ray, from the history
     first_stage = np.full((nx, ny), -1, dtype=np.int32)
@@ -386,14 +451,16 @@ def compare(run: Any, design: Any, *, stage: Any = "end", tol: float = 0.01, off
     t4 = time.perf_counter()
     if first and gmask.any():
         rays = np.flatnonzero(gmask.ravel())
-        lev = (dz + offset - tol).ravel()[rays]
+        # below the target and below the stock's first top: the program's cut (stage >= 1),
+        # also where the stock began below the target
+        lev = np.minimum(dz + offset - tol, top0).ravel()[rays]
         fl = np.where(np.isnan(floor), -np.inf, floor).ravel()[rays]
         fs = first_offending(run, rays, lev, floor=fl)
         first_stage.ravel()[rays] = fs
         ok = fs > 0
-        lines = np.zeros(fs.shape, dtype=np.int32)
+        lines = np.full(fs.shape, -1, dtype=np.int32)
         lines[ok] = run.line[fs[ok] - 1]
-        first_line.ravel()[rays] = np.where(fs >= 0, lines, -1)
+        first_line.ravel()[rays] = np.where(lines > 0, lines, -1)
     t5 = time.perf_counter()
 
     structure = np.ones((3, 3), bool) if connectivity == 8 else None
@@ -425,7 +492,7 @@ def compare(run: Any, design: Any, *, stage: Any = "end", tol: float = 0.01, off
                          (s.x0 + i0 * p, s.y0 + j0 * p, s.x0 + i1 * p, s.y0 + j1 * p),
                          (s.x0 + di * p, s.y0 + dj * p))
             if kind == "gouge":
-                mine = (li == q) & (fs_all >= 0)
+                mine = (li == q) & (fs_all > 0)
                 if mine.any():
                     cand = np.flatnonzero(mine)
                     w = cand[np.argmin(fs_all[cand])]
@@ -440,9 +507,14 @@ def compare(run: Any, design: Any, *, stage: Any = "end", tol: float = 0.01, off
     g = classes == CLASSES["gouge"]
     e = classes == CLASSES["excess"]
     w = classes == CLASSES["within"]
+    n_unc = int((classes == CLASSES["uncovered"]).sum())
+    n_out = int((classes == CLASSES["outline"]).sum())
+    n_short = int((classes == CLASSES["short"]).sum())
     totals = {
         "stage": k, "n_stages": run.n_stages, "tol_mm": tol, "offset_mm": offset, "pitch_mm": p,
-        "rays": nx * ny, "covered_rays": n_cov, "uncovered_rays": unc, "uncovered_area_mm2": unc * cell,
+        "rays": nx * ny, "covered_rays": n_cov, "uncovered_rays": n_unc, "uncovered_area_mm2": n_unc * cell,
+        "outline_rays": n_out, "outline_area_mm2": n_out * cell, "short_rays": n_short,
+        "short_area_mm2": n_short * cell,
         "gouge_rays": int(g.sum()), "within_rays": int(w.sum()), "excess_rays": int(e.sum()),
         "gouge_area_mm2": float(g.sum() * cell), "excess_area_mm2": float(e.sum() * cell),
         "gouge_volume_mm3": float(np.abs(dev[g]).sum() * cell), "excess_volume_mm3": float(dev[e].sum() * cell),
@@ -453,11 +525,12 @@ def compare(run: Any, design: Any, *, stage: Any = "end", tol: float = 0.01, off
         "gouge_regions": sum(r.kind == "gouge" for r in regions),
         "excess_regions": sum(r.kind == "excess" for r in regions),
     }
-    fg = [r for r in regions if r.kind == "gouge" and r.first_stage >= 0]
+    fg = [r for r in regions if r.kind == "gouge" and r.first_stage > 0]
     if fg:
         r0 = min(fg, key=lambda r: r.first_stage)
         totals["first_gouge_stage"] = r0.first_stage
-        totals["first_gouge_line"] = r0.first_line
+        if r0.first_line > 0:  # a line of the program (a run of bare positions has none)
+            totals["first_gouge_line"] = r0.first_line
     seconds = {"load": t1 - t0, "stock": t2 - t1, "design": t3 - t2, "classify": t4 - t3,
                "first": t5 - t4, "regions": t6 - t5, "total": t6 - t0}
     return Comparison(s.x0, s.y0, p, k, run.n_stages, tol, offset, top, dz, dev, classes, first_stage,

@@ -43,9 +43,9 @@ def format_markdown(c: Any, *, name: str = "stock", design: str = "design", prog
     out = [f"# {name} against {design}, stage {c.stage}/{c.n_stages}", "",
            f"tolerance +-{c.tol:g} mm, design offset {c.offset:g} mm, ray pitch {c.pitch:g} mm", "",
            "| figure | value |", "|---|---:|"]
-    for key in ("covered_rays", "uncovered_area_mm2", "gouge_regions", "gouge_area_mm2", "gouge_volume_mm3",
-                "max_gouge_mm", "excess_regions", "excess_area_mm2", "excess_volume_mm3", "max_excess_mm",
-                "within_rays", "first_gouge_stage", "first_gouge_line"):
+    for key in ("covered_rays", "uncovered_area_mm2", "outline_area_mm2", "short_area_mm2", "gouge_regions",
+                "gouge_area_mm2", "gouge_volume_mm3", "max_gouge_mm", "excess_regions", "excess_area_mm2",
+                "excess_volume_mm3", "max_excess_mm", "within_rays", "first_gouge_stage", "first_gouge_line"):
         if key in t:
             out.append(f"| {key} | {_fmt(t[key])} |")
     regs = c.regions[:max_regions]
@@ -140,7 +140,8 @@ def band_colours(c: Any) -> tuple[list, list]:
 
 
 def deviation_png(c: Any, path: str | os.PathLike, *, title: str | None = None, mark_first: bool = True) -> Path:
-    """Top view of the deviation in mm: blue gouge, green within +-tol, red excess, grey uncovered."""
+    """Top view of the deviation in mm: blue gouge, green within +-tol, red excess, grey uncovered,
+    sand-coloured the outline and short rays (below the band but never cut: not gouges)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -153,10 +154,16 @@ def deviation_png(c: Any, path: str | os.PathLike, *, title: str | None = None, 
     nx, ny = c.deviation.shape
     ext = (c.x0 - c.pitch / 2, c.x0 + (nx - 0.5) * c.pitch, c.y0 - c.pitch / 2, c.y0 + (ny - 0.5) * c.pitch)
     fig, ax = plt.subplots(figsize=(8, 6.5))
-    im = ax.imshow(np.ma.masked_invalid(c.deviation.T), origin="lower", extent=ext, cmap=cmap, norm=norm,
-                   interpolation="nearest")
+    from .deviation import CLASSES
+
+    apart = np.isin(c.classes, (CLASSES["outline"], CLASSES["short"]))
+    im = ax.imshow(np.ma.masked_where(apart.T | ~np.isfinite(c.deviation.T), c.deviation.T), origin="lower",
+                   extent=ext, cmap=cmap, norm=norm, interpolation="nearest")
+    if apart.any():
+        ax.imshow(np.ma.masked_where(~apart.T, np.ones(apart.T.shape)), origin="lower", extent=ext,
+                  cmap=ListedColormap([(0.93, 0.82, 0.55, 1.0)]), vmin=0, vmax=2, interpolation="nearest")
     cb = fig.colorbar(im, ax=ax, extend="both", spacing="uniform")
-    cb.set_label(f"stock - (design + {c.offset:g}) (mm); green: within +-{c.tol:g} mm")
+    cb.set_label(f"stock - (design + {c.offset:g}) (mm); green: within +-{c.tol:g} mm; sand: outline / short")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     t = c.totals

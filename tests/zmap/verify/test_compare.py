@@ -51,7 +51,14 @@ def test_flat_cutter_pocket_gouge_area_volume_and_first_stage():
 def test_within_band_edges():
     xyz = np.array([[1.0, 1.0, 5.0]])  # above the stock: cuts nothing
     run = simulate(xyz, (0, 0, -3, 2, 2, 0), tool="flat:1", pitch=0.5)
-    for design, cls in ((0.0, "within"), (0.0099, "within"), (-0.0099, "within"), (0.02, "gouge"), (-0.02, "excess")):
+    # below the band but never cut: the stock was short of the design, not gouged
+    for design, cls in ((0.0, "within"), (0.0099, "within"), (-0.0099, "within"), (0.02, "short"), (-0.02, "excess")):
+        c = compare(run, _flat(design), tol=0.01)
+        assert c.totals[f"{cls}_rays"] == run.stock.n_rays, design
+        assert c.totals["gouge_regions"] == 0
+    # a 6 mm end mill faces the whole 2 x 2 stock down to -0.5: below the band is a gouge
+    run = simulate(np.array([[1.0, 1.0, 5.0], [1.0, 1.0, -0.5]]), (0, 0, -3, 2, 2, 0), tool="flat:6", pitch=0.5)
+    for design, cls in ((-0.5, "within"), (-0.4901, "within"), (-0.48, "gouge"), (-0.52, "excess")):
         c = compare(run, _flat(design), tol=0.01)
         assert c.totals[f"{cls}_rays"] == run.stock.n_rays, design
 
@@ -62,8 +69,9 @@ def test_uncovered_area_reported_without_nan():
     with pytest.warns(UserWarning, match="does not cover"):
         c = compare(run, half, tol=0.01)
     t = c.totals
-    assert t["uncovered_rays"] == 11 * 21
+    assert t["uncovered_rays"] == 11 * 21  # beyond the design's extent: uncovered, not outline
     assert t["uncovered_area_mm2"] == pytest.approx(11 * 21 * 0.25)
+    assert t["outline_rays"] == 0 and t["outline_area_mm2"] == 0.0
     for k, v in t.items():
         assert not (isinstance(v, float) and math.isnan(v)), k
     assert (c.classes[np.isnan(c.design)] == 0).all()
@@ -170,3 +178,88 @@ def test_deviation_3d_picture(tmp_path):
     c = compare(run, _flat(-0.9), tol=0.05, offset=0.85)
     p = deviation_3d(c, tmp_path / "dev3d.png", window_size=(640, 480))
     assert p.exists() and p.stat().st_size > 10_000
+
+
+# ---- no false alarms: the stock as sampled, the part's outline ------------------------------
+def _hemisphere(r=10.0, h=0.5):
+    """A hemisphere of radius ``r`` on the origin, NaN (no surface) outside its outline."""
+    def z(x, y):
+        q = r * r - x * x - y * y
+        return np.where(q >= 0, np.sqrt(np.maximum(q, 0.0)), np.nan)
+    return ZMap.from_function(z, (-12, -12, 12, 12), h)
+
+
+@pytest.mark.parametrize("pitch", [None, 0.26, 0.3])
+def test_allowance_stock_at_stage_0_has_no_gouges(pitch):
+    # stock = design + 0.5 mm, as a dexel stock sampled from the design's map: at 0.26 and
+    # 0.3 mm the stock's rays fall between the map's points (bilinear heights) while the design
+    # is read by Bezier, so near the steep rim the stock starts up to 0.5 mm below the target
+    from zmap.sim.session import stock_from_spec
+
+    design = _hemisphere()
+    stock = stock_from_spec(ZMap(design.x0, design.y0, design.dx, design.dy, design.z + 0.5),
+                            pitch=pitch if pitch is not None else design.dx)
+    run = simulate(np.array([[0.0, 0.0, 50.0]]), stock, tool="ball:2", pitch=stock.pitch)
+    for offset in (0.5, 0.0):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the design does not cover the stock's corners
+            c = compare(run, design, stage=0, tol=0.01, offset=offset)
+        t = c.totals
+        assert t["gouge_regions"] == 0 and t["gouge_rays"] == 0 and c.gouges == []
+        assert "first_gouge_line" not in t and "first_gouge_stage" not in t
+        assert t["uncovered_rays"] + t["outline_rays"] + t["short_rays"] + t["within_rays"] \
+            + t["excess_rays"] == t["rays"]
+        assert (c.first_line == -1).all()
+    if pitch is not None:  # the rim's rays are told apart, and counted
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            c = compare(run, design, stage=0, tol=0.01, offset=0.5)
+        assert c.totals["outline_rays"] > 0
+        r = np.hypot(*np.meshgrid(run.stock.x, run.stock.y, indexing="ij"))
+        assert r[c.classes == 4].min() > 9.0  # along the outline (radius 10)
+
+
+def test_one_sided_rays_along_the_outline():
+    # stock: a hemisphere 0.5 mm larger (radius 10.5), the design radius 10: on the ring
+    # between them the stock has material and the design no height
+    design = _hemisphere(10.0)
+    stock = _hemisphere(10.5)
+    run = simulate(np.array([[0.0, 0.0, 50.0]]), stock, tool="ball:2", pitch=0.5)
+    with pytest.warns(UserWarning, match="inside its extent, along the part's outline"):
+        c = compare(run, design, stage=0, tol=0.01, offset=0.5)
+    one_sided = np.isfinite(c.top) ^ np.isfinite(c.design)
+    assert one_sided.any() and (c.classes[one_sided] == 4).all()
+    assert c.totals["outline_rays"] >= int(one_sided.sum()) and c.totals["gouge_regions"] == 0
+    assert c.totals["outline_area_mm2"] == pytest.approx(c.totals["outline_rays"] * 0.25)
+
+
+def test_first_gouge_line_is_a_line_of_the_program(tmp_path):
+    # the stock starts 0.02 short of the design everywhere: short, not gouged; the plunge on
+    # line 3 cuts deeper: a gouge, first found on line 3 (never stage 0 / line 0)
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G21 G90\nG0 X5 Y5 Z2\nG1 Z-0.5 F50\nG0 Z2\n")
+    run = simulate(prog, (0, 0, -3, 10, 10, 0), tool="flat:2", pitch=0.25)
+    design = _flat(0.02, bounds=(-1, -1, 11, 11))
+    c0 = compare(run, design, stage=0, tol=0.01)
+    assert c0.totals["gouge_regions"] == 0 and c0.totals["short_rays"] == run.stock.n_rays
+    c = compare(run, design, tol=0.01)
+    assert len(c.gouges) == 1 and c.gouges[0].first_line == 3 and c.gouges[0].first_stage >= 1
+    assert c.totals["first_gouge_line"] == 3
+    assert set(c.first_line[c.classes == 1].tolist()) == {3}
+    assert c.totals["short_rays"] == run.stock.n_rays - c.totals["gouge_rays"]
+    assert (c.first_stage[c.classes != 1] == -1).all()
+
+
+def test_allowance_stock_then_a_real_gouge_at_its_line():
+    from zmap.sim.session import stock_from_spec
+
+    design = _hemisphere()
+    stock = stock_from_spec(ZMap(design.x0, design.y0, design.dx, design.dy, design.z + 0.5), pitch=0.26)
+    prog = "G21 G90\nG0 X0 Y0 Z20\nG1 Z9 F100\nG0 Z20\n"  # a plunge 1 mm into the top (z = 10)
+    run = simulate(prog, stock, tool="ball:2", pitch=0.26)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        c = compare(run, design, tol=0.01, offset=0.5)
+    assert len(c.gouges) == 1 and c.totals["first_gouge_line"] == 3
+    g = c.gouges[0]
+    assert abs(g.deepest[0]) < 0.3 and abs(g.deepest[1]) < 0.3 and g.depth == pytest.approx(1.5, abs=0.05)
