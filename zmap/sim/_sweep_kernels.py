@@ -38,8 +38,9 @@ cut into cells at every ``theta`` that is a multiple of 90 degrees (each in-plan
 is monotone inside a cell), at the angles where the ray is nearest to or farthest from the
 circle (G17: the ray's own polar angle and its opposite; G18/G19: where the arc's
 horizontal coordinate passes the ray's), and at most every 22.5 degrees. In each cell the
-distance from the ray is monotone, so the part of the cell where the tool reaches the ray
-(``d <= R``) is one interval whose end is found by bisection, and the bottom ``f(t) = z(t) +
+distance from the ray is monotone (on a G18/G19 helix, whose normal coordinate also moves,
+it has one minimum, found by golden section), so the part of the cell where the tool
+reaches the ray (``d <= R``) is one interval whose ends are found by bisection, and the bottom ``f(t) = z(t) +
 h(d(t))`` is taken as the least of its values at the interval's ends and at the root of
 ``f'`` when ``f'`` changes sign from - to + over it. For G17 with a constant radius ``f`` is
 convex on every cell within 90 degrees of the ray's polar angle (``h(sqrt(u))`` is convex in
@@ -359,6 +360,40 @@ def _arc_reach_end(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, 
 
 
 @njit(cache=True)
+def _arc_nearest(plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, a, b):
+    """``(t, d)``: the point of the cell [a, b] nearest to the ray, by golden section (in a
+    cell of at most 22.5 degrees the in-plane coordinate is monotone and the normal one
+    linear, so the distance has one minimum)."""
+    g = 0.3819660112501051
+    lo, hi = a, b
+    x1 = lo + g * (hi - lo)
+    x2 = hi - g * (hi - lo)
+    d1 = _arc_d2(plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, x1)
+    d2 = _arc_d2(plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, x2)
+    for _ in range(80):
+        if hi - lo <= 1e-13:
+            break
+        if d1 < d2:
+            hi = x2
+            x2, d2 = x1, d1
+            x1 = lo + g * (hi - lo)
+            d1 = _arc_d2(plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, x1)
+        else:
+            lo = x1
+            x1, d1 = x2, d2
+            x2 = hi - g * (hi - lo)
+            d2 = _arc_d2(plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, x2)
+    t = 0.5 * (lo + hi)
+    return t, math.sqrt(_arc_d2(plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, t))
+
+
+@njit(cache=True, inline="always")
+def _arc_d2(plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, t):
+    x, y, _, _, _, _ = _arc_point(plane, ca, cb, th0, sw, ra, dr, na, dn, t)
+    return (x - qx) ** 2 + (y - qy) ** 2
+
+
+@njit(cache=True)
 def _arc_min_cell(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, u, v, fu, gu, fv, gv):
     """Least bottom on the reached cell [u, v] (f, f' known at both ends)."""
     best = min(fu, fv)
@@ -422,22 +457,44 @@ def arc_ray(code, R, rc, L, plane, ca, cb, th0, sw, ra, rb, na, nb, t0, t1, qx, 
         fb, gb, db, zb = _arc_f(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, b, qx, qy)
         ina = da <= R
         inb = db <= R
-        if ina or inb:
+        tm = -1.0
+        if not ina and not inb and dn != 0.0 and plane != 17:
+            # a G18/G19 helix: the distance need not be monotone in the cell; its least
+            # point may reach the ray between two ends that do not
+            tm, dm = _arc_nearest(plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, a, b)
+            if dm > R:
+                tm = -1.0
+        if ina or inb or tm >= 0.0:
             u, fu, gu, zu = a, fa, ga, za
             v, fv, gv, zv = b, fb, gb, zb
-            if not ina:
-                u = _arc_reach_end(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, b, a)
+            if tm >= 0.0:
+                u = _arc_reach_end(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, tm, a)
+                v = _arc_reach_end(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, tm, b)
                 fu, gu, _, zu = _arc_f(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, u, qx, qy)
-            if not inb:
-                v = _arc_reach_end(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, a, b)
                 fv, gv, _, zv = _arc_f(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, v, qx, qy)
-            lo = _arc_min_cell(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy,
-                               u, v, fu, gu, fv, gv)
+                fm, gm, _, zm = _arc_f(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, tm, qx, qy)
+                lo = min(_arc_min_cell(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy,
+                                       u, tm, fu, gu, fm, gm),
+                         _arc_min_cell(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy,
+                                       tm, v, fm, gm, fv, gv))
+            else:
+                if not ina:
+                    u = _arc_reach_end(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, b, a)
+                    fu, gu, _, zu = _arc_f(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, u, qx, qy)
+                if not inb:
+                    v = _arc_reach_end(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, a, b)
+                    fv, gv, _, zv = _arc_f(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, v, qx, qy)
+                lo = _arc_min_cell(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy,
+                                   u, v, fu, gu, fv, gv)
             hi = max(zu, zv) + L
             if lo < run_lo:
                 run_lo = lo
             if hi > run_hi:
                 run_hi = hi
+            if tm >= 0.0:  # reached inside the cell only: a run of its own
+                cnt = _push_interval(out, cnt, run_lo, run_hi)
+                run_lo = np.inf
+                run_hi = -np.inf
         if not inb and run_lo < np.inf:
             cnt = _push_interval(out, cnt, run_lo, run_hi)
             run_lo = np.inf

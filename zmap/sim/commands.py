@@ -38,7 +38,12 @@ def _need_file(path: str | None) -> None:
                    "flat end mills of its diameters).")
 @click.option("--camotics", "project", type=click.Path(dir_okay=False), default=None,
               help="CAMotics project: its tools, and its stock unless --stock is given.")
-@click.option("--pitch", type=float, default=0.26, show_default=True, help="Ray pitch and DDA step, mm.")
+@click.option("--pitch", type=float, default=0.26, show_default=True,
+              help="Ray pitch and stage spacing, mm (the lateral resolution; each stage cuts the exact sweep "
+                   "of the path since the last, so the pitch never sets the depth).")
+@click.option("--stages", type=click.Choice(["pitch", "move"]), default="pitch", show_default=True,
+              help="A stage every pitch along the path, or one per G-code move (a coarser, smaller history; "
+                   "the same stock at each move's end).")
 @click.option("--history", type=click.Choice(_HISTORIES), default="treap", show_default=True)
 @click.option("--lenient", is_flag=True, help="Skip unsupported G-code blocks with a warning count.")
 @click.option("--max-blocks", type=click.IntRange(min=0), default=None, metavar="N",
@@ -50,7 +55,7 @@ def _need_file(path: str | None) -> None:
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="With --tiles: a running Dask scheduler (tcp://host:port); default a local cluster.")
 @click.option("--workers", type=int, default=2, show_default=True, help="With --tiles: local worker processes.")
-def simulate_cmd(program, stock, tool, tools_path, project, pitch, history, lenient, max_blocks, output,
+def simulate_cmd(program, stock, tool, tools_path, project, pitch, stages, history, lenient, max_blocks, output,
                  progress, tiles=None, scheduler=None, workers=2) -> None:
     """Simulate PROGRAM on a dexel stock, recording a history, and save the run."""
     import warnings
@@ -80,6 +85,7 @@ def simulate_cmd(program, stock, tool, tools_path, project, pitch, history, leni
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         run = simulate(prog, stock, tool=tool, tools=tools or None, pitch=pitch, history=history, progress=progress,
+                       stages=stages,
                        **({} if tiles is None and scheduler is None else  # tiled on Dask: zmap/sim/tiled.py
                           {"tiles": tiles, "scheduler": scheduler, "workers": workers}))
     for w in caught:

@@ -3,9 +3,9 @@
 Shares no code with :mod:`zmap.sim._sweep_kernels`: the cutter's envelope, the path of a
 line or arc (from its G-code data: start, end, centre, plane, signed sweep) and the search
 are written here again in plain numpy. The path is sampled every ``step`` mm (1 um by
-default); the best sample is then refined by sampling again 1000 times finer around it, so
-the bottom found is exact to about 1e-9 mm where the tool's bottom is smooth, and to
-``|slope| * step / 1000`` where it ends at the edge of the tool's reach.
+default); the best sample is then refined three times, each by sampling 1000 times finer
+around the best so far, so the bottom found is exact to about ``|slope| * step / 1e9``
+(1e-12 mm) even where it ends at the edge of the tool's reach.
 """
 
 from __future__ import annotations
@@ -89,7 +89,11 @@ def sweep_interval(at, length, cutter, qx, qy, t0=0.0, t1=1.0, step=1e-3):
         if not reach.any():
             return np.inf, -np.inf
         return float(f.min()), float(p[reach, 2].max() + L)
-    k = int(np.argmin(f))
     top = float(p[reach, 2].max() + L)
-    fine, _ = bottom(np.linspace(t[max(k - 1, 0)], t[min(k + 1, n - 1)], 2001))
-    return float(min(f[k], fine.min())), top
+    best = float(f.min())
+    for _ in range(3):  # each round 1000 times finer around the best sample so far
+        k = int(np.argmin(f))
+        t = np.linspace(t[max(k - 1, 0)], t[min(k + 1, t.shape[0] - 1)], 2001)
+        f, _ = bottom(t)
+        best = min(best, float(f.min()))
+    return best, top
