@@ -235,6 +235,96 @@ def piece_window(pkind, pgeo, mv, t0, t1, R, x0, y0, pitch, gi0, gj0, tnx, tny):
     return i0, i1, j0, j1
 
 
+@njit(cache=True, nogil=True)
+def _cut_line_stages(g, st0, st1, p, q, code, R, rc, L, stage_p, x0, y0, pitch, gi0, gj0, tnx, tny,
+                     near, far, cnt, rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+                     rec_t, tt_z, tt_s, tt_ray, rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats):
+    """Cut stages ``p..q`` (consecutive pieces of one line ``g``; stage p is ``stage_p``)
+    into the window, each the exact sweep of its piece; OK or the status to grow."""
+    K = near.shape[1]
+    zt_cap = zt_z.shape[0]
+    tt_cap = tt_z.shape[0]
+    tr_cap = tr_z.shape[0]
+    ax, ay, az = g[0], g[1], g[2]
+    lxy, ux, uy, m, kb = _sk.line_setup(ax, ay, az, g[3], g[4], g[5])
+    dz = g[5] - az
+    n = int(round(1.0 / (st1[p] - st0[p])))  # the move's stages: equal steps j / n
+    j0 = int(round(st0[p] * n))
+    tlo = st0[p]
+    thi = st1[q]
+    xa, ya = ax + (g[3] - ax) * tlo, ay + (g[4] - ay) * tlo
+    xb, yb = ax + (g[3] - ax) * thi, ay + (g[4] - ay) * thi
+    xmin, xmax = min(xa, xb), max(xa, xb)
+    ymin, ymax = min(ya, yb), max(ya, yb)
+    R2 = R * R
+    i0 = max(int(math.ceil((xmin - R - x0) / pitch)) - 1, gi0)
+    i1 = min(int(math.floor((xmax + R - x0) / pitch)) + 1, gi0 + tnx - 1)
+    for i in range(i0, i1 + 1):
+        qx = x0 + i * pitch
+        ddx = max(xmin - qx, qx - xmax, 0.0)
+        if ddx > R:
+            continue
+        hy = math.sqrt(R2 - ddx * ddx)  # the rays of this column within R of the pieces' box
+        ja = max(int(math.ceil((ymin - hy - y0) / pitch)) - 1, gj0)
+        jb = min(int(math.floor((ymax + hy - y0) / pitch)) + 1, gj0 + tny - 1)
+        for j in range(ja, jb + 1):
+            r = (i - gi0) * tny + (j - gj0)
+            if cnt[r] == 0:
+                continue
+            qy = y0 + j * pitch
+            if lxy == 0.0:  # a plunge: every piece reaches the ray alike
+                d2 = (qx - ax) ** 2 + (qy - ay) ** 2
+                if d2 > R2:
+                    continue
+                hq = _sk._h(code, R, rc, math.sqrt(d2))
+                ka, kz = j0, j0 + q - p
+                sig = lo = hi = s = e2 = 0.0
+            else:
+                ok, s, e2, lo, hi, sig = _sk.line_reach(code, R, rc, lxy, ux, uy, m, kb, ax, ay, tlo, thi, qx, qy)
+                if not ok:
+                    continue
+                # the pieces the reach overlaps, one more each side for rounding
+                ka = max(int(math.floor((s + lo) / lxy * n)) - 1, j0)
+                kz = min(int(math.ceil((s + hi) / lxy * n)), j0 + q - p)
+                hq = 0.0
+            for k in range(ka, kz + 1):
+                if lxy == 0.0:
+                    za = az + dz * (k / n)
+                    zb = az + dz * ((k + 1) / n) if k + 1 < n else g[5]
+                    bottom = min(za, zb) + hq
+                    top = max(za, zb) + L
+                else:
+                    plo = max(lo, (k / n) * lxy - s)
+                    phi = min(hi, ((k + 1) / n) * lxy - s)
+                    if plo > phi:
+                        continue
+                    sk_ = min(max(sig, plo), phi)
+                    bottom = az + m * (s + sk_)
+                    if code != 0:
+                        bottom += _sk._h(code, R, rc, math.sqrt(sk_ * sk_ + e2))
+                    top = az + max(m * (s + plo), m * (s + phi)) + L
+                c = cnt[r]
+                # quick reject: conditions (1)/(2) against the whole ray, first in float64
+                # (most rays under the tool were cut as deep by the stage before)
+                if c == 0 or far[r, c - 1] <= bottom:
+                    continue
+                a = f32_up(bottom)
+                b = np.float32(top)
+                if far[r, c - 1] <= a or near[r, 0] >= b:
+                    continue
+                if c >= K:
+                    return NEED_SLOTS
+                if (rec_z and stats[ST_ZT_N] + 2 > zt_cap) or (rec_t and stats[ST_TT_N] + 1 > tt_cap) \
+                        or (rec_tr and stats[ST_TR_N] + 2 > tr_cap):
+                    return NEED_POOL
+                stats[ST_RAYS_CUT] += 1
+                cut_ray(r, a, b, np.int32(stage_p + k - j0), near, far, cnt,
+                        rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+                        rec_t, tt_z, tt_s, tt_ray,
+                        rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats)
+    return OK
+
+
 @njit(cache=True, nogil=True)  # nogil: a Dask worker sends results while a tile cuts
 def cut_pieces_window(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tlen, gpos, start, stop,
                       stage0, x0, y0, pitch, gi0, gj0, tnx, tny, near, far, cnt,
@@ -262,10 +352,33 @@ def cut_pieces_window(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tle
     stats[ST_STATUS] = OK
     buf = np.empty((_sk.MAX_INTERVALS, 2), dtype=np.float64)
     ts = np.empty(_sk.SCRATCH, dtype=np.float64)
-    for p in range(start, stop):
+    p = start
+    while p < stop:
         mv = smove[p]
         kind = pkind[mv]
         if kind == _sk.NO_CUT:
+            p += 1
+            continue
+        if kind == _sk.LINE:
+            # the stages of one line, all at once: each ray's reach and lowest point are found
+            # once, then each stage's piece cuts its part of the reach (its bottom is lowest
+            # at the lowest point clamped to the piece: the bottom is convex along the line)
+            q = p
+            while q + 1 < stop and smove[q + 1] == mv and (
+                    not has_gpos or gpos[q + 1] == gpos[q] + 1):
+                q += 1
+            first = stage0 + p + 1
+            if has_gpos:
+                first = stage0 + gpos[p] + 1
+            ts_ = tslot[p]
+            st = _cut_line_stages(pgeo[mv], st0, st1, p, q, tcode[ts_], trad[ts_], tcr[ts_], tlen[ts_], first,
+                                  x0, y0, pitch, gi0, gj0, tnx, tny, near, far, cnt,
+                                  rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
+                                  rec_t, tt_z, tt_s, tt_ray, rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats)
+            if st != OK:
+                stats[ST_STATUS] = st
+                return p
+            p = q + 1
             continue
         s = tslot[p]
         code = tcode[s]
@@ -297,15 +410,18 @@ def cut_pieces_window(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tle
             if kind == _sk.LINE or kind == _sk.STAMP:
                 for j in range(ja, jb + 1):
                     r = (i - gi0) * tny + (j - gj0)
+                    c = cnt[r]
+                    if c == 0:
+                        continue
                     ok, lo, hi = _sk.line_bottom(code, R, rc, L, sx, sy, sz, ex, ey, ez, lxy, ux, uy, m, kb,
                                                  qx, y0 + j * pitch)
-                    if not ok:
+                    # quick reject: conditions (1)/(2) against the whole ray, first in float64
+                    # (most rays under the tool were cut as deep by the stage before)
+                    if not ok or far[r, c - 1] <= lo:
                         continue
                     a = f32_up(lo)
                     b = np.float32(hi)
-                    c = cnt[r]
-                    # quick reject: conditions (1)/(2) against the whole ray
-                    if c == 0 or far[r, c - 1] <= a or near[r, 0] >= b:
+                    if far[r, c - 1] <= a or near[r, 0] >= b:
                         continue
                     if c >= K:
                         stats[ST_STATUS] = NEED_SLOTS
@@ -344,6 +460,7 @@ def cut_pieces_window(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tle
                                 rec_z, zid_near, zid_far, zt_z, zt_c, zt_d, zt_ray,
                                 rec_t, tt_z, tt_s, tt_ray,
                                 rec_tr, leaf, tr_z, tr_s, tr_k, tr_ray, stats)
+        p += 1
     return stop
 
 

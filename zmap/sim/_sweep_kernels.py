@@ -174,6 +174,18 @@ def line_bottom(code, R, rc, L, sx, sy, sz, ex, ey, ez, lxy, ux, uy, m, kb, qx, 
     R2 = R * R
     if e2 > R2:
         return False, 0.0, 0.0
+    if m == 0.0:  # a level move: the bottom at the ray's distance from the segment
+        if s < 0.0:
+            d2 = s * s + e2
+        elif s > lxy:
+            d2 = (s - lxy) ** 2 + e2
+        else:
+            d2 = e2
+        if d2 > R2:
+            return False, 0.0, 0.0
+        if code == 0:
+            return True, sz, sz + L
+        return True, sz + _h(code, R, rc, math.sqrt(d2)), sz + L
     w = math.sqrt(R2 - e2)
     lo = max(-s, -w)
     hi = min(lxy - s, w)
@@ -204,6 +216,49 @@ def line_bottom(code, R, rc, L, sx, sy, sz, ex, ey, ez, lxy, ux, uy, m, kb, qx, 
     else:
         ztip = ez - m * (lxy - tau)
     return True, ztip + hsig, sz + top + L
+
+
+@njit(cache=True, inline="always")
+def line_reach(code, R, rc, lxy, ux, uy, m, kb, ax, ay, tlo, thi, qx, qy):
+    """Where a line's tool reaches ray (qx, qy) and where its bottom is lowest.
+
+    The line starts at ``(ax, ay)`` (xy length ``lxy > 0``, direction ``(ux, uy)``, slope
+    ``m``, ``kb`` from :func:`line_setup`) and is cut over its parameters ``[tlo, thi]``.
+    Returns ``(reached, s, e2, lo, hi, sig)``: the ray's foot ``s`` along the line and its
+    squared distance ``e2`` from it, the reached range ``[lo, hi]`` of ``sigma`` (the xy
+    distance of the tip past the foot) and the ``sigma`` of the lowest bottom over it. The
+    bottom is convex in ``sigma`` (module docstring), so over any part of ``[lo, hi]`` it is
+    lowest at ``sig`` clamped to that part.
+    """
+    vx = qx - ax
+    vy = qy - ay
+    s = vx * ux + vy * uy
+    e = vx * uy - vy * ux
+    e2 = e * e
+    R2 = R * R
+    if e2 > R2:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0
+    w = math.sqrt(R2 - e2)
+    lo = max(tlo * lxy - s, -w)
+    hi = min(thi * lxy - s, w)
+    if lo > hi:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0
+    if code == 0 or m == 0.0:
+        # flat: lowest at the end where the tip is lowest; level moves: at the foot
+        sig = 0.0 if m == 0.0 else (lo if m > 0.0 else hi)
+    elif code == 1:
+        sig = kb * w
+    else:
+        e = abs(e)
+        glo = _line_gprime(code, R, rc, m, e, lo)
+        ghi = _line_gprime(code, R, rc, m, e, hi)
+        if glo >= 0.0:
+            sig = lo
+        elif ghi <= 0.0:
+            sig = hi
+        else:
+            sig = _root_increasing(code, R, rc, m, e, lo, hi, glo, ghi)
+    return True, s, e2, lo, hi, min(max(sig, lo), hi)
 
 
 @njit(cache=True)
