@@ -27,6 +27,11 @@ from . import _dexel_kernels as _k
 __all__ = ["DexelWorkpiece", "cutter_table", "ray_grid"]
 
 
+#: dexel slots per ray of a new stock: one (a cut from above never splits a dexel); a ray
+#: that needs more makes all rays twice as wide (:meth:`DexelWorkpiece.grow`)
+START_SLOTS = 1
+
+
 def ray_grid(x0: float, x1: float, pitch: float) -> int:
     """Number of rays at ``pitch`` from ``x0`` up to and including ``x1`` (1e-9 slack)."""
     return int(math.floor((x1 - x0) / pitch + 1e-9)) + 1
@@ -115,8 +120,8 @@ class DexelWorkpiece:
         nx, ny = ray_grid(x0, x1, pitch), ray_grid(y0, y1, pitch)
         if np.float32(z0) >= np.float32(z1):
             raise ValueError(f"box is thinner than float32 resolution: z0={z0}, z1={z1}")
-        near = np.full((nx * ny, 4), np.float32(z0), dtype=np.float32)
-        far = np.full((nx * ny, 4), np.float32(z1), dtype=np.float32)
+        near = np.full((nx * ny, START_SLOTS), np.float32(z0), dtype=np.float32)
+        far = np.full((nx * ny, START_SLOTS), np.float32(z1), dtype=np.float32)
         cnt = np.ones(nx * ny, dtype=np.int32)
         return cls(x0, y0, pitch, nx, ny, near, far, cnt)
 
@@ -162,8 +167,8 @@ class DexelWorkpiece:
                    + (1 - u) * v * z[I, J + 1] + u * v * z[I + 1, J + 1])
         top32 = top.astype(np.float32).ravel()
         b32 = np.float32(bottom)
-        near = np.full((nx * ny, 4), b32, dtype=np.float32)
-        far = np.zeros((nx * ny, 4), dtype=np.float32)
+        near = np.full((nx * ny, START_SLOTS), b32, dtype=np.float32)
+        far = np.zeros((nx * ny, START_SLOTS), dtype=np.float32)
         far[:, 0] = top32
         cnt = (top32 > b32).astype(np.int32)  # NaN compares False: empty ray
         return cls(float(zm.x0), float(zm.y0), pitch, nx, ny, near, far, cnt)
@@ -178,7 +183,7 @@ class DexelWorkpiece:
         n = int(nx) * int(ny)
         if offsets.shape != (n + 1,):
             raise ValueError(f"offsets has shape {offsets.shape}, expected ({n + 1},) for {nx} x {ny} rays")
-        K = max(4, int(np.diff(offsets).max(initial=0)))
+        K = max(START_SLOTS, int(np.diff(offsets).max(initial=0)))
         n_near = np.zeros((n, K), dtype=np.float32)
         n_far = np.zeros((n, K), dtype=np.float32)
         cnt = np.empty(n, dtype=np.int32)

@@ -126,35 +126,26 @@ def ttrace_display(offsets, tz, ts, k, out):
 # ---- Interval Treap --------------------------------------------------------------------
 
 @njit(cache=True)
-def treap_group(ray, node_off, tz, ts, tk, nz, ns, nk):
-    """Copy the node pool grouped by ray, creation order kept (a stable counting sort).
-
-    The stock's roots come first in each ray's block (they were created first), the two
-    children of a node stay side by side, and a chain of modifications is stored in the
-    order it is walked. Child indices are remapped. Returns the largest block.
-    """
-    n = ray.shape[0]
-    n_rays = node_off.shape[0] - 1
-    newidx = np.empty(n, dtype=np.int32)
+def treap_new_index(ray, node_off, newidx):
+    """Place of each node when the pool is grouped by ray, creation order kept (a stable
+    counting sort): the stock's roots first in each ray's block, the two children of a node
+    side by side, a chain of modifications in the order it is walked."""
     fill = node_off[:-1].copy()
-    for e in range(n):
+    for e in range(ray.shape[0]):
         r = ray[e]
         newidx[e] = fill[r]
         fill[r] += 1
-    for e in range(n):
-        q = newidx[e]
-        nz[q] = tz[e]
-        ns[q] = ts[e]
+
+
+@njit(cache=True)
+def treap_remap_kids(newidx, tk, nk):
+    """``nk[newidx[e]]`` = node e's ``kids`` with its first child's index remapped."""
+    for e in range(tk.shape[0]):
         kids = tk[e]
         if kids & 3:
-            nk[q] = (newidx[kids >> 2] << 2) | (kids & 3)
+            nk[newidx[e]] = (newidx[kids >> 2] << 2) | (kids & 3)
         else:
-            nk[q] = 0
-    biggest = 0
-    for r in range(n_rays):
-        if node_off[r + 1] - node_off[r] > biggest:
-            biggest = node_off[r + 1] - node_off[r]
-    return biggest
+            nk[newidx[e]] = 0
 
 
 @njit(cache=True)

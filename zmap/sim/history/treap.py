@@ -105,7 +105,7 @@ class IntervalTreap:
         return int(self.b_z.shape[0])
 
     def grow_pool(self) -> None:
-        cap = 2 * self.capacity
+        cap = self.capacity + self.capacity // 2 + 1024  # 1.5x: less idle pool at the peak
         if cap >= 2 ** 29:
             raise MemoryError("Interval Treap node pool would exceed 2**29 nodes")
         self.b_z, self.b_s, self.b_k = grow1(self.b_z, cap), grow1(self.b_s, cap), grow1(self.b_k, cap)
@@ -115,17 +115,33 @@ class IntervalTreap:
         self.leaf = widen(self.leaf, slots)
 
     def finalize(self) -> None:
-        """Re-lay the node pool ray by ray (creation order kept, children side by side)."""
+        """Re-lay the node pool ray by ray (creation order kept, children side by side).
+
+        One array at a time, each freed as soon as it is copied, so that the peak stays
+        near the pool's own size.
+        """
         n = self.n
-        ray = self.b_ray[:n]
+        del self.leaf
+        for name in ("b_ray", "b_z", "b_s", "b_k"):  # the pool's unused tail first
+            a = getattr(self, name)
+            if a.shape[0] > n:
+                setattr(self, name, a[:n].copy())
+                del a
         self.node_off = np.empty(self.n_rays + 1, dtype=np.int64)
-        _hk.ray_offsets(ray, self.n_rays, self.node_off)
+        _hk.ray_offsets(self.b_ray, self.n_rays, self.node_off)
+        newidx = np.empty(n, dtype=np.int32)
+        _hk.treap_new_index(self.b_ray, self.node_off, newidx)
+        del self.b_ray
         self.z = np.empty(n, dtype=np.float32)
+        self.z[newidx] = self.b_z
+        del self.b_z
         self.stage = np.empty(n, dtype=np.int32)
+        self.stage[newidx] = self.b_s
+        del self.b_s
         self.kids = np.empty(n, dtype=np.int32)
-        self.max_block = int(_hk.treap_group(ray, self.node_off, self.b_z[:n], self.b_s[:n], self.b_k[:n],
-                                             self.z, self.stage, self.kids))
-        del self.b_z, self.b_s, self.b_k, self.b_ray, self.leaf
+        _hk.treap_remap_kids(newidx, self.b_k, self.kids)
+        del self.b_k
+        self.max_block = int(np.diff(self.node_off).max(initial=0))
 
     @property
     def n_nodes(self) -> int:
