@@ -16,8 +16,10 @@ Examples
 >>> from zmap.sim.gcode import parse
 >>> from zmap.sim.path import positions
 >>> p = Pieces.of(positions(parse("G0 X0 Y0 Z1\\nG1 X1 F100\\n"), pitch=0.5))
->>> p.kind.tolist(), p.params(0, len(p))[1].tolist()
-([0, 2], [0.0, 0.0, 0.5])
+>>> p.kind.tolist()  # the first move starts from an unknown point: it does not cut
+[0, 2]
+>>> p.move.tolist(), p.params(0, len(p))[1].tolist()  # each stage's piece: t0 of its move
+([0, 0, 1, 1], [0.0, 0.5, 0.0, 0.5])
 """
 
 from __future__ import annotations
