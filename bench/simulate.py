@@ -114,7 +114,7 @@ def figures(program_path: str | Path, stock, tool, tools, repeat: int) -> dict:
     t_trav = []
     for _ in range(repeat):
         t = time.perf_counter()
-        it = simulate_treap(r0.stock, r0.xyz, r0.cutters, r0.slot)
+        it = simulate_treap(r0.stock, r0.pieces, r0.cutters, r0.slot)
         t_trav.append(time.perf_counter() - t)
     n = runs["none"].n_stages
     stages = [int(round(f * n)) for f in FRACTIONS]
