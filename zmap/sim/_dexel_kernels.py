@@ -283,6 +283,14 @@ def _cut_line_stages(g, st0, st1, p, q, code, R, rc, L, stage_p, x0, y0, pitch, 
                 ok, s, e2, lo, hi, sig = _sk.line_reach(code, R, rc, lxy, ux, uy, m, kb, ax, ay, tlo, thi, qx, qy)
                 if not ok:
                     continue
+                # no piece cuts below the lowest bottom of them all: a ray already as deep is done
+                lowest = az + m * (s + sig)
+                if code == 1:
+                    lowest += R - math.sqrt(max(R2 - e2 - sig * sig, 0.0))
+                elif code != 0:
+                    lowest += _sk._h(code, R, rc, math.sqrt(sig * sig + e2))
+                if far[r, cnt[r] - 1] <= lowest:
+                    continue
                 # the pieces the reach overlaps, one more each side for rounding
                 ka = max(int(math.floor((s + lo) / lxy * n)) - 1, j0)
                 kz = min(int(math.ceil((s + hi) / lxy * n)), j0 + q - p)
@@ -300,7 +308,9 @@ def _cut_line_stages(g, st0, st1, p, q, code, R, rc, L, stage_p, x0, y0, pitch, 
                         continue
                     sk_ = min(max(sig, plo), phi)
                     bottom = az + m * (s + sk_)
-                    if code != 0:
+                    if code == 1:  # a ball: R - sqrt(R^2 - r^2), with r^2 = sigma^2 + e^2
+                        bottom += R - math.sqrt(max(R2 - e2 - sk_ * sk_, 0.0))
+                    elif code != 0:
                         bottom += _sk._h(code, R, rc, math.sqrt(sk_ * sk_ + e2))
                     top = az + max(m * (s + plo), m * (s + phi)) + L
                 c = cnt[r]
