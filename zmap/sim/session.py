@@ -356,7 +356,8 @@ class Run:
         if tool is None and self.cutters:
             tool = self.cutters[int(self.slot[max(k - 1, 0)])] if self.n_stages else self.cutters[0]
         run = simulate(program, wp, tool=tool, tools=tools, pitch=wp.pitch,
-                       history=self.history if history is None else history, progress=progress)
+                       history=self.history if history is None else history, progress=progress,
+                       stages=self.summary.get("stages", "pitch"))
         run.summary["branched_from_stage"] = k
         return run
 
@@ -563,6 +564,7 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
         "dexels_deleted": wp.deleted - deleted0,
         "dexels_final": wp.n_dexels,
         "history": history,
+        "stages": stages,
         "history_bytes": int(structure.nbytes) if structure is not None else 0,
         "history_elements": n_elem,
         "history_bytes_per_element": round(structure.nbytes / n_elem, 3) if n_elem else 0.0,

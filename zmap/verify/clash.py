@@ -138,7 +138,8 @@ def _move_kinds(run: Any, program: Any) -> tuple[np.ndarray, np.ndarray]:
     from ..sim.path import positions
 
     prog = parse(program) if isinstance(program, (str, os.PathLike)) else program
-    pos = positions(prog, pitch=run.stock.pitch)
+    stages = run.summary.get("stages", "pitch") if isinstance(run.summary, dict) else "pitch"
+    pos = positions(prog, pitch=run.stock.pitch, stages=stages)
     if pos.n != run.n_stages or not np.allclose(pos.xyz, run.xyz, atol=1e-9):
         name = getattr(prog, "filename", "the program")
         raise ZMapError(f"{name} does not match the run: it makes {pos.n} tool positions at pitch "

@@ -101,3 +101,13 @@ def test_bad_holder_table_and_history(tmp_path):
         collisions(run, other, kinds=["rapid"])
     with pytest.raises(ValueError, match="not one of"):
         collisions(run, p, kinds=["crash"])
+
+
+def test_rapid_found_in_a_run_with_one_stage_per_move(tmp_path):
+    prog = "G21 G90\nG0 X5 Y5 Z5\nG0 Z-1\nG1 X8 F100\nG0 Z5\nG0 X15\n"
+    p = tmp_path / "move.nc"
+    p.write_text(prog)
+    run = simulate(str(p), (0, 0, -5, 20, 10, 0), tool="ball:2", pitch=0.5, history="treap", stages="move")
+    assert run.n_stages == 5
+    hits = collisions(run, str(p), kinds=["rapid"])
+    assert [(h.line, h.stage) for h in hits] == [(3, 2)]
