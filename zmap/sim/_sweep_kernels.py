@@ -158,67 +158,6 @@ def line_setup(sx, sy, sz, ex, ey, ez):
 
 
 @njit(cache=True, inline="always")
-def line_bottom(code, R, rc, L, sx, sy, sz, ex, ey, ez, lxy, ux, uy, m, kb, qx, qy):
-    """``(reached, bottom, top)`` of the cutter moving its tip from s to e on ray (qx, qy);
-    ``lxy, ux, uy, m, kb`` from :func:`line_setup`."""
-    if lxy == 0.0:
-        d2 = (qx - ex) ** 2 + (qy - ey) ** 2
-        if d2 > R * R:
-            return False, 0.0, 0.0
-        return True, min(sz, ez) + _h(code, R, rc, math.sqrt(d2)), max(sz, ez) + L
-    vx = qx - sx
-    vy = qy - sy
-    s = vx * ux + vy * uy
-    e = vx * uy - vy * ux
-    e2 = e * e
-    R2 = R * R
-    if e2 > R2:
-        return False, 0.0, 0.0
-    if m == 0.0:  # a level move: the bottom at the ray's distance from the segment
-        if s < 0.0:
-            d2 = s * s + e2
-        elif s > lxy:
-            d2 = (s - lxy) ** 2 + e2
-        else:
-            d2 = e2
-        if d2 > R2:
-            return False, 0.0, 0.0
-        if code == 0:
-            return True, sz, sz + L
-        return True, sz + _h(code, R, rc, math.sqrt(d2)), sz + L
-    w = math.sqrt(R2 - e2)
-    lo = max(-s, -w)
-    hi = min(lxy - s, w)
-    if lo > hi:
-        return False, 0.0, 0.0
-    top = max(m * (s + lo), m * (s + hi))
-    if code == 0:
-        sig = lo if m > 0.0 else hi
-        hsig = 0.0
-    else:
-        if code == 1:
-            sig = min(max(kb * w, lo), hi)
-        else:
-            e = abs(e)
-            glo = _line_gprime(code, R, rc, m, e, lo)
-            ghi = _line_gprime(code, R, rc, m, e, hi)
-            if glo >= 0.0:
-                sig = lo
-            elif ghi <= 0.0:
-                sig = hi
-            else:
-                sig = _root_increasing(code, R, rc, m, e, lo, hi, glo, ghi)
-        hsig = _h(code, R, rc, math.sqrt(sig * sig + e2))
-    # the tip's height at sig, from whichever end is nearer (the same number at both ends)
-    tau = s + sig
-    if tau <= 0.5 * lxy:
-        ztip = sz + m * tau
-    else:
-        ztip = ez - m * (lxy - tau)
-    return True, ztip + hsig, sz + top + L
-
-
-@njit(cache=True, inline="always")
 def line_reach(code, R, rc, lxy, ux, uy, m, kb, ax, ay, tlo, thi, qx, qy):
     """Where a line's tool reaches ray (qx, qy) and where its bottom is lowest.
 
@@ -259,6 +198,28 @@ def line_reach(code, R, rc, lxy, ux, uy, m, kb, ax, ay, tlo, thi, qx, qy):
         else:
             sig = _root_increasing(code, R, rc, m, e, lo, hi, glo, ghi)
     return True, s, e2, lo, hi, min(max(sig, lo), hi)
+
+
+@njit(cache=True, inline="always")
+def line_bottom(code, R, rc, L, sx, sy, sz, ex, ey, ez, lxy, ux, uy, m, kb, qx, qy):
+    """``(reached, bottom, top)`` of the cutter moving its tip from s to e on ray (qx, qy);
+    ``lxy, ux, uy, m, kb`` from :func:`line_setup`."""
+    if lxy == 0.0:
+        d2 = (qx - ex) ** 2 + (qy - ey) ** 2
+        if d2 > R * R:
+            return False, 0.0, 0.0
+        return True, min(sz, ez) + _h(code, R, rc, math.sqrt(d2)), max(sz, ez) + L
+    ok, s, e2, lo, hi, sig = line_reach(code, R, rc, lxy, ux, uy, m, kb, sx, sy, 0.0, 1.0, qx, qy)
+    if not ok:
+        return False, 0.0, 0.0
+    # the tip's height at sig, from whichever end is nearer (the same number at both ends)
+    tau = s + sig
+    if tau <= 0.5 * lxy:
+        ztip = sz + m * tau
+    else:
+        ztip = ez - m * (lxy - tau)
+    hsig = 0.0 if code == 0 else _h(code, R, rc, math.sqrt(sig * sig + e2))
+    return True, ztip + hsig, sz + max(m * (s + lo), m * (s + hi)) + L
 
 
 @njit(cache=True)
