@@ -4,8 +4,8 @@ An independent check of the simulator's exact sweep for the benchmark: it shares
 with :mod:`zmap.sim._sweep_kernels`, :mod:`zmap.sim.pieces` or :mod:`zmap.sim.path`; only the
 parsed moves (:func:`zmap.sim.gcode.parse`) and the cutters' dimensions come from zmap. The
 cutter's envelope, the path of a line or an arc (from its start, end, centre, plane and
-signed sweep) and the search are written here again in plain numpy, after the test
-reference ``tests/zmap/sim/sweep_reference.py``: the path is sampled every 1 um, and the
+signed sweep) and the search are written here in plain numpy (the tests use them too,
+through ``tests/zmap/sim/sweep_reference.py``): the path is sampled every 1 um, and the
 best sample refined three times, each by sampling 1000 times finer around the best so far.
 
 For speed, at a ray ``(qx, qy)`` only the moves whose xy box grown by their tool's radius
