@@ -113,18 +113,21 @@ def _line_gprime(code, R, rc, m, e, sig):
 
 @njit(cache=True)
 def _root_increasing(code, R, rc, m, e, a, b, fa, fb):
-    """Root of the non-decreasing ``g'`` of a line on ``[a, b]`` with ``fa < 0 < fb``."""
-    for _ in range(200):
-        if b - a <= 1e-12:
-            break
-        if math.isfinite(fa) and math.isfinite(fb):
-            c = a - fa * (b - a) / (fb - fa)
-        else:
-            c = 0.5 * (a + b)
-        # keep away from the ends: false position alone can stall at one end
+    """Root of the non-decreasing ``g'`` of a line on ``[a, b]`` with ``fa < 0 < fb``.
+
+    False position kept off the ends, and a bisection after any step that gained less than
+    half the bracket: the bracket at least halves every two steps, down to 1e-12 mm.
+    """
+    bisect = False
+    for _ in range(400):
         w = b - a
-        if not (a + 0.05 * w < c < b - 0.05 * w):
-            c = 0.5 * (a + b)
+        if w <= 1e-12:
+            break
+        c = 0.5 * (a + b)
+        if not bisect and math.isfinite(fa) and math.isfinite(fb):
+            c = a - fa * w / (fb - fa)
+            if not (a + 0.05 * w < c < b - 0.05 * w):
+                c = 0.5 * (a + b)
         fc = _line_gprime(code, R, rc, m, e, c)
         if fc < 0.0:
             a, fa = c, fc
@@ -132,15 +135,7 @@ def _root_increasing(code, R, rc, m, e, a, b, fa, fb):
             b, fb = c, fc
         else:
             return c
-        if b - a > 0.5 * w:  # less than half gained: bisect once
-            c = 0.5 * (a + b)
-            fc = _line_gprime(code, R, rc, m, e, c)
-            if fc < 0.0:
-                a, fa = c, fc
-            elif fc > 0.0:
-                b, fb = c, fc
-            else:
-                return c
+        bisect = b - a > 0.5 * w
     return 0.5 * (a + b)
 
 
@@ -416,16 +411,18 @@ def _arc_min_cell(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, u
     if not (gu < 0.0 and gv > 0.0):
         return best
     a, b, ga, gb = u, v, gu, gv
-    for _ in range(200):
+    bisect = False
+    for _ in range(400):
         w = b - a
         if w <= 1e-15:
             break
-        if math.isfinite(ga) and math.isfinite(gb):
+        # false position, kept off the ends; a bisection after any step that gained less
+        # than half the bracket, so the bracket at least halves every two steps
+        c = 0.5 * (a + b)
+        if not bisect and math.isfinite(ga) and math.isfinite(gb):
             c = a - ga * w / (gb - ga)
-        else:
-            c = 0.5 * (a + b)
-        if not (a + 0.05 * w < c < b - 0.05 * w):
-            c = 0.5 * (a + b)
+            if not (a + 0.05 * w < c < b - 0.05 * w):
+                c = 0.5 * (a + b)
         fc, gc, _, _ = _arc_f(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, c, qx, qy)
         if fc < best:
             best = fc
@@ -435,17 +432,7 @@ def _arc_min_cell(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, qx, qy, u
             b, gb = c, gc
         else:
             break
-        if b - a > 0.5 * w:
-            c = 0.5 * (a + b)
-            fc, gc, _, _ = _arc_f(code, R, rc, plane, ca, cb, th0, sw, ra, dr, na, dn, c, qx, qy)
-            if fc < best:
-                best = fc
-            if gc < 0.0:
-                a, ga = c, gc
-            elif gc > 0.0:
-                b, gb = c, gc
-            else:
-                break
+        bisect = b - a > 0.5 * w
     return best
 
 

@@ -292,12 +292,9 @@ class DexelWorkpiece:
         DexelWorkpiece
             ``self``, cut in place.
         """
-        cutters = list(cutter) if isinstance(cutter, (list, tuple)) else [cutter]
-        xyz = np.ascontiguousarray(xyz, dtype=np.float64).reshape(-1, 3)
-        slot = (np.zeros(len(xyz), dtype=np.int32) if tool_slot is None
-                else np.ascontiguousarray(tool_slot, dtype=np.int32))
-        run_cut(self, xyz, slot, cutter_table(cutters), 0, len(xyz), 0, None)
-        return self
+        from .pieces import Pieces
+
+        return self.sweep(Pieces.stamps(xyz), cutter, tool_slot)
 
     def sweep(self, pieces: Any, cutter: Any, tool_slot: np.ndarray | None = None) -> "DexelWorkpiece":
         """Subtract the exact sweep of the cutter along path pieces, in order (no history).
