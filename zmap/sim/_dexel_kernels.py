@@ -278,22 +278,18 @@ def _cut_line_stages(g, st0, st1, p, q, code, R, rc, L, stage_p, x0, y0, pitch, 
                     continue
                 hq = _sk._h(code, R, rc, math.sqrt(d2))
                 ka, kz = j0, j0 + q - p
-                sig = lo = hi = s = e2 = 0.0
+                tstar = lo = hi = s = e2 = 0.0
             else:
-                ok, s, e2, lo, hi, sig = _sk.line_reach(code, R, rc, lxy, ux, uy, m, kb, ax, ay, tlo, thi, qx, qy)
+                ok, s, e2, lo, hi, tstar = _sk.line_reach(code, R, rc, lxy, ux, uy, m, kb, ax, ay, tlo * lxy,
+                                                          thi * lxy, qx, qy)
                 if not ok:
                     continue
                 # no piece cuts below the lowest bottom of them all: a ray already as deep is done
-                lowest = az + m * (s + sig)
-                if code == 1:
-                    lowest += R - math.sqrt(max(R2 - e2 - sig * sig, 0.0))
-                elif code != 0:
-                    lowest += _sk._h(code, R, rc, math.sqrt(sig * sig + e2))
-                if far[r, cnt[r] - 1] <= lowest:
+                if far[r, cnt[r] - 1] <= _sk.line_piece(code, R, rc, L, az, g[5], lxy, m, s, e2, tstar, lo, hi)[0]:
                     continue
                 # the pieces the reach overlaps, one more each side for rounding
-                ka = max(int(math.floor((s + lo) / lxy * n)) - 1, j0)
-                kz = min(int(math.ceil((s + hi) / lxy * n)), j0 + q - p)
+                ka = max(int(math.floor(lo / lxy * n)) - 1, j0)
+                kz = min(int(math.ceil(hi / lxy * n)), j0 + q - p)
                 hq = 0.0
             for k in range(ka, kz + 1):
                 if lxy == 0.0:
@@ -302,17 +298,12 @@ def _cut_line_stages(g, st0, st1, p, q, code, R, rc, L, stage_p, x0, y0, pitch, 
                     bottom = min(za, zb) + hq
                     top = max(za, zb) + L
                 else:
-                    plo = max(lo, (k / n) * lxy - s)
-                    phi = min(hi, ((k + 1) / n) * lxy - s)
+                    # the same numbers as the piece alone (line_ray): its part of the reach
+                    plo = max(lo, (k / n) * lxy)
+                    phi = min(hi, ((k + 1) / n) * lxy)
                     if plo > phi:
                         continue
-                    sk_ = min(max(sig, plo), phi)
-                    bottom = az + m * (s + sk_)
-                    if code == 1:  # a ball: R - sqrt(R^2 - r^2), with r^2 = sigma^2 + e^2
-                        bottom += R - math.sqrt(max(R2 - e2 - sk_ * sk_, 0.0))
-                    elif code != 0:
-                        bottom += _sk._h(code, R, rc, math.sqrt(sk_ * sk_ + e2))
-                    top = az + max(m * (s + plo), m * (s + phi)) + L
+                    bottom, top = _sk.line_piece(code, R, rc, L, az, g[5], lxy, m, s, e2, tstar, plo, phi)
                 c = cnt[r]
                 # quick reject: conditions (1)/(2) against the whole ray, first in float64
                 # (most rays under the tool were cut as deep by the stage before)
@@ -400,11 +391,9 @@ def cut_pieces_window(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tle
         t1 = st1[p]
         stage = np.int32(stage0 + (gpos[p] if has_gpos else p) + 1)
         R2 = R * R
-        if kind == _sk.LINE or kind == _sk.STAMP:
-            sx, sy, sz, ex, ey, ez = _sk.line_ends(kind, g, t0, t1)
-            lxy, ux, uy, m, kb = _sk.line_setup(sx, sy, sz, ex, ey, ez)
-            xmin, xmax = min(sx, ex), max(sx, ex)
-            ymin, ymax = min(sy, ey), max(sy, ey)
+        if kind == _sk.STAMP:
+            xmin = xmax = g[0]
+            ymin = ymax = g[1]
         else:
             xmin, xmax, ymin, ymax = _sk.piece_box(kind, g, t0, t1)
         i0 = max(int(math.ceil((xmin - R - x0) / pitch)) - 1, gi0)
@@ -417,17 +406,19 @@ def cut_pieces_window(pkind, pgeo, smove, st0, st1, tslot, tcode, trad, tcr, tle
             hy = math.sqrt(R2 - ddx * ddx)  # the rays of this column within R of the piece's box
             ja = max(int(math.ceil((ymin - hy - y0) / pitch)) - 1, gj0)
             jb = min(int(math.floor((ymax + hy - y0) / pitch)) + 1, gj0 + tny - 1)
-            if kind == _sk.LINE or kind == _sk.STAMP:
+            if kind == _sk.STAMP:
                 for j in range(ja, jb + 1):
                     r = (i - gi0) * tny + (j - gj0)
                     c = cnt[r]
                     if c == 0:
                         continue
-                    ok, lo, hi = _sk.line_bottom(code, R, rc, L, sx, sy, sz, ex, ey, ez, lxy, ux, uy, m, kb,
-                                                 qx, y0 + j * pitch)
+                    d2 = (qx - g[0]) ** 2 + (y0 + j * pitch - g[1]) ** 2
+                    if d2 > R2:
+                        continue
+                    lo = g[2] + _sk._h(code, R, rc, math.sqrt(d2))
+                    hi = g[2] + L
                     # quick reject: conditions (1)/(2) against the whole ray, first in float64
-                    # (most rays under the tool were cut as deep by the stage before)
-                    if not ok or far[r, c - 1] <= lo:
+                    if far[r, c - 1] <= lo:
                         continue
                     a = f32_up(lo)
                     b = np.float32(hi)

@@ -153,16 +153,26 @@ def line_setup(sx, sy, sz, ex, ey, ez):
 
 
 @njit(cache=True, inline="always")
-def line_reach(code, R, rc, lxy, ux, uy, m, kb, ax, ay, tlo, thi, qx, qy):
+def line_tip_z(az, ez, m, lxy, tau):
+    """The tip's height ``tau`` mm (in xy) along a line from ``az`` to ``ez``, measured from
+    whichever end is nearer, so that both ends come out exact."""
+    if tau <= 0.5 * lxy:
+        return az + m * tau
+    return ez - m * (lxy - tau)
+
+
+@njit(cache=True, inline="always")
+def line_reach(code, R, rc, lxy, ux, uy, m, kb, ax, ay, taulo, tauhi, qx, qy):
     """Where a line's tool reaches ray (qx, qy) and where its bottom is lowest.
 
     The line starts at ``(ax, ay)`` (xy length ``lxy > 0``, direction ``(ux, uy)``, slope
-    ``m``, ``kb`` from :func:`line_setup`) and is cut over its parameters ``[tlo, thi]``.
-    Returns ``(reached, s, e2, lo, hi, sig)``: the ray's foot ``s`` along the line and its
-    squared distance ``e2`` from it, the reached range ``[lo, hi]`` of ``sigma`` (the xy
-    distance of the tip past the foot) and the ``sigma`` of the lowest bottom over it. The
-    bottom is convex in ``sigma`` (module docstring), so over any part of ``[lo, hi]`` it is
-    lowest at ``sig`` clamped to that part.
+    ``m``, ``kb`` from :func:`line_setup`); positions on it are ``tau``, the xy distance
+    from its start. Returns ``(reached, s, e2, lo, hi, tstar)``: the ray's foot ``s`` and
+    its squared distance ``e2`` from the line, the part ``[lo, hi]`` of ``[taulo, tauhi]``
+    where the tool reaches the ray, and ``tstar``, where the bottom is lowest over the
+    whole move's reach. The bottom is convex in ``tau`` (module docstring), so over any
+    part of the reach it is lowest at ``tstar`` clamped to that part; finding ``tstar`` on
+    the whole move makes every piece of it see the same number.
     """
     vx = qx - ax
     vy = qy - ay
@@ -173,63 +183,68 @@ def line_reach(code, R, rc, lxy, ux, uy, m, kb, ax, ay, tlo, thi, qx, qy):
     if e2 > R2:
         return False, 0.0, 0.0, 0.0, 0.0, 0.0
     w = math.sqrt(R2 - e2)
-    lo = max(tlo * lxy - s, -w)
-    hi = min(thi * lxy - s, w)
-    if lo > hi:
+    flo = max(0.0, s - w)
+    fhi = min(lxy, s + w)
+    lo = max(taulo, s - w)
+    hi = min(tauhi, s + w)
+    if lo > hi or flo > fhi:
         return False, 0.0, 0.0, 0.0, 0.0, 0.0
-    if code == 0 or m == 0.0:
-        # flat: lowest at the end where the tip is lowest; level moves: at the foot
-        sig = 0.0 if m == 0.0 else (lo if m > 0.0 else hi)
+    if m == 0.0:
+        tstar = s  # a level move: lowest where the ray is nearest
+    elif code == 0:
+        tstar = flo if m > 0.0 else fhi  # flat: at the end where the tip is lowest
     elif code == 1:
-        sig = kb * w
+        tstar = s + kb * w
     else:
         e = abs(e)
-        glo = _line_gprime(code, R, rc, m, e, lo)
-        ghi = _line_gprime(code, R, rc, m, e, hi)
+        glo = _line_gprime(code, R, rc, m, e, flo - s)
+        ghi = _line_gprime(code, R, rc, m, e, fhi - s)
         if glo >= 0.0:
-            sig = lo
+            tstar = flo
         elif ghi <= 0.0:
-            sig = hi
+            tstar = fhi
         else:
-            sig = _root_increasing(code, R, rc, m, e, lo, hi, glo, ghi)
-    return True, s, e2, lo, hi, min(max(sig, lo), hi)
+            tstar = s + _root_increasing(code, R, rc, m, e, flo - s, fhi - s, glo, ghi)
+    return True, s, e2, lo, hi, tstar
 
 
 @njit(cache=True, inline="always")
-def line_bottom(code, R, rc, L, sx, sy, sz, ex, ey, ez, lxy, ux, uy, m, kb, qx, qy):
-    """``(reached, bottom, top)`` of the cutter moving its tip from s to e on ray (qx, qy);
-    ``lxy, ux, uy, m, kb`` from :func:`line_setup`."""
-    if lxy == 0.0:
-        d2 = (qx - ex) ** 2 + (qy - ey) ** 2
-        if d2 > R * R:
-            return False, 0.0, 0.0
-        return True, min(sz, ez) + _h(code, R, rc, math.sqrt(d2)), max(sz, ez) + L
-    ok, s, e2, lo, hi, sig = line_reach(code, R, rc, lxy, ux, uy, m, kb, sx, sy, 0.0, 1.0, qx, qy)
-    if not ok:
-        return False, 0.0, 0.0
-    # the tip's height at sig, from whichever end is nearer (the same number at both ends)
-    tau = s + sig
-    if tau <= 0.5 * lxy:
-        ztip = sz + m * tau
+def line_piece(code, R, rc, L, az, ez, lxy, m, s, e2, tstar, plo, phi):
+    """``(bottom, top)`` removed from the ray by the part ``[plo, phi]`` (``plo <= phi``) of a
+    line's reach; ``s, e2, tstar`` from :func:`line_reach`."""
+    tk = min(max(tstar, plo), phi)
+    d = tk - s
+    r2 = d * d + e2
+    if code == 0:
+        h = 0.0
+    elif code == 1:  # a ball: R - sqrt(R^2 - r^2)
+        h = R - math.sqrt(max(R * R - r2, 0.0))
     else:
-        ztip = ez - m * (lxy - tau)
-    hsig = 0.0 if code == 0 else _h(code, R, rc, math.sqrt(sig * sig + e2))
-    return True, ztip + hsig, sz + max(m * (s + lo), m * (s + hi)) + L
+        h = _h(code, R, rc, math.sqrt(r2))
+    top = max(line_tip_z(az, ez, m, lxy, plo), line_tip_z(az, ez, m, lxy, phi)) + L
+    return line_tip_z(az, ez, m, lxy, tk) + h, top
 
 
 @njit(cache=True)
-def line_ray(code, R, rc, L, sx, sy, sz, ex, ey, ez, qx, qy, out):
-    """Interval the cutter removes from ray ``(qx, qy)`` moving its tip from s to e.
-
-    Writes ``out[0] = bottom, out[1] = top`` and returns 1, or returns 0 when the cutter
-    never reaches the ray.
-    """
-    lxy, ux, uy, m, kb = line_setup(sx, sy, sz, ex, ey, ez)
-    ok, lo, hi = line_bottom(code, R, rc, L, sx, sy, sz, ex, ey, ez, lxy, ux, uy, m, kb, qx, qy)
+def line_ray(code, R, rc, L, g, t0, t1, qx, qy, out):
+    """Interval the cutter removes from ray ``(qx, qy)`` over parameters ``[t0, t1]`` of the
+    line ``g`` (start xyz, end xyz). Writes ``out[0] = bottom, out[1] = top`` and returns
+    1, or returns 0 when the cutter never reaches the ray."""
+    ax, ay, az, ez = g[0], g[1], g[2], g[5]
+    lxy, ux, uy, m, kb = line_setup(ax, ay, az, g[3], g[4], ez)
+    if lxy == 0.0:  # a plunge
+        d2 = (qx - ax) ** 2 + (qy - ay) ** 2
+        if d2 > R * R:
+            return 0
+        za = az + (ez - az) * t0
+        zb = ez if t1 == 1.0 else az + (ez - az) * t1
+        out[0] = min(za, zb) + _h(code, R, rc, math.sqrt(d2))
+        out[1] = max(za, zb) + L
+        return 1
+    ok, s, e2, lo, hi, tstar = line_reach(code, R, rc, lxy, ux, uy, m, kb, ax, ay, t0 * lxy, t1 * lxy, qx, qy)
     if not ok:
         return 0
-    out[0] = lo
-    out[1] = hi
+    out[0], out[1] = line_piece(code, R, rc, L, az, ez, lxy, m, s, e2, tstar, lo, hi)
     return 1
 
 
@@ -574,20 +589,6 @@ def arc_box(plane, ca, cb, th0, sw, ra, rb, na, nb, t0, t1):
     return xmin - eps, xmax + eps, ymin - eps, ymax + eps
 
 
-@njit(cache=True, inline="always")
-def line_ends(kind, g, t0, t1):
-    """Start and end of a LINE piece (or a STAMP's tip twice)."""
-    if kind == STAMP:
-        return g[0], g[1], g[2], g[0], g[1], g[2]
-    sx = g[0] + (g[3] - g[0]) * t0
-    sy = g[1] + (g[4] - g[1]) * t0
-    sz = g[2] + (g[5] - g[2]) * t0
-    if t1 == 1.0:
-        return sx, sy, sz, g[3], g[4], g[5]
-    return (sx, sy, sz, g[0] + (g[3] - g[0]) * t1, g[1] + (g[4] - g[1]) * t1,
-            g[2] + (g[5] - g[2]) * t1)
-
-
 @njit(cache=True)
 def piece_rays(kind, code, R, rc, L, g, t0, t1, qx, qy, out, ts):
     """Intervals removed from ray (qx, qy) by one piece; returns their count.
@@ -606,16 +607,7 @@ def piece_rays(kind, code, R, rc, L, g, t0, t1, qx, qy, out, ts):
         out[0, 1] = g[2] + L
         return 1
     if kind == LINE:
-        sx = g[0] + (g[3] - g[0]) * t0
-        sy = g[1] + (g[4] - g[1]) * t0
-        sz = g[2] + (g[5] - g[2]) * t0
-        if t1 == 1.0:
-            ex, ey, ez = g[3], g[4], g[5]
-        else:
-            ex = g[0] + (g[3] - g[0]) * t1
-            ey = g[1] + (g[4] - g[1]) * t1
-            ez = g[2] + (g[5] - g[2]) * t1
-        return line_ray(code, R, rc, L, sx, sy, sz, ex, ey, ez, qx, qy, out[0])
+        return line_ray(code, R, rc, L, g, t0, t1, qx, qy, out[0])
     return arc_ray(code, R, rc, L, kind, g[0], g[1], g[2], g[3], g[4], g[5], g[6], g[7], t0, t1,
                    qx, qy, out, ts)
 

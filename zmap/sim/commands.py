@@ -12,6 +12,8 @@ import re
 
 import click
 
+from .path import STAGE_MODES
+
 __all__ = ["simulate_cmd", "replay_cmd"]
 
 _HISTORIES = ("none", "ztrace", "ttrace", "treap")
@@ -41,7 +43,7 @@ def _need_file(path: str | None) -> None:
 @click.option("--pitch", type=float, default=0.26, show_default=True,
               help="Ray pitch and stage spacing, mm (the lateral resolution; each stage cuts the exact sweep "
                    "of the path since the last, so the pitch never sets the depth).")
-@click.option("--stages", type=click.Choice(["pitch", "move"]), default="pitch", show_default=True,
+@click.option("--stages", type=click.Choice(list(STAGE_MODES)), default="pitch", show_default=True,
               help="A stage every pitch along the path, or one per G-code move (a coarser, smaller history; "
                    "the same stock at each move's end).")
 @click.option("--history", type=click.Choice(_HISTORIES), default="treap", show_default=True)

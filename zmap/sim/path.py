@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import PathError, PathTooLargeError
-from .gcode import ARC_CW, MOVE_DTYPE, Program, _PLANE_AXES, arc_sweep
+from .gcode import ARC_CW, KNOWN_ALL, MOVE_DTYPE, Program, _PLANE_AXES, arc_sweep
 
 __all__ = ["DEFAULT_MAX_POSITIONS", "STAGE_MODES", "Positions", "arc_chords", "dda", "positions"]
 
@@ -326,16 +326,6 @@ class _ArcGeometry:
         self.ia, self.ib, self.inn = ia, ib, inn
         self.da0, self.db0, self.r0, self.r1 = da0, db0, r0, r1
 
-    def min_steps(self, pitch: float) -> np.ndarray:
-        """A lower bound of the DDA steps of each arc (float64): in-plane chords are at
-        least 0.9 of the arc (chords span at most 90 degrees), and L_inf >= L_2 / sqrt(2)."""
-        with np.errstate(over="ignore", invalid="ignore"):
-            rmin = np.minimum(self.r0, self.r1)
-            plane = 0.9 * np.abs(self.sw) * rmin / math.sqrt(2.0)
-            normal = np.abs(self.e[np.arange(self.e.shape[0]), self.inn]
-                            - self.s[np.arange(self.s.shape[0]), self.inn])
-            return np.maximum(np.floor(np.maximum(plane, normal) / pitch), 0.0)
-
     def path_steps(self, pitch: float) -> np.ndarray:
         """Positions of each arc at most ``pitch`` apart along the path (float64, >= 1): its
         length is at most ``hypot(|sweep| * max radius, normal travel) + |radius change|``."""
@@ -449,8 +439,7 @@ def positions(program_or_moves: Program | np.ndarray, *, pitch: float = 0.26,
     pitch = _check_positive("pitch", pitch)
     if chord_tol is not None:
         _check_positive("chord_tol", chord_tol)
-    if stages not in STAGE_MODES:
-        raise ValueError(f"stages={stages!r} is not one of 'pitch', 'move'")
+    _check_stages(stages)
     cap = _check_cap(max_positions)
     is_program = isinstance(program_or_moves, Program)
     moves = program_or_moves.moves if is_program else program_or_moves
@@ -507,9 +496,15 @@ def _with_sweep(moves: np.ndarray, arcs: np.ndarray, sweep: np.ndarray) -> np.nd
             out[name] = moves[name]
     out["sweep"] = np.nan
     out["sweep"][arcs] = sweep
-    if "known" in MOVE_DTYPE.names and "known" not in moves.dtype.names:
-        out["known"] = 7
+    if "known" not in moves.dtype.names:  # a moves array of before the field: every move cuts
+        out["known"] = KNOWN_ALL
     return out
+
+
+def _check_stages(stages: Any) -> str:
+    if stages not in STAGE_MODES:
+        raise ValueError(f"stages={stages!r} is not one of " + ", ".join(repr(m) for m in STAGE_MODES))
+    return stages
 
 
 def _check_cap(v: Any) -> float:

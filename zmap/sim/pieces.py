@@ -24,19 +24,15 @@ Examples
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from . import _sweep_kernels as _sk
-from .gcode import ARC_CW, _PLANE_AXES
+from .gcode import ARC_CW, KNOWN_ALL, _PLANE_AXES
 
-__all__ = ["Pieces", "ALL_AXES"]
-
-#: the ``known`` bitmask of a move whose start has all three axes set by the program
-ALL_AXES = 7
+__all__ = ["Pieces"]
 
 
 @dataclass
@@ -90,17 +86,21 @@ class Pieces:
         geo[:, :3] = start
         geo[:, 3:6] = end
         arcs = np.flatnonzero(moves["kind"] >= ARC_CW)
-        for i in arcs:
-            row = moves[i]
-            plane = int(row["plane"])
-            a, b, nrm = _PLANE_AXES[plane]
-            s, e, c = row["start"], row["end"], row["center"]
-            kind[i] = plane
-            geo[i] = (c[a], c[b], math.atan2(s[b] - c[b], s[a] - c[a]), float(row["sweep"]),
-                      math.hypot(s[a] - c[a], s[b] - c[b]), math.hypot(e[a] - c[a], e[b] - c[b]),
-                      s[nrm], e[nrm])
+        if arcs.size:
+            plane = np.asarray(moves["plane"][arcs], dtype=np.int64)
+            ax = np.array([_PLANE_AXES[int(p)] for p in (17, 18, 19)])[plane - 17]
+            rows = np.arange(arcs.size)
+            s, e = start[arcs], end[arcs]
+            c = np.asarray(moves["center"][arcs], dtype=np.float64)
+            da0, db0 = s[rows, ax[:, 0]] - c[rows, ax[:, 0]], s[rows, ax[:, 1]] - c[rows, ax[:, 1]]
+            da1, db1 = e[rows, ax[:, 0]] - c[rows, ax[:, 0]], e[rows, ax[:, 1]] - c[rows, ax[:, 1]]
+            kind[arcs] = plane
+            geo[arcs] = np.column_stack([
+                c[rows, ax[:, 0]], c[rows, ax[:, 1]], np.arctan2(db0, da0),
+                np.asarray(moves["sweep"][arcs], dtype=np.float64), np.hypot(da0, db0), np.hypot(da1, db1),
+                s[rows, ax[:, 2]], e[rows, ax[:, 2]]])
         if "known" in (moves.dtype.names or ()):
-            kind[(moves["known"] & ALL_AXES) != ALL_AXES] = _sk.NO_CUT
+            kind[(moves["known"] & KNOWN_ALL) != KNOWN_ALL] = _sk.NO_CUT
         return cls(kind, geo, np.ascontiguousarray(move, dtype=np.int32))
 
     def params(self, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

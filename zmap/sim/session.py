@@ -35,6 +35,7 @@ from .._npzfile import read_npz, write_npz
 from ..grid import ZMap
 from .dexel import DexelWorkpiece, cutter_table, run_cut
 from .history import HISTORY_KINDS, IntervalTreap, Recorder, TimeTrace, ZTrace
+from .path import STAGE_MODES
 from .pieces import Pieces
 
 __all__ = ["simulate", "Run", "HISTORY_KINDS", "FORMAT_NAME", "FORMAT_VERSION", "parse_stage",
@@ -508,8 +509,7 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
     if not (isinstance(pitch, (int, float, np.floating)) and math.isfinite(pitch) and pitch > 0):
         got = float(pitch) if isinstance(pitch, (int, float, np.floating)) else pitch
         raise ValueError(f"pitch must be a positive number of mm, got {got!r}")
-    if stages not in ("pitch", "move"):
-        raise ValueError(f"stages={stages!r} is not one of 'pitch', 'move'")
+    _check_choice("stages", stages, STAGE_MODES)
     path = _as_positions(program_or_positions, float(pitch), stages)
     if len(path.xyz) == 0:
         what = "no moves" if not path.n_moves else f"{path.n_moves} moves but no tool positions"
