@@ -142,18 +142,19 @@ def band_colours(c: Any) -> tuple[list, list]:
 def deviation_png(c: Any, path: str | os.PathLike, *, title: str | None = None, mark_first: bool = True) -> Path:
     """Top view of the deviation in mm: blue gouge, green within +-tol, red excess, grey uncovered,
     sand-coloured the outline and short rays (below the band but never cut: not gouges)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colors import BoundaryNorm, ListedColormap
+    from matplotlib.figure import Figure
 
     bounds, colours = band_colours(c)
     cmap = ListedColormap(colours).with_extremes(under=colours[0], over=colours[-1], bad=(0.8, 0.8, 0.8, 1.0))
     norm = BoundaryNorm(bounds, cmap.N)
     nx, ny = c.deviation.shape
     ext = (c.x0 - c.pitch / 2, c.x0 + (nx - 0.5) * c.pitch, c.y0 - c.pitch / 2, c.y0 + (ny - 0.5) * c.pitch)
-    fig, ax = plt.subplots(figsize=(8, 6.5))
+    # a figure with its own canvas: the caller's backend (a notebook's) is left as it is
+    fig = Figure(figsize=(8, 6.5))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
     from .deviation import CLASSES
 
     apart = np.isin(c.classes, (CLASSES["outline"], CLASSES["short"]))
@@ -179,10 +180,7 @@ def deviation_png(c: Any, path: str | os.PathLike, *, title: str | None = None, 
     def write(tmp: str) -> None:
         fig.savefig(tmp, dpi=110, bbox_inches="tight", format="png")
 
-    try:
-        return atomic_write(path, write, suffix=".png")
-    finally:
-        plt.close(fig)
+    return atomic_write(path, write, suffix=".png")
 
 
 def deviation_3d(c: Any, path: str | os.PathLike | None = None, *, title: str | None = None,

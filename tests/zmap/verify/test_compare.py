@@ -170,6 +170,20 @@ def test_deviation_png(tmp_path):
     assert not list(tmp_path.glob("*.tmp*"))
 
 
+def test_deviation_png_leaves_the_backend_alone(tmp_path):
+    import matplotlib
+
+    before = matplotlib.get_backend()
+    matplotlib.use("pdf")  # as a notebook's inline backend would be: not Agg
+    try:
+        xyz = np.array([[5.0, 5.0, -1.0]])
+        run = simulate(xyz, (0, 0, -3, 10, 10, 0), tool="flat:2", pitch=0.2)
+        deviation_png(compare(run, _flat(-0.9), tol=0.05, offset=0.85), tmp_path / "dev.png")
+        assert matplotlib.get_backend() == "pdf"
+    finally:
+        matplotlib.use(before)
+
+
 def test_deviation_3d_picture(tmp_path):
     from zmap.verify.report import deviation_3d
 
