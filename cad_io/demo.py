@@ -24,10 +24,7 @@ def run_demo(out_dir: str | Path) -> list[Path]:
     Writes ``<name>.zmap.npz`` and ``<name>.png`` (shaded top view, heights coloured, facet
     cells outlined in the title's counts) for each part.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # figures are saved, never shown: any backend will do
 
     from zmap.grid import atomic_write
     from zmap.plot import plot_zmap

@@ -23,10 +23,7 @@ def _step(title: str) -> float:
 
 def run(out_dir: str | Path) -> list[Path]:
     """Run every demo step; return the files written."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # figures are saved, never shown: any backend will do
 
     from .accuracy import accuracy_rows, format_csv, format_markdown, zmap_of
     from .grid import atomic_write
@@ -93,4 +90,7 @@ def run(out_dir: str | Path) -> list[Path]:
 
 
 if __name__ == "__main__":
+    import matplotlib
+
+    matplotlib.use("Agg")  # the command draws off screen; a library caller keeps its backend
     run(sys.argv[1] if len(sys.argv) > 1 else "out")
