@@ -27,6 +27,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from zmap.errors import GridTooLargeError, NurbsError
+from zmap.fmt import count, size
 from zmap.grid import ZMap
 
 from .part import Part
@@ -144,8 +145,8 @@ def _check_memory(nx: int, ny: int) -> int:
     avail = _available_bytes()
     if need > 0.8 * avail:
         raise GridTooLargeError(
-            f"grid of {nx} x {ny} = {nx * ny:,} points needs about {need / 1e9:.2f} GB "
-            f"({need:,} bytes), more than 80% of the {avail / 1e9:.2f} GB of memory available; "
+            f"grid of {count(nx)} x {count(ny)} = {count(nx * ny)} points needs about {size(need)}, "
+            f"more than 80% of the {size(avail)} of memory available; "
             f"use a coarser grid or smaller bounds")
     return need
 
