@@ -12,6 +12,8 @@ import os
 import click
 import numpy as np
 
+from zmap.fmt import count, size
+
 __all__ = ["convert_cmd", "refine_cmd", "refine_models", "report_cmd", "report_rows", "format_report"]
 
 _AXES = ("+z", "-z", "+x", "-x", "+y", "-y")
@@ -82,12 +84,12 @@ def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progr
         click.echo(f"warning: {' '.join(w.split())}", err=True)
     click.echo(f"wrote    {output}")
     click.echo(f"part     {os.path.basename(part_path)}: {len(part.faces)} faces, axis {axis}")
-    click.echo(f"grid     {zm.nx} x {zm.ny} = {s['points']:,} points, dx={zm.dx:g} dy={zm.dy:g} mm, "
+    click.echo(f"grid     {zm.nx:,} x {zm.ny:,} = {count(s['points'])} points, dx={zm.dx:g} dy={zm.dy:g} mm, "
                f"x {zm.x0:g} .. {zm.x1:g}, y {zm.y0:g} .. {zm.y1:g}")
     click.echo(f"method   {method}: jacobian {100 * s['share_jacobian']:.2f} %, facet {100 * s['share_facet']:.2f} %, "
                f"empty {100 * s['share_empty']:.2f} %")
     click.echo(f"time     {seconds:.2f} s (sampling {zm.meta['seconds']:.2f} s)")
-    click.echo(f"memory   {zm.nbytes / 1e6:.2f} MB map, {estimate_bytes(*grid_shape(zm.bounds, zm.dx, zm.dy)) / 1e6:.2f} MB "
+    click.echo(f"memory   {size(zm.nbytes)} map, {size(estimate_bytes(*grid_shape(zm.bounds, zm.dx, zm.dy)))} "
                f"working estimate")
 
 

@@ -27,6 +27,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from zmap.fmt import count, size
 from zmap.tiled.cluster import CONNECT_TIMEOUT, cpu_figures, dask_client, peak_rss_mb, share
 
 from .part import Part
@@ -412,12 +413,12 @@ def convert_cmd_tiled(part_path: str, grid: float, bounds, method: str, axis: st
     n = store.nx * store.ny
     click.echo(f"wrote    {output} (tiled zarr store, complete)")
     click.echo(f"part     {os.path.basename(part_path)}: {store.meta.get('faces')} faces, axis {axis}")
-    click.echo(f"grid     {store.nx} x {store.ny} = {n:,} points, dx={store.dx:g} dy={store.dy:g} mm, "
+    click.echo(f"grid     {store.nx:,} x {store.ny:,} = {count(n)} points, dx={store.dx:g} dy={store.dy:g} mm, "
                f"x {store.x0:g} .. {store.x1:g}, y {store.y0:g} .. {store.y1:g}")
     click.echo(f"tiles    {store.n_tiles} of {store.tile} x {store.tile} nodes: {rep['tiles_done_now']} sampled now, "
-               f"{rep['tiles_skipped']} finished before; {st['filled']:,} points with surface")
+               f"{rep['tiles_skipped']} finished before; {count(st['filled'])} points with surface")
     click.echo(f"time     {time.perf_counter() - t0:.2f} s (tiles {rep['seconds']:.2f} s on {rep['workers']} workers, "
                f"{rep['nodes_per_s'] / 1e6:.3f} M nodes/s)")
     click.echo(f"memory   peak {rep['peak_rss_mb_per_worker']:.0f} MB per worker; "
-               f"store {store.disk_bytes() / 1e6:.1f} MB "
-               f"on disk, {store.nbytes / 1e6:.1f} MB in memory")
+               f"store {size(store.disk_bytes())} "
+               f"on disk, {size(store.nbytes)} in memory")

@@ -8,6 +8,7 @@ import sys
 import click
 
 from .errors import ZMapError
+from .fmt import count, size
 
 __all__ = ["main", "cli"]
 
@@ -75,15 +76,15 @@ def info(path: str) -> None:
     z = zm.z
     filled = np.isfinite(z)
     click.echo(f"file     {path}")
-    click.echo(f"grid     {zm.nx} x {zm.ny} points, dx={zm.dx:g} dy={zm.dy:g} mm")
+    click.echo(f"grid     {zm.nx:,} x {zm.ny:,} points, dx={zm.dx:g} dy={zm.dy:g} mm")
     click.echo(f"domain   x {zm.x0:g} .. {zm.x1:g}, y {zm.y0:g} .. {zm.y1:g} mm"
                + (f" (local frame: angle {zm.angle:g} rad, origin {zm.origin})" if zm.has_frame else ""))
     if filled.any():
         click.echo(f"heights  {z[filled].min():.6g} .. {z[filled].max():.6g} mm, "
-                   f"{filled.sum()} with surface, {(~filled).sum()} empty")
+                   f"{count(filled.sum())} with surface, {count((~filled).sum())} empty")
     else:
         click.echo("heights  none: every grid point is empty")
-    click.echo(f"memory   {zm.nbytes / 1024:.1f} KB (heights and {len(zm.layers)} layers: {', '.join(zm.layers) or '-'})")
+    click.echo(f"memory   {size(zm.nbytes)} (heights and {len(zm.layers)} layers: {', '.join(zm.layers) or '-'})")
     click.echo(f"meta     {json.dumps(zm.meta, sort_keys=True)}")
 
 

@@ -25,7 +25,7 @@ def test_convert_writes_map_and_summary(tmp_path, capsys):
     out = tmp_path / "pocket.zmap.npz"
     assert main(["convert", str(DATA / "pocket.step"), "--grid", "1", "-o", str(out), "--no-progress"]) == 0
     text = capsys.readouterr().out
-    for word in ("23 faces", "jacobian", "facet", "empty", "points", "MB", " s "):
+    for word in ("23 faces", "jacobian", "facet", "empty", "points", " KB map", " s "):
         assert word in text, text
     zm = ZMap.load(out)
     assert zm.dx == 1.0 and zm.shape == (101, 81)
@@ -78,7 +78,7 @@ def test_step_without_faces(tmp_path, capsys):
 def test_grid_too_large(tmp_path, capsys):
     out = tmp_path / "x.zmap.npz"
     assert main(["convert", str(DATA / "freeform_die.step"), "--grid", "0.00001", "-o", str(out)]) == 1
-    _one_line_error(capsys, "GB", "bytes")
+    _one_line_error(capsys, "GB", " TB", "1e+14 points", "10,000,002 x")
     assert not out.exists() and not list(tmp_path.iterdir())
 
 

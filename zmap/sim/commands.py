@@ -12,6 +12,7 @@ import re
 
 import click
 
+from ..fmt import count, size
 from .path import STAGE_MODES
 
 __all__ = ["simulate_cmd", "replay_cmd"]
@@ -96,17 +97,17 @@ def simulate_cmd(program, stock, tool, tools_path, project, pitch, stages, histo
     s = run.summary
     if getattr(prog, "warnings", None):
         click.echo(f"warnings         {len(prog.warnings)} blocks skipped (--lenient)")
-    click.echo(f"moves            {s['moves']}")
-    click.echo(f"positions        {s['positions']}")
-    click.echo(f"rays             {s['rays']} ({run.stock.nx} x {run.stock.ny} at {run.stock.pitch:g} mm)")
-    click.echo(f"dexels created   {s['dexels_created']}")
-    click.echo(f"dexels deleted   {s['dexels_deleted']}")
-    click.echo(f"history          {s['history']}: {s['history_bytes'] / 1e6:.2f} MB "
-               f"({s['history_elements']} elements)")
+    click.echo(f"moves            {count(s['moves'])}")
+    click.echo(f"positions        {count(s['positions'])}")
+    click.echo(f"rays             {count(s['rays'])} ({run.stock.nx} x {run.stock.ny} at {run.stock.pitch:g} mm)")
+    click.echo(f"dexels created   {count(s['dexels_created'])}")
+    click.echo(f"dexels deleted   {count(s['dexels_deleted'])}")
+    click.echo(f"history          {s['history']}: {size(s['history_bytes'])} "
+               f"({count(s['history_elements'])} elements)")
     click.echo(f"seconds          {s['seconds']:.2f}")
     if "tiles" in s:
         t = s["tiles"]
-        click.echo(f"tiles            {t['tiles']} of {t['tile']} x {t['tile']} rays on {t['workers']} workers, "
+        click.echo(f"tiles            {count(t['tiles'])} of {t['tile']} x {t['tile']} rays on {t['workers']} workers, "
                    f"peak {t['peak_rss_mb_per_worker']:.0f} MB per worker")
     click.echo(f"wrote            {output}")
 

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import PathError, PathTooLargeError
+from ..fmt import count, size
 from .gcode import ARC_CW, KNOWN_ALL, MOVE_DTYPE, Program, _PLANE_AXES, arc_sweep
 
 __all__ = ["DEFAULT_MAX_POSITIONS", "STAGE_MODES", "Positions", "arc_chords", "dda", "positions"]
@@ -608,7 +609,7 @@ def _check_size(per_move: np.ndarray, line: np.ndarray, fname: str, pitch: float
         if need <= 0.8 * avail:
             return
         limit = 0.8 * avail / _POSITION_BYTES
-        why = (f"more than the {limit:.3g} that fit in 80 % of the {avail / 1e9:.3g} GB of "
+        why = (f"more than the {count(limit)} that fit in 80 % of the {size(avail)} of "
                "memory available")
     i = int(np.argmax(cum > limit))
     ln = int(line[i])
@@ -616,9 +617,9 @@ def _check_size(per_move: np.ndarray, line: np.ndarray, fname: str, pitch: float
     alone = float(per_move[i])
     raise PathTooLargeError(
         fname, ln,
-        f"{where}this program needs {total:.3g} tool positions at pitch {pitch:g} mm, {why} "
-        f"(about {need / 1e9:.3g} GB); it crosses that limit at this move, which alone needs "
-        f"{alone:.3g}: check its coordinates and units, or use a coarser pitch, or raise "
+        f"{where}this program needs {count(total)} tool positions at pitch {pitch:g} mm, {why} "
+        f"(about {size(need)}); it crosses that limit at this move, which alone needs "
+        f"{count(alone)}: check its coordinates and units, or use a coarser pitch, or raise "
         "max_positions", total, cap)
 
 

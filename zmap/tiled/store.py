@@ -29,6 +29,7 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 
 from ..errors import GridTooLargeError, ZMapFileError
+from ..fmt import count, size
 
 __all__ = ["TiledZMap", "FORMAT_NAME", "FORMAT_VERSION", "HALO", "bezier", "bilinear", "is_tiled_store",
            "remove_store", "tile_grid"]
@@ -414,15 +415,15 @@ class TiledZMap:
             f"UNFINISHED: {st['tiles_done']} of {self.n_tiles} tiles written (run the conversion again to resume)")
         frame = f" (local frame: angle {self.angle:g} rad, origin {self.origin})" if self.has_frame else ""
         lines = [f"store    {self.path} (tiled zarr z-map, {state})",
-                 f"grid     {self.nx} x {self.ny} = {n:,} points, dx={self.dx:g} dy={self.dy:g} mm",
+                 f"grid     {self.nx:,} x {self.ny:,} = {count(n)} points, dx={self.dx:g} dy={self.dy:g} mm",
                  f"domain   x {self.x0:g} .. {self.x1:g}, y {self.y0:g} .. {self.y1:g} mm{frame}",
                  f"tiles    {self.tiles_shape[0]} x {self.tiles_shape[1]} of {self.tile} x {self.tile} nodes"]
         if st["filled"]:
-            lines.append(f"heights  {st['zmin']:.6g} .. {st['zmax']:.6g} mm, {st['filled']:,} with surface in the "
+            lines.append(f"heights  {st['zmin']:.6g} .. {st['zmax']:.6g} mm, {count(st['filled'])} with surface in the "
                          f"written tiles")
         else:
             lines.append("heights  none in the written tiles")
-        lines.append(f"memory   {self.nbytes / 1e6:.1f} MB in memory, {self.disk_bytes() / 1e6:.1f} MB on disk "
+        lines.append(f"memory   {size(self.nbytes)} in memory, {size(self.disk_bytes())} on disk "
                      f"(heights and {len(self.layers)} layers: {', '.join(self.layers) or '-'})")
         lines.append(f"meta     {json.dumps(self.meta, sort_keys=True)}")
         return lines
@@ -492,8 +493,8 @@ class TiledZMap:
         need = n * (8 + sum(np.dtype(d).itemsize for d in self.layers.values()))
         avail = _available_bytes()
         if need > 0.8 * avail:
-            raise GridTooLargeError(f"window of {i1 - i0} x {j1 - j0} = {n:,} nodes needs about {need / 1e9:.2f} GB, "
-                                    f"more than 80% of the {avail / 1e9:.2f} GB available; read a smaller window "
+            raise GridTooLargeError(f"window of {count(i1 - i0)} x {count(j1 - j0)} = {count(n)} nodes needs about {size(need)}, "
+                                    f"more than 80% of the {size(avail)} available; read a smaller window "
                                     f"or work tile by tile (to_dask)")
         z = self.read(i0, i1, j0, j1)
         layers = {k: self.read(i0, i1, j0, j1, k) for k in self.layers}

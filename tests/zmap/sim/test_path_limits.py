@@ -52,7 +52,7 @@ def test_far_rapid_is_refused_naming_its_line_and_the_estimate():
 
 def test_parsed_long_rapid_at_a_fine_pitch_is_refused():
     # (a rapid of 1e9 mm is the reader's to refuse: outside any work envelope)
-    with pytest.raises(PathTooLargeError, match=r"^far\.nc:2: .*9e\+08 tool positions at "
+    with pytest.raises(PathTooLargeError, match=r"^far\.nc:2: .*900,005,000 tool positions at "
                        r"pitch 0\.001 mm"):
         positions(parse("G0 X0 Y0 Z5\nG0 X900000\n", filename="far.nc"), pitch=0.001)
 
