@@ -1,6 +1,6 @@
 """Numba kernels for NURBS surface evaluation (Piegl & Tiller, The NURBS Book).
 
-Only ``@njit(cache=True)`` code lives here: no validation, no exceptions for data reasons.
+Only ``@njit(cache=True, error_model="numpy")`` code lives here: no validation, no exceptions for data reasons.
 The public front door is :mod:`cad_io.nurbs`. Surfaces come packed (see
 :func:`cad_io.nurbs.pack`):
 
@@ -54,7 +54,7 @@ def _stack_f64(typingctx, n):
 
 # _nrt=False: no reference counting on the calls from the Newton loops
 # (cad_io._sample_kernels)
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def find_span(knots, off, n, p, u):
     """Knot span index of ``u`` (A2.1); ``n`` = number of control points - 1.
 
@@ -83,7 +83,7 @@ def find_span(knots, off, n, p, u):
     return mid
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def basis_ders(knots, off, span, u, p, nd, ders, ndu, a, left, right):
     """Non-zero basis functions and their derivatives up to ``nd`` (A2.3).
 
@@ -137,7 +137,7 @@ def basis_ders(knots, off, span, u, p, nd, ders, ndu, a, left, right):
         rr *= p - k
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def eval_point(deg, ncp, koff, poff, knots, cpw, k, u, v, nderiv, out):
     """Point and derivatives of face ``k`` at (``u``, ``v``), into ``out``.
 
@@ -243,7 +243,7 @@ def eval_point(deg, ncp, koff, poff, knots, cpw, k, u, v, nderiv, out):
                 out[5, c] = (skl[0, 2, c] - 2.0 * wv * sv_ - skl[0, 2, 3] * s) / w0
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def eval_many(deg, ncp, koff, poff, knots, cpw, face, u, v, nderiv, out):
     """:func:`eval_point` over flat arrays ``face``, ``u``, ``v`` (n,) into ``out`` (n, r, 3).
 
@@ -261,7 +261,7 @@ def eval_many(deg, ncp, koff, poff, knots, cpw, face, u, v, nderiv, out):
             eval_point(deg, ncp, koff, poff, knots, cpw, k, u[i], v[i], nderiv, out[i])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def eval_many_serial(deg, ncp, koff, poff, knots, cpw, face, u, v, nderiv, out):
     """:func:`eval_many` on one thread (no thread-pool start-up for small batches)."""
     n = u.shape[0]
@@ -276,7 +276,7 @@ def eval_many_serial(deg, ncp, koff, poff, knots, cpw, face, u, v, nderiv, out):
             eval_point(deg, ncp, koff, poff, knots, cpw, k, u[i], v[i], nderiv, out[i])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _gauss_newton(deg, ncp, koff, poff, knots, cpw, k, px, py, pz, u, v, dom, buf):
     """Levenberg-damped Gauss-Newton for the (u, v) of face ``k`` nearest (px, py, pz).
 
@@ -329,7 +329,7 @@ def _gauss_newton(deg, ncp, koff, poff, knots, cpw, k, px, py, pz, u, v, dom, bu
     return u, v, np.sqrt(d2)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def project_points(deg, ncp, koff, poff, knots, cpw, k, pts, uv0, tol, uv, dist):
     """(u, v) on face ``k`` of the points ``pts`` (n, 3) that lie on (or near) it.
 

@@ -33,7 +33,7 @@ _FLAT_EPS = 1e-12
 # calls eval_d1 with seven arrays).
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _bary_limits(ax, ay, bx, by, cx, cy, area, margin):
     """Lower bounds of the barycentric weights (w0, w1, w2) that admit points up to
     ``margin`` (xy, mm) outside the triangle: w_k >= -margin * |opposite edge| / |area|.
@@ -50,7 +50,7 @@ def _bary_limits(ax, ay, bx, by, cx, cy, area, margin):
     return -1e-12 - f * la, -1e-12 - f * lb, -1e-12 - f * lc
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def count_pairs(nodes, tris, tri_margin, x0, y0, dx, dy, nx, ny, counts):
     """Number of grid points inside each triangle's xy projection, into ``counts`` (M,).
 
@@ -64,7 +64,7 @@ def count_pairs(nodes, tris, tri_margin, x0, y0, dx, dy, nx, ny, counts):
         counts[t] = _scan_grid_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, 0, no_i, no_i, no_w, False)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def fill_pairs(nodes, tris, tri_margin, t0, offsets, x0, y0, dx, dy, nx, ny, gidx, tri, w):
     """Grid index, triangle and barycentric weights of every pair of triangles t0.. .
 
@@ -78,7 +78,7 @@ def fill_pairs(nodes, tris, tri_margin, t0, offsets, x0, y0, dx, dy, nx, ny, gid
         _scan_grid_tri(nodes, tris, tri_margin, t0 + tt, x0, y0, dx, dy, nx, ny, offsets[tt], gidx, tri, w, True)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _tri_xy(nodes, tris, t):
     """xy of triangle ``t``'s corners and twice its signed xy area; the area is 0 where the
     triangle is vertical or degenerate in xy (below ``_FLAT_EPS`` of its squared longest
@@ -99,7 +99,7 @@ def _tri_xy(nodes, tris, t):
     return ax, ay, bx, by, cx, cy, area
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _scan_grid_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, p, gidx, tri, w, fill):
     """Count (``fill`` False) or write from ``p`` (``fill`` True) the grid points in triangle ``t``."""
     ax, ay, bx, by, cx, cy, area = _tri_xy(nodes, tris, t)
@@ -126,7 +126,7 @@ def _scan_grid_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, p, gidx, 
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def point_in_loops(u, v, loop_uv, loop_off, first, last, eps):
     """Even-odd test of (u, v) against loops ``first..last-1`` (``loop_off`` bounds in ``loop_uv``).
 
@@ -155,7 +155,7 @@ def point_in_loops(u, v, loop_uv, loop_off, first, last, eps):
     return inside
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def points_in_loops(us, vs, loop_uv, loop_off, eps, out):
     """:func:`point_in_loops` of every ``(us[i], vs[i])`` against all loops, into ``out`` (bool)."""
     n_loops = loop_off.shape[0] - 1
@@ -163,7 +163,7 @@ def points_in_loops(us, vs, loop_uv, loop_off, eps, out):
         out[i] = point_in_loops(us[i], vs[i], loop_uv, loop_off, 0, n_loops, eps)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps):
     """:func:`point_in_loops` on a face's loop edges bucketed in ``nband`` bands of v.
 
@@ -197,7 +197,7 @@ def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps)
     return inside
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def in_tolerance(u, v, x, y, z, k, edges, band_ptr, band_edges, face_bi, face_bf):
     """True where a point of face ``k``'s surface outside its trim loops is on the face
     within the tolerance of its edges in the file, as OCC's ray cast counts it.
@@ -261,7 +261,7 @@ def in_tolerance(u, v, x, y, z, k, edges, band_ptr, band_edges, face_bi, face_bf
     return False
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _edge_test(u, v, ua, va, ub, vb, eps2):
     """One loop edge against (u, v): 2 if the point is within sqrt(eps2) of the edge, 1 if
     the edge crosses the ray from the point towards +u (even-odd rule), else 0."""
@@ -282,7 +282,7 @@ def _edge_test(u, v, ua, va, ub, vb, eps2):
     return 0
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _basis_d1(knots, off, span, u, p, N, D, left, right):
     """Non-zero basis functions ``N[j]`` = N_{span-p+j, p}(u) and their first derivatives
     ``D[j]`` (The NURBS Book A2.2, with the derivative taken from the degree p-1 values
@@ -312,7 +312,7 @@ def _basis_d1(knots, off, span, u, p, N, D, left, right):
         N[j] = saved
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def eval_d1(deg, ncp, koff, poff, knots, cpw, k, u, v, out):
     """Point and first derivatives of face ``k`` at (``u``, ``v``): ``out[0]`` = S,
     ``out[1]`` = S_u, ``out[2]`` = S_v (u, v clamped to the domain).
@@ -325,13 +325,13 @@ def eval_d1(deg, ncp, koff, poff, knots, cpw, k, u, v, out):
     _eval_d1_face(knots, cpw, _face(deg, ncp, koff, poff, k), u, v, out)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _face(deg, ncp, koff, poff, k):
     """Face ``k``'s ``(p, q, nu, nv, ku, kv, po)``: degrees, pole counts, knot and pole offsets."""
     return deg[k, 0], deg[k, 1], ncp[k, 0], ncp[k, 1], koff[k, 0], koff[k, 1], poff[k]
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _eval_d1_face(knots, cpw, face, u, v, out):
     """:func:`eval_d1` on the face ``face`` = :func:`_face` (the Newton loop reads it once:
     three arrays fewer to pass per call)."""
@@ -423,7 +423,7 @@ def _eval_d1_face(knots, cpw, face, u, v, out):
 _STEP_TOL2 = 1e-9 ** 2
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, tol, max_iter, out):
     """Damped Newton for x(u, v) = xg, y(u, v) = yg on face ``k`` from (u, v).
 
@@ -495,7 +495,7 @@ def _newton(deg, ncp, koff, poff, knots, cpw, k, u, v, xg, yg, u0, u1, v0, v1, t
 _WALL_NZ = 0.25
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _tri_nz(nodes, a, b, c):
     """|n_z| of triangle (a, b, c): 1 flat, 0 vertical (0 for a degenerate triangle)."""
     ux = nodes[b, 0] - nodes[a, 0]
@@ -511,7 +511,7 @@ def _tri_nz(nodes, a, b, c):
     return abs(nz) / nn if nn > 0.0 else 0.0
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _wall_triangle(nodes, a, b, c):
     """True where triangle (a, b, c) is steeper than ~75 degrees (|n_z| < ``_WALL_NZ``).
 
@@ -529,7 +529,7 @@ def _wall_triangle(nodes, a, b, c):
     return _tri_nz(nodes, a, b, c) < _WALL_NZ
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _facet_pair(p, tri, w, nodes, tris, z, status):
     """Facet height of pair ``p`` (``mode`` 2 or a facets-only face), into ``z[p]``, ``status[p]``.
 
@@ -548,7 +548,7 @@ def _facet_pair(p, tri, w, nodes, tris, z, status):
         status[p] = 2
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
                mode, tol, max_iter, z, status, out):
@@ -671,7 +671,7 @@ def _solve_one(p, xg, yg, tri, w, nodes, uv, tris, tri_face, tri_check, face_mod
         status[p] = 0
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def _solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                  deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
                  px, py, x0, y0, dx, dy, ny, mode, tol, max_iter, z, status):
@@ -700,7 +700,7 @@ def _solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, 
                        max_iter, z, status, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                 deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
                 x0, y0, dx, dy, ny, mode, tol, max_iter, z, status):
@@ -729,7 +729,7 @@ def solve_pairs(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, f
                  none, x0, y0, dx, dy, max(ny, 1), mode, tol, max_iter, z, status)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def solve_pairs_xy(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode, face_zgap,
                    deg, ncp, koff, poff, knots, cpw, domain, edges, band_ptr, band_edges, face_bi, face_bf,
                    px, py, mode, tol, max_iter, z, status):
@@ -739,7 +739,7 @@ def solve_pairs_xy(gidx, tri, w, nodes, uv, tris, tri_face, tri_check, face_mode
                  0.0, 0.0, 0.0, 0.0, 0, mode, tol, max_iter, z, status)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def count_pairs_xy(nodes, tris, tri_margin, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, counts):
     """Scattered points inside each triangle's xy projection, into ``counts`` (M,).
 
@@ -753,7 +753,7 @@ def count_pairs_xy(nodes, tris, tri_margin, px, py, bx0, by0, bh, nbx, nby, bin_
                               0, no_i, no_i, no_w, False)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def fill_pairs_xy(nodes, tris, tri_margin, t0, offsets, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts,
                   gidx, tri, w):
     """:func:`fill_pairs` for scattered points (``gidx`` = point index), bins as :func:`count_pairs_xy`."""
@@ -764,7 +764,7 @@ def fill_pairs_xy(nodes, tris, tri_margin, t0, offsets, px, py, bx0, by0, bh, nb
                   offsets[tt], gidx, tri, w, True)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _scan_tri(nodes, tris, tri_margin, t, px, py, bx0, by0, bh, nbx, nby, bin_ptr, bin_pts, p, gidx, tri, w, fill):
     """Count (``fill`` False) or write from ``p`` (``fill`` True) the points inside triangle ``t``."""
     ax, ay, bx, by, cx, cy, area = _tri_xy(nodes, tris, t)
@@ -801,7 +801,7 @@ def _scan_tri(nodes, tris, tri_margin, t, px, py, bx0, by0, bh, nbx, nby, bin_pt
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _widened_box(ax, ay, bx, by, cx, cy, l0, l1, l2):
     """xy box of the triangle widened to the barycentric limits ``(l0, l1, l2)`` (its corners
     are where two weights sit on their limits), with a 1e-9 mm rounding slack."""
@@ -816,7 +816,7 @@ def _widened_box(ax, ay, bx, by, cx, cy, l0, l1, l2):
             min(pay, min(pby, pcy)) - s, max(pay, max(pby, pcy)) + s)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _widened_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, l0, l1, l2):
     """Grid index window ``(i0, i1, j0, j1)`` under the triangle widened to the barycentric
     limits (:func:`_widened_box`; a box + margin misses the acute corners' points)."""
@@ -828,7 +828,7 @@ def _widened_window(ax, ay, bx, by, cx, cy, x0, y0, dx, dy, nx, ny, l0, l1, l2):
     return i0, i1, j0, j1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def reduce_pairs(gidx, tri, tri_face, zc, status, zgrid, face, method):
     """Top-most candidate per grid point into the flat ``zgrid``, ``face``, ``method``."""
     for p in range(gidx.shape[0]):
@@ -846,7 +846,7 @@ def reduce_pairs(gidx, tri, tri_face, zc, status, zgrid, face, method):
 
 # ---- distance to the B-rep (cad_io.distance) ---------------------------------------------------
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def project_candidates(pts, cand_pt, cand_face, cand_uv, deg, ncp, koff, poff, knots, cpw, domain,
                        edges, band_ptr, band_edges, face_bi, face_bf, dist, inside):
     """Exact foot of point ``cand_pt[c]`` on face ``cand_face[c]`` from ``cand_uv[c]``.
@@ -874,15 +874,51 @@ def project_candidates(pts, cand_pt, cand_face, cand_uv, deg, ncp, koff, poff, k
             inside[c] = True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def _point_segment_d2(px, py, pz, ax, ay, az, bx, by, bz):
+    """Squared distance from p to segment ab; a zero-length segment is its point."""
+    ex = bx - ax
+    ey = by - ay
+    ez = bz - az
+    ll = ex * ex + ey * ey + ez * ez
+    t = 0.0
+    if ll > 0.0:
+        t = min(max(((px - ax) * ex + (py - ay) * ey + (pz - az) * ez) / ll, 0.0), 1.0)
+    dx = px - (ax + t * ex)
+    dy = py - (ay + t * ey)
+    dz = pz - (az + t * ez)
+    return dx * dx + dy * dy + dz * dz
+
+
+#: a triangle whose squared doubled area is below this share of |ab|^2 |ac|^2 (sine of its
+#: angle at a below 1e-8) is measured as its three edges: the closest-point regions' divisions
+#: lose all meaning on such a needle, and on a zero-length edge they divide 0 by 0
+_NEEDLE_SIN2 = 1e-16
+
+
+@njit(cache=True, error_model="numpy")
 def _point_triangle_d2(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
-    """Squared distance from p to triangle abc (closest-point regions, Ericson 5.1.5)."""
+    """Squared distance from p to triangle abc (closest-point regions, Ericson 5.1.5).
+
+    Degenerate triangles (a zero-length edge, three collinear or coincident vertices, as
+    BRepMesh leaves on some real parts) are measured as their three edges; no division
+    here can meet a zero.
+    """
     abx = bx - ax
     aby = by - ay
     abz = bz - az
     acx = cx - ax
     acy = cy - ay
     acz = cz - az
+    nx = aby * acz - abz * acy
+    ny = abz * acx - abx * acz
+    nz = abx * acy - aby * acx
+    ab2 = abx * abx + aby * aby + abz * abz
+    ac2 = acx * acx + acy * acy + acz * acz
+    if not (nx * nx + ny * ny + nz * nz > _NEEDLE_SIN2 * ab2 * ac2):  # also NaN vertices
+        d = _point_segment_d2(px, py, pz, ax, ay, az, bx, by, bz)
+        d = min(d, _point_segment_d2(px, py, pz, bx, by, bz, cx, cy, cz))
+        return min(d, _point_segment_d2(px, py, pz, cx, cy, cz, ax, ay, az))
     apx = px - ax
     apy = py - ay
     apz = pz - az
@@ -916,23 +952,14 @@ def _point_triangle_d2(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
             qy = cy
             qz = cz
         elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-            t = d1 / (d1 - d3)
-            qx = ax + t * abx
-            qy = ay + t * aby
-            qz = az + t * abz
+            return _point_segment_d2(px, py, pz, ax, ay, az, bx, by, bz)
         elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-            t = d2 / (d2 - d6)
-            qx = ax + t * acx
-            qy = ay + t * acy
-            qz = az + t * acz
+            return _point_segment_d2(px, py, pz, ax, ay, az, cx, cy, cz)
         elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-            t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-            qx = bx + t * (cx - bx)
-            qy = by + t * (cy - by)
-            qz = bz + t * (cz - bz)
+            return _point_segment_d2(px, py, pz, bx, by, bz, cx, cy, cz)
         else:
             den = va + vb + vc
-            if den != 0.0:
+            if den > 0.0:
                 sv = vb / den
                 sw = vc / den
                 qx = ax + abx * sv + acx * sw
@@ -944,7 +971,7 @@ def _point_triangle_d2(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     return ex * ex + ey * ey + ez * ez
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def mesh_distance(pts, cand_tri, nodes, tris, out):
     """Distance from each point to the nearest of its candidate triangles ``cand_tri`` (n, k)."""
     for q in prange(pts.shape[0]):

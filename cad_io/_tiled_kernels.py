@@ -19,7 +19,7 @@ from ._sample_kernels import _bary_limits, _tri_xy, _widened_window
 __all__ = ["count_pairs_tile", "fill_pairs_tile"]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _scan_tile_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, ti0, ti1, tj0, tj1, p, gidx, tri, w,
                    fill):
     ax, ay, bx, by, cx, cy, area = _tri_xy(nodes, tris, t)
@@ -51,7 +51,7 @@ def _scan_tile_tri(nodes, tris, tri_margin, t, x0, y0, dx, dy, nx, ny, ti0, ti1,
     return n
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def count_pairs_tile(nodes, tris, tri_margin, x0, y0, dx, dy, nx, ny, ti0, ti1, tj0, tj1, counts):
     """Pairs (tile node, triangle) per triangle into ``counts`` (M,)."""
     no_i = np.empty(0, dtype=np.int64)
@@ -61,7 +61,7 @@ def count_pairs_tile(nodes, tris, tri_margin, x0, y0, dx, dy, nx, ny, ti0, ti1, 
                                    no_i, no_i, no_w, False)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def fill_pairs_tile(nodes, tris, tri_margin, t0, offsets, x0, y0, dx, dy, nx, ny, ti0, ti1, tj0, tj1, gidx, tri,
                     w):
     """Pairs of triangles ``t0 .. t0 + len(offsets) - 2`` from ``offsets[tt]`` on."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -153,3 +154,97 @@ def test_band_distance_is_to_the_face_past_its_trim_curve_within_its_edges_toler
     # only faces nearer than the reach given are looked for
     d0, w0 = occ_band_distance(part.shape, pts, do)
     assert np.isinf(d0[2:]).all() and (w0[2:] == 0).all()
+
+
+def _segment_d2_reference(p, a, b):
+    e = b - a
+    ee = float(e @ e)
+    t = 0.0 if ee == 0.0 else min(max(float((p - a) @ e) / ee, 0.0), 1.0)
+    q = a + t * e
+    return float((p - q) @ (p - q))
+
+
+def _triangle_d_reference(p, a, b, c):
+    """Slow, obvious: the plane foot where it falls inside a sound triangle, else the edges."""
+    best = min(_segment_d2_reference(p, a, b), _segment_d2_reference(p, b, c), _segment_d2_reference(p, c, a))
+    n = np.cross(b - a, c - a)
+    nn = float(n @ n)
+    if nn > 1e-12 * float((b - a) @ (b - a)) * float((c - a) @ (c - a)):
+        q = p - (n @ (p - a)) / nn * n
+        w = np.linalg.solve(np.c_[b - a, c - a, n], q - a)[:2]
+        if w.min() >= 0 and w.sum() <= 1:
+            best = min(best, float((p - q) @ (p - q)))
+    return math.sqrt(best)
+
+
+def test_mesh_distance_on_degenerate_triangles():
+    """Zero-length edges, coincident and collinear vertices (BRepMesh leaves such triangles on
+    some real parts) give the distance to what is left of the triangle, never a division by zero
+    (a ZeroDivisionError inside the numba kernel, reported as a SystemError, stopped a report)."""
+    from cad_io import _sample_kernels as K
+
+    nodes = np.array([[0, 0, 0], [0, 0, 0], [1, 0, 0], [2, 0, 0], [1, 1, 0], [1, 1, 1e-300],
+                      [1 + 1e-13, 0, 0], [0.5, 0.5, 0.5]], float)
+    tris = np.array([[0, 1, 2],   # a zero-length edge: a segment
+                     [1, 0, 4],   # the same, other order
+                     [0, 2, 3],   # three collinear vertices
+                     [0, 1, 1],   # one point three times
+                     [4, 5, 2],   # a needle edge of 1e-300 mm
+                     [2, 6, 7],   # an edge of 1e-13 mm
+                     [0, 2, 4]],  # a sound triangle
+                    np.int64)
+    rng = np.random.default_rng(5)
+    pts = np.vstack([rng.uniform(-1.5, 3.0, (200, 3)), nodes + rng.normal(0, 1e-3, nodes.shape),
+                     [[0.5, 0.3, 1.0], [0.5, 0.0, 0.0], [1.0, 1.0, 0.0]]])
+    out = np.empty(len(pts))
+    for t in range(len(tris)):
+        cand = np.full((len(pts), 1), t, dtype=np.int64)
+        K.mesh_distance(pts, cand, nodes, tris, out)
+        ref = [_triangle_d_reference(p, *nodes[tris[t]]) for p in pts]
+        assert np.all(np.isfinite(out)), t
+        assert np.max(np.abs(out - ref)) < 1e-7, t
+    # several candidates, one of them missing (-1): the nearest counts
+    cand = np.tile(np.array([-1, 0, 3, 4, 6], dtype=np.int64), (len(pts), 1))
+    K.mesh_distance(pts, cand, nodes, tris, out)
+    ref = [min(_triangle_d_reference(p, *nodes[tris[t]]) for t in (0, 3, 4, 6)) for p in pts]
+    assert np.max(np.abs(out - ref)) < 1e-7
+
+
+def test_distance_to_part_with_degenerate_mesh_triangles():
+    """A part whose face meshes carry degenerate triangles measures as it does without them."""
+    import copy
+
+    from cad_io.mesh import triangulate
+    from cad_io.part import FaceMesh
+
+    part = read_step(DATA / "pocket.step")
+    triangulate(part, 0.01)
+    pts = _near_surface(part, 300, 7)
+    d0 = distance_to_part(part, pts, deflection=0.01)
+    bad = copy.copy(part)
+    bad.__dict__ = {k: v for k, v in part.__dict__.items() if not k.startswith("_")}  # no caches
+    bad.faces = [copy.copy(f) for f in part.faces]
+    for f in bad.faces:
+        m = f.mesh
+        t = m.triangles
+        extra = np.c_[t[:, 0], t[:, 0], t[:, 1]]  # a zero-length edge on every triangle's first node
+        flat = np.c_[t[:, 0], t[:, 1], t[:, 1]]
+        f.mesh = FaceMesh(m.nodes, np.vstack([t, extra, flat]).astype(t.dtype), m.uv, m.deflection)
+    d1 = distance_to_part(bad, pts, deflection=0.01)
+    assert np.all(np.isfinite(d1)) and np.max(np.abs(d1 - d0)) < 1e-9
+
+
+def test_kernels_never_raise_for_a_division_by_zero():
+    """Every numba kernel of the sampler, the NURBS, the tiles and the EZ-map returns inf/NaN
+    for a division by zero instead of raising from compiled code (error_model='numpy')."""
+    import importlib
+
+    from numba.core.registry import CPUDispatcher
+
+    for name in ("cad_io._sample_kernels", "cad_io._nurbs_kernels", "cad_io._tiled_kernels",
+                 "zmap.refine._ez_kernels"):
+        mod = importlib.import_module(name)
+        kernels = [v for v in vars(mod).values() if isinstance(v, CPUDispatcher) and v.__module__ == name]
+        assert kernels, name
+        for k in kernels:
+            assert k.targetoptions.get("error_model") == "numpy", f"{name}.{k.__name__}"

@@ -48,7 +48,7 @@ MIN_LEVER = 0.5
 MAX_WALK = 4
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _edge_corners(eid, nx, ny):
     """(axis, ia, ja, ib, jb) of a global edge id; axis 0 = x-edge, 1 = y-edge."""
     nxe = (nx - 1) * ny
@@ -62,7 +62,7 @@ def _edge_corners(eid, nx, ny):
     return 1, i, j, i, j + 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _dec(hq, e, at):
     """Decoded code ``at`` of e-edge slot e: ``lo[e] + step[e] * code`` (NaN for ``NAN_CODE``)."""
     code = hq[0][at]
@@ -83,13 +83,13 @@ WIN_FORCED = 1 << 15
 WIN_KINK = 1 << 31
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def unpack_window(w):
     """``(a, c, dl, dr)`` of a packed window (:func:`pack_window`), flags masked off."""
     return w & 0x7FFF, (w >> 16) & 0x7FFF, (w >> 32) & 0xFFFF, (w >> 48) & 0xFFFF
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def window_break(w, m):
     """The first full sample ``b`` of the break's interval of a window ``w`` over ``m``
     intervals (inverse of :func:`window_counts`' ``a``, ``c``)."""
@@ -98,14 +98,14 @@ def window_break(w, m):
     return min(max(b, 0), m - 1)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def pack_window(a, c, dl, dr):
     """One int64 of a wall edge's window: full samples ``a..c`` kept, ``dl`` intervals over
     ``[0, a]`` and ``dr`` over ``[c, m]`` (each < 2**15)."""
     return np.int64(a) | (np.int64(c) << 16) | (np.int64(dl) << 32) | (np.int64(dr) << 48)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sample(z, hq, e, off, n, ia, ja, ib, jb, q):
     """Sample q of the (virtual, full) sequence of e-edge slot e: grid corners at q = 0 and
     n+1, else the decoded e-point; ``hq`` is the tuple (codes, lo, step, cstart, win).
@@ -143,7 +143,7 @@ def _sample(z, hq, e, off, n, ia, ja, ib, jb, q):
     return va + (vb - va) * (g - k)
 
 
-@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
+@njit(cache=True, error_model="numpy")  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def edge_points(edge_ids, offsets, x0, y0, dx, dy, nx, ny, px, py):
     """Local xy of every e-point (preallocated ``px``, ``py`` of length offsets[-1])."""
     for k in prange(edge_ids.shape[0]):
@@ -160,7 +160,7 @@ def edge_points(edge_ids, offsets, x0, y0, dx, dy, nx, ny, px, py):
                 py[off + q] = y0 + (ja + t) * dy
 
 
-@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
+@njit(cache=True, error_model="numpy")  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def despike(z, edge_ids, offsets, heights, thresh, out_count):
     """Lift every e-point that lies more than ``thresh`` below both neighbours of its
     sequence to the higher neighbour (a sample on a wall's line answered by a lower face);
@@ -181,7 +181,7 @@ def despike(z, edge_ids, offsets, heights, thresh, out_count):
         out_count[k] = cnt
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _polyline(za0, zb0, heights, off, m, f):
     """The edge's full boundary sequence (corners and e-points at ``q = 0..m``) read
     linearly at fractional index ``f``."""
@@ -191,14 +191,14 @@ def _polyline(za0, zb0, heights, off, m, f):
     return va + (vb - va) * (f - q)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _next_count(d):
     """The next number of intervals tried after ``d`` (2, 3, 4, 5, 6, 8, 10, 12, 16, ...: steps of
     about 25 %)."""
     return max(d + 1, (d * 5) // 4)
 
 
-@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
+@njit(cache=True, error_model="numpy")  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def decimate_counts(z, edge_ids, offsets, heights, limit, d0, out_m):
     """Fewest intervals ``d`` (``d0`` = 1 or 2, then 2, 3, 4, 5, 6, 8, ... below the edge's
     ``m = n + 1``) such that the edge's full sequence read at ``t = k / d`` and interpolated
@@ -239,7 +239,7 @@ def decimate_counts(z, edge_ids, offsets, heights, limit, d0, out_m):
             d = _next_count(d)
 
 
-@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
+@njit(cache=True, error_model="numpy")  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def resample(z, edge_ids, offsets, heights, counts, new_offsets, out):
     """The knots of :func:`decimate_counts`: edge k's full sequence read at ``t = q / (c + 1)``,
     ``q = 1..c`` (``c = counts[k]`` interior points), into ``out[new_offsets[k]:]``; an edge
@@ -262,7 +262,7 @@ def resample(z, edge_ids, offsets, heights, counts, new_offsets, out):
             out[o + q] = _polyline(z[ia, ja], z[ib, jb], heights, off, m, (q + 1) * m / d)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _span_count(za0, zb0, heights, off, m, s0, s1, limit):
     """Fewest intervals ``d`` (1, 2, 3, 4, 5, 6, 8, ...) over the full samples ``s0..s1`` such
     that the full sequence read at ``s0 + k (s1 - s0) / d`` and interpolated linearly
@@ -288,7 +288,7 @@ def _span_count(za0, zb0, heights, off, m, s0, s1, limit):
     return L
 
 
-@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
+@njit(cache=True, error_model="numpy")  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def window_counts(z, edge_ids, offsets, heights, brk_t, sel, half, limit, out_win):
     """Windows of the wall edges ``sel`` (jump at ``brk_t``): the full samples from ``half``
     before the jump's interval to ``half`` after it are kept, each side of them thinned to
@@ -321,7 +321,7 @@ def window_counts(z, edge_ids, offsets, heights, brk_t, sel, half, limit, out_wi
         out_win[k] = pack_window(a, c, dl, dr)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def window_size(win, n):
     """Codes a windowed edge of ``n`` full samples stores."""
     a, c, dl, dr = unpack_window(win)
@@ -329,7 +329,7 @@ def window_size(win, n):
     return (dl - 1 if dl > 0 else 0) + (min(c, n) - qlo + 1) + (dr - 1 if dr > 0 else 0)
 
 
-@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
+@njit(cache=True, error_model="numpy")  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def window_resample(z, edge_ids, offsets, heights, win, new_offsets, out):
     """The stored samples of windowed edges (``win[k] >= 0``, :func:`_sample` reads them):
     left knots, window samples, right knots, read off the full sequence; into
@@ -355,7 +355,7 @@ def window_resample(z, edge_ids, offsets, heights, win, new_offsets, out):
             o += 1
 
 
-@njit(cache=True)  # serial: parfor lowering of this body took minutes to compile on a cold cache
+@njit(cache=True, error_model="numpy")  # serial: parfor lowering of this body took minutes to compile on a cold cache
 def detect_breaks(z, edge_ids, offsets, hq, forced, jump_min, kink_min, ratio, out_kind, out_t):
     """One break per edge: the dominant jump, else the dominant kink, of its sequence.
 
@@ -472,7 +472,7 @@ def detect_breaks(z, edge_ids, offsets, hq, forced, jump_min, kink_min, ratio, o
         out_t[k] = x / m
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _grid_edge(i, j, di, nx, ny):
     """Global id of the edge from (i, j) one step along x (di=1) or y (di=0); -1 outside."""
     if di == 1:
@@ -484,7 +484,7 @@ def _grid_edge(i, j, di, nx, ny):
     return (nx - 1) * ny + i * (ny - 1) + j
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _broken(edge_ids, brk_kind, eid):
     if eid < 0:
         return False
@@ -492,7 +492,7 @@ def _broken(edge_ids, brk_kind, eid):
     return k >= 0 and brk_kind[k] != BREAK_NONE
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _edge_slope(z, i, j, di, dj, h, outer, edge_ids, brk_kind):
     """The base's slope at (i, j) along the axis, unless its stencil reaches across a break.
 
@@ -522,7 +522,7 @@ def _edge_slope(z, i, j, di, dj, h, outer, edge_ids, brk_kind):
     return (z1 - z0) / (s * h)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _edge_nodes(i, j, k):
     """The grid nodes (ia, ja) and (ib, jb) at the ends of local edge ``k`` of cell (i, j)
     (0 bottom, 1 right, 2 top, 3 left; each from its low end)."""
@@ -535,7 +535,7 @@ def _edge_nodes(i, j, k):
     return i, j, i, j + 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def plain_edge_slopes(z, i, j, k, edge_ids, brk_kind, dx, dy):
     """The slopes at the ends of local edge ``k`` of cell (i, j) along it, for an edge without
     e-points (:func:`_edge_value`: the base's cubic Bezier along it, with the slopes of
@@ -548,7 +548,7 @@ def plain_edge_slopes(z, i, j, k, edge_ids, brk_kind, dx, dy):
             _edge_slope(z, ib, jb, 0, 1, dy, 1, edge_ids, brk_kind))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _edge_value(z, i, j, k, t, side, slot, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy):
     """Boundary curve of local edge ``k`` of cell (i, j) at parameter t.
 
@@ -590,7 +590,7 @@ def _edge_value(z, i, j, k, t, side, slot, edge_ids, offsets, hq, brk_kind, brk_
     return za + (f - q) * (zb - za)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _edge_xy(k, t, dx, dy):
     if k == 0:
         return t * dx, 0.0
@@ -601,7 +601,7 @@ def _edge_xy(k, t, dx, dy):
     return 0.0, t * dy
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _perimeter(k, t):
     if k == 0:
         return t
@@ -612,7 +612,7 @@ def _perimeter(k, t):
     return 4.0 - t
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _boundary_point(X, Y, dx, dy):
     """(k, t) of the cell side nearest to the boundary point (X, Y)."""
     db = abs(Y)
@@ -629,7 +629,7 @@ def _boundary_point(X, Y, dx, dy):
     return 3, min(max(Y / dy, 0.0), 1.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _find(sorted_ids, key):
     c = np.searchsorted(sorted_ids, key)
     if c < sorted_ids.shape[0] and sorted_ids[c] == key:
@@ -637,7 +637,7 @@ def _find(sorted_ids, key):
     return -1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _far_crossing(ecell_ids, out_nb, out_bk, out_pts, corner, ci, cj, k, ri, rj, px, py, lever, nx, ny, dx, dy):
     """Walk the trace from cell (ci, cj) out through its break on edge k to the first
     crossing at least ``lever`` from (px, py).
@@ -678,14 +678,14 @@ def _far_crossing(ecell_ids, out_nb, out_bk, out_pts, corner, ci, cj, k, ri, rj,
     return False, 0.0, 0.0, 0, 0, 0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _line_gap(ax, ay, bx, by, px, py):
     """Distance of P from the line through A and B."""
     L = math.hypot(bx - ax, by - ay)
     return abs((bx - ax) * (py - ay) - (by - ay) * (px - ax)) / L
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cell_geometry(ecell_ids, slots, brk_kind, brk_t, nx, ny, dx, dy, straight_tol, out_nb, out_bk, out_bt, out_pts,
                   out_arc):
     """Wall/edge trace of every e-cell with exactly two boundary breaks.
@@ -736,7 +736,7 @@ def cell_geometry(ecell_ids, slots, brk_kind, brk_t, nx, ny, dx, dy, straight_to
             _trace(c, ecell_ids, out_nb, out_bk, out_pts, out_arc, corner, nx, ny, dx, dy, straight_tol, False)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _trace(c, ecell_ids, out_nb, out_bk, out_pts, out_arc, corner, nx, ny, dx, dy, straight_tol, corners):
     """Corner pass (``corners=True``: set M at the corner, return whether there is one) or
     arc pass (set M and the circle of a smooth trace)."""
@@ -819,7 +819,7 @@ def _trace(c, ecell_ids, out_nb, out_bk, out_pts, out_arc, corner, nx, ny, dx, d
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _arc_sagitta(ax, ay, p1x, p1y, p2x, p2y):
     """Signed sagitta (along the left normal of P1->P2) of the minor arc P1-P2 of the circle
     through A, P1, P2; (False, 0) when the three are collinear."""
@@ -847,7 +847,7 @@ def _arc_sagitta(ax, ay, p1x, p1y, p2x, p2y):
     return True, (-ex * (p2y - p1y) + ey * (p2x - p1x)) / L
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy, broken, bub):
     """Bilinearly blended Coons patch of the cell's four boundary curves, plus ``bub`` times
     the bubble ``16 u (1-u) v (1-v)`` (the cell's centre height correction, 0 for none);
@@ -860,7 +860,7 @@ def _coons(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, 
     return coons_blend(z, i, j, u, v, bot, rgt, top, lft, broken, bub)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def coons_blend(z, i, j, u, v, bot, rgt, top, lft, broken, bub):
     """:func:`_coons` from the values of the cell's four boundary curves at (u, v)."""
     bil = ((1.0 - u) * ((1.0 - v) * z[i, j] + v * z[i, j + 1])
@@ -876,7 +876,7 @@ def coons_blend(z, i, j, u, v, bot, rgt, top, lft, broken, bub):
     return h
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _in_region_a(X, Y, p1x, p1y, mx, my, p2x, p2y, s1, s2, dx, dy):
     """Point (X, Y) inside the polygon P1 -> corners CCW from s1 to s2 -> P2 -> M."""
     span = (s2 - s1) % 4.0
@@ -909,7 +909,7 @@ def _in_region_a(X, Y, p1x, p1y, mx, my, p2x, p2y, s1, s2, dx, dy):
     return inside
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _region_a(X, Y, P, arc, s1, s2, dx, dy):
     """Side of the trace holding (X, Y): True for the region whose boundary arc runs CCW
     from P1 (perimeter s1) to P2 (s2)."""
@@ -931,7 +931,7 @@ def _region_a(X, Y, P, arc, s1, s2, dx, dy):
     return a
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, bk, bt, pts, arc, dx, dy):
     """Height on the side of the cell's trace that holds the point, from that side's data.
 
@@ -979,7 +979,7 @@ def _split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, bk, 
     return (va * db + vb * da) / (da + db)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _hit(z, i, j, X, Y, lam, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, edge_ids, offsets, hq, brk_kind, brk_t, dx, dy):
     """Boundary height and distance of the hit ``P + lam*w``, kept on the arc [sa, sb]."""
     k, t = _boundary_point(X + lam * wx, Y + lam * wy, dx, dy)
@@ -997,7 +997,7 @@ def _hit(z, i, j, X, Y, lam, wx, wy, c, sa, ka, ta, sb, kb, tb_, span, slots, ed
             math.hypot(ex - X, ey - Y))
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, hq, brk_kind, brk_t,
               ecell_ids, slots, nb, bk, bt, pts, arc, bub, out):
     """EZ hq at every query point; NaN outside e-cells (the caller uses the base); ``bub``:
@@ -1020,10 +1020,10 @@ def ez_kernel(z, x0, y0, dx, dy, cs, sn, ox, oy, xs, ys, edge_ids, offsets, hq, 
 
 #: :func:`ez_kernel` on one thread: for small batches (a cell patch's few points), where
 #: waking the thread pool costs more than the points themselves
-ez_kernel_serial = njit(cache=True)(ez_kernel.py_func)
+ez_kernel_serial = njit(cache=True, error_model="numpy")(ez_kernel.py_func)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def patch_kernel(zs, x0s, y0s, dx, dy, cs, sn, ox, oy, xs, ys, ks, edge_ids, offsets, codes, lo, step, brk_kind,
                  brk_t, ecell_ids, slots, nb, bk, bt, pts, arc, nowin, out):
     """:func:`ez_kernel` over a stack of same-level cell patches: point ``p`` lies in patch
@@ -1054,4 +1054,4 @@ def patch_kernel(zs, x0s, y0s, dx, dy, cs, sn, ox, oy, xs, ys, ks, edge_ids, off
 
 
 #: :func:`patch_kernel` on one thread, for small batches
-patch_kernel_serial = njit(cache=True)(patch_kernel.py_func)
+patch_kernel_serial = njit(cache=True, error_model="numpy")(patch_kernel.py_func)
