@@ -378,6 +378,25 @@ def convert_tiled(part: str | os.PathLike, grid: Any, output: str | os.PathLike,
     return store, report
 
 
+def zarr_name(output: str) -> str:
+    """The store's folder name for ``-o``: ``.zarr`` required for an ``.npz`` name, appended to others.
+
+    >>> zarr_name("die.zarr"), zarr_name("die")
+    ('die.zarr', 'die.zarr')
+    """
+    import click
+
+    name = str(output).rstrip("/\\")
+    if name.endswith(".zarr"):
+        return name
+    if name.endswith(".npz"):
+        stem = name[:-len(".zmap.npz")] if name.endswith(".zmap.npz") else name[:-len(".npz")]
+        raise click.BadParameter(f"a tiled conversion writes a zarr store (a folder), not {output!r}: "
+                                 f"name it {stem + '.zarr'!r}", param_hint="-o")
+    click.echo(f"note: writing the tiled store to {name}.zarr", err=True)
+    return name + ".zarr"
+
+
 def convert_cmd_tiled(part_path: str, grid: float, bounds, method: str, axis: str, deflection, output: str,
                       progress: bool, tiles: int | None, scheduler: str | None, workers: int) -> None:
     """``zmap convert ... --tiles N [--scheduler ADDRESS]``: the tiled branch of the command."""
@@ -397,6 +416,7 @@ def convert_cmd_tiled(part_path: str, grid: float, bounds, method: str, axis: st
         raise click.BadParameter(str(exc), param_hint="--tiles") from None
     if grid <= 0:
         raise click.BadParameter(f"must be positive, got {grid!r}", param_hint="--grid")
+    output = zarr_name(output)
     if not os.path.exists(part_path):
         raise StepImportError(f"{part_path}: no such file")
     if scheduler:

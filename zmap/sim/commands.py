@@ -6,6 +6,7 @@ commands, so ``zmap --help`` stays fast.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -26,6 +27,23 @@ def _need_file(path: str | None) -> None:
         from ..errors import ZMapFileError
 
         raise ZMapFileError(path, "no such file")
+
+
+@contextlib.contextmanager
+def _cluster(tiles, scheduler, workers):
+    """With --tiles: the Dask cluster (local or at ``scheduler``), its dashboard printed; yields its address."""
+    if tiles is None:
+        yield scheduler
+        return
+    from zmap.tiled.cluster import dask_client
+
+    from .tiled import _check_tiles
+
+    _check_tiles(tiles)  # before starting a cluster
+    with dask_client(scheduler, workers=workers) as cl:
+        n = len(cl.scheduler_info().get("workers", {}))
+        click.echo(f"dask     {n} workers at {cl.scheduler.address}, dashboard {cl.dashboard_link}", err=True)
+        yield cl.scheduler.address
 
 
 @click.command("simulate")
@@ -85,12 +103,12 @@ def simulate_cmd(program, stock, tool, tools_path, project, pitch, stages, histo
         raise click.UsageError("give --stock (or --camotics with a stock)")
     limits = {} if max_blocks is None else {"max_blocks": max_blocks}
     prog = parse(program, lenient=lenient, tool_table=tools or None, **limits)
-    with warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True) as caught, _cluster(tiles, scheduler, workers) as address:
         warnings.simplefilter("always")
         run = simulate(prog, stock, tool=tool, tools=tools or None, pitch=pitch, history=history, progress=progress,
                        stages=stages,
                        **({} if tiles is None and scheduler is None else  # tiled on Dask: zmap/sim/tiled.py
-                          {"tiles": tiles, "scheduler": scheduler, "workers": workers}))
+                          {"tiles": tiles, "scheduler": address, "workers": workers}))
     for w in caught:
         click.echo(f"warning: {' '.join(str(w.message).split())}", err=True)
     run.save(output)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import os
 import time
+import warnings
 from typing import Any, Callable
 
 import numpy as np
@@ -27,6 +28,8 @@ __all__ = ["TiledHistory", "simulate_tiles", "tile_positions"]
 
 _STRUCTS = {"ztrace": ZTrace, "ttrace": TimeTrace, "treap": IntervalTreap}
 #: what every tile task reads: the piece table, each stage's piece and tool, the stock
+#: tiles of fewer rays a side, more of them than MANY_TILES, get a warning (a task per handful of rays)
+SMALL_TILE, MANY_TILES = 32, 256
 _SHARED = ("kind", "geo", "move", "t0", "t1", "slot", "off", "near", "far")
 
 
@@ -353,6 +356,12 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
 
     tile = _check_tiles(tiles)
     (ntx, nty), lists = tile_positions(stock, xyz, slot, cutters, tile)
+    if tile < SMALL_TILE and ntx * nty > MANY_TILES:  # a task per handful of rays: slower than untiled
+        from zmap.fmt import count
+
+        warnings.warn(f"tiles={tile} makes {count(ntx * nty)} tiles of {tile} x {tile} rays, each a Dask task "
+                      f"with little work: slower than no tiles and a larger run file; use tiles of "
+                      f"{4 * SMALL_TILE} rays or more", stacklevel=2)
     table = cutter_table(cutters)
     pieces = _as_pieces(xyz)
     smove, st0, st1 = pieces.params(0, len(pieces))

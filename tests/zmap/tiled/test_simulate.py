@@ -163,7 +163,9 @@ def test_cli_simulate_tiles(tmp_path, capsys):
     out = tmp_path / "flower.zsim"
     assert main(["simulate", str(PROGRAM), "--camotics", str(GCODE_DATA / "flower_mold.camotics"), "--pitch", "1",
                  "--tiles", "50", "-o", str(out), "--no-progress"]) == 0
-    assert "tiles            4 of 50 x 50 rays on 2 workers" in capsys.readouterr().out
+    cap = capsys.readouterr()
+    assert "tiles            4 of 50 x 50 rays on 2 workers" in cap.out
+    assert "dask     2 workers at tcp://" in cap.err and "dashboard http://" in cap.err  # as convert --tiles
     run = Run.load(out)
     tools, bounds, _ = load_camotics_project(GCODE_DATA / "flower_mold.camotics")
     ref = simulate(PROGRAM, bounds, tools=tools, tool=tools[min(tools)], pitch=1.0)
@@ -180,3 +182,14 @@ def test_our_local_workers_run_without_the_profiler_and_the_malloc_trim_setting(
                                    __import__("dask").config.get("distributed.worker.profile.enabled")))
     assert len(got) == 2 and set(got.values()) == {(None, False)}, got
     assert "MALLOC_TRIM_THRESHOLD_" not in os.environ
+
+
+def test_tiles_of_a_handful_of_rays_warn(job, dask_client, monkeypatch):
+    """Thousands of 2 x 2-ray tasks run slower than no tiles: a warning names the count and a size."""
+    import zmap.sim.tiled as st
+
+    prog, bounds, tools, tool = job
+    monkeypatch.setattr(st, "MANY_TILES", 8)  # the same rule on a stock small enough for a unit test
+    with pytest.warns(UserWarning, match=r"tiles=20 makes \d+ tiles of 20 x 20 rays.*128 rays or more"):
+        simulate(prog, bounds, tools=tools, tool=tool, pitch=1.0, history="none", tiles=20,
+                 scheduler=dask_client.scheduler.address)
