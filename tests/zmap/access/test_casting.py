@@ -117,7 +117,7 @@ def test_merged_runs_cover_every_coded_voxel_once_with_its_code(shape, codes, se
 def test_merged_skin_boxes_give_the_bits_of_the_cubes(monkeypatch):
     """The casting draws the skin as boxes of cubes with one neighbour mask, with the chord
     cut on long boxes; the bits are those of the single cubes (and of the reference)."""
-    import zmap.access.voxelmap as V
+    import zmap.access.casting as V
 
     vm = _box_map((0.1, -0.2, 0.05), (6.0, 3.5, 4.0), d=0.5, q=2)
     sijk = vm.skin_ijk()
@@ -137,7 +137,7 @@ def test_merged_flat_blockers_give_the_bits_of_the_voxels(monkeypatch):
     """The flat boxes of a box's faces merge into a few blockers per face, with the bits of
     one blocker per voxel (and of the reference); voxels that query and block one direction
     (the paper's tessel sets) stay apart."""
-    import zmap.access.voxelmap as V
+    import zmap.access.casting as V
 
     for exact in (True, False):
         lo = np.array((0.1, -0.2, 0.05))
@@ -185,7 +185,7 @@ def test_packed_columns_are_the_bitsets_of_the_transpose(k, m, seed):
 @settings(max_examples=30, deadline=None)
 @given(n=st.integers(1, 400), cols=st.integers(1, 6), span=st.integers(1, 4), seed=st.integers(0, 2**31 - 1))
 def test_row_groups_are_the_groups_of_equal_rows(n, cols, span, seed):
-    import zmap.access.voxelmap as V
+    import zmap.access.casting as V
 
     key = np.random.default_rng(seed).integers(-span, span, (n, cols)).astype(np.int64)
     g = V._row_groups(key)

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import zmap.access.voxelmap as V
+import zmap.access.casting as V
 from zmap.access._reference import global_visibility_reference
 from zmap.access.directions import count, to_bool
 from zmap.access.voxelmap import VoxelMap, global_visibility
