@@ -257,6 +257,9 @@ class Run:
         The path piece each stage sweeps (stamps for bare positions).
         moves, positions, rays, dexels_created, dexels_deleted, dexels_final, history,
         history_bytes, history_elements, history_bytes_per_element, seconds.
+    program_text : str or None
+        The G-code the run was made from, when it was given as a file or text (saved in the
+        ``.zsim``, so a viewer can quote each stage's line without the file).
     """
 
     history: str
@@ -270,6 +273,7 @@ class Run:
     structure: Any
     summary: dict = field(default_factory=dict)
     pieces: Any = None
+    program_text: str | None = None
 
     def __post_init__(self) -> None:
         if self.pieces is None:
@@ -386,6 +390,8 @@ class Run:
         if self.structure is not None:
             for k, v in self.structure.to_arrays().items():
                 arrays["h_" + k] = np.asarray(v)
+        if self.program_text is not None:
+            arrays["program_text"] = np.frombuffer(self.program_text.encode("utf-8"), dtype=np.uint8)
 
         return write_npz(path, self._header(), arrays)
 
@@ -442,8 +448,10 @@ class Run:
                     raise ValueError(f"history offsets have shape {off.shape}, expected ({nx * ny + 1},)")
         pieces = (Pieces.from_arrays({k[2:]: v for k, v in a.items() if k.startswith("p_")}, len(xyz))
                   if "p_kind" in a else Pieces.stamps(xyz))
+        text = (bytes(np.asarray(a["program_text"], dtype=np.uint8)).decode("utf-8", errors="replace")
+                if "program_text" in a else None)
         return cls(kind, wps["stock"], wps["final"], xyz, slot, np.ascontiguousarray(a["line"], dtype=np.int32),
-                   numbers, cutters, structure, dict(header.get("summary", {})), pieces)
+                   numbers, cutters, structure, dict(header.get("summary", {})), pieces, text)
 
 
 # ---- the front door ------------------------------------------------------------------------
@@ -573,7 +581,14 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
     if tiled is not None:
         summary["tiles"] = tiled
     return Run(history, stock0, wp, path.xyz, slot, path.line, numbers, cutters, structure, summary,
-               path.pieces)
+               path.pieces, _program_text(program_or_positions))
+
+
+def _program_text(obj: Any) -> str | None:
+    """The G-code text of a program given as a file or as text; None for anything else."""
+    if isinstance(obj, os.PathLike) or (isinstance(obj, str) and "\n" not in obj and os.path.isfile(obj)):
+        return Path(obj).read_text(errors="replace")
+    return obj if isinstance(obj, str) else None
 
 
 def _warn_unknown_start(path: _Path, wp: DexelWorkpiece, cutters: list, slot: np.ndarray) -> None:
