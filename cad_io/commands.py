@@ -18,6 +18,10 @@ __all__ = ["convert_cmd", "refine_cmd", "refine_models", "report_cmd", "report_r
 
 _AXES = ("+z", "-z", "+x", "-x", "+y", "-y")
 
+_STRICT_HELP = ("Refuse a damaged STEP file (entities that failed to load or transfer, faces missing); "
+                "faults that change no face are notes, never refused.")
+_PARTIAL_HELP = "Read a damaged STEP file that lost most of its faces (refused by default)."
+
 
 @click.command("convert")
 @click.argument("part_path", metavar="PART.step", type=click.Path(dir_okay=False))
@@ -33,15 +37,15 @@ _AXES = ("+z", "-z", "+x", "-x", "+y", "-y")
 @click.option("-o", "--output", required=True, type=click.Path(),
               help="PART.zmap.npz to write (with --tiles: the PART.zarr store).")
 @click.option("--progress/--no-progress", default=True, show_default=True)
-@click.option("--strict", is_flag=True, default=False,
-              help="Refuse a damaged STEP file (entities that failed to load or transfer, faces missing).")
+@click.option("--strict", is_flag=True, default=False, help=_STRICT_HELP)
+@click.option("--partial", is_flag=True, default=False, help=_PARTIAL_HELP)
 @click.option("--tiles", type=int, default=None, metavar="N",
               help="Convert in N x N-node tiles as Dask tasks into a zarr store (-o PART.zarr); resumes.")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="With --tiles: a running Dask scheduler (tcp://host:port); default a local cluster.")
 @click.option("--workers", type=int, default=2, show_default=True, help="With --tiles: local worker processes.")
-def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progress, strict=False, tiles=None,
-                scheduler=None, workers=2) -> None:
+def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progress, strict=False, partial=False,
+                tiles=None, scheduler=None, workers=2) -> None:
     """Convert a STEP part to a master z-map (paper 004 §2.1) and save it."""
     if tiles is not None or scheduler is not None:  # tiled conversion on Dask (cad_io/tiled.py)
         from cad_io.tiled import convert_cmd_tiled
@@ -52,9 +56,9 @@ def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progr
     import time
     import warnings
 
+    from cad_io.reading import explain_extent, read_part
     from cad_io.sampler import estimate_bytes, grid_shape, sample, summary
-    from cad_io.step import read_step
-    from zmap.errors import StepImportError
+    from zmap.errors import GridTooLargeError, StepImportError
 
     t0 = time.perf_counter()
     if not os.path.exists(part_path):
@@ -68,19 +72,23 @@ def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progr
     progress = progress and sys.stderr.isatty()
     with tqdm(total=100, unit="%", desc="reading: ", leave=False, disable=not progress,
               bar_format="{desc}{percentage:3.0f}%|{bar}| {elapsed}") as bar:
-        part = read_step(part_path, strict=strict)
+        # the damage warnings print as soon as the file is read; the bar ticks while OCC reads
+        part = read_part(part_path, strict=strict, partial=partial, bar=bar if progress else None)
         if not part.faces:
             raise StepImportError(f"{part_path}: no faces in the file")
         bar.update(10)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            zm = sample(part, grid, bounds=bounds, method=method, axis=axis, deflection=deflection,
-                        progress=bar if progress else False)
+            try:
+                zm = sample(part, grid, bounds=bounds, method=method, axis=axis, deflection=deflection,
+                            progress=bar if progress else False)
+            except GridTooLargeError as err:
+                raise explain_extent(part, err) from None
     zm.meta["source"] = os.path.basename(part_path)
     zm.save(output)
     s = summary(zm)
     seconds = time.perf_counter() - t0
-    for w in list(part.warnings) + [str(c.message) for c in caught]:
+    for w in [str(c.message) for c in caught]:
         click.echo(f"warning: {' '.join(w.split())}", err=True)
     click.echo(f"wrote    {output}")
     click.echo(f"part     {os.path.basename(part_path)}: {len(part.faces)} faces, axis {axis}")
@@ -246,10 +254,12 @@ def refine_models(part, base, tol: float, methods=("ez", "cz"), *, theta_x: floa
 @click.option("--tol", required=True, type=float, metavar="MM", help="Tolerance in mm (below the grid interval).")
 @click.option("--method", type=click.Choice(["ez", "cz"]), default="ez", show_default=True)
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="PART.zpm to write.")
-def refine_cmd(zmap_path, part_path, tol, method, output) -> None:
+@click.option("--strict", is_flag=True, default=False, help=_STRICT_HELP)
+@click.option("--partial", is_flag=True, default=False, help=_PARTIAL_HELP)
+def refine_cmd(zmap_path, part_path, tol, method, output, strict=False, partial=False) -> None:
     """Refine a master z-map by an EZ-map or CZ-maps sampled from the exact part (paper 004 §3)."""
 
-    from cad_io.step import read_step
+    from cad_io.reading import read_part
     from zmap.errors import StepImportError
     from zmap.grid import ZMap
 
@@ -259,7 +269,7 @@ def refine_cmd(zmap_path, part_path, tol, method, output) -> None:
     _check_tol(tol, base)
     if not os.path.exists(part_path):
         raise StepImportError(f"{part_path}: no such file; {_NEEDS_PART}")
-    part = read_step(part_path)
+    part = read_part(part_path, strict=strict, partial=partial)
     if not part.faces:
         raise StepImportError(f"{part_path}: no faces in the file; {_NEEDS_PART}")
     axis = base.meta.get("axis", "+z")
@@ -554,11 +564,13 @@ def format_report(rep: dict) -> str:
               help="Mesh deflection of the sampled heights and of the distance index (default tol/2): "
                    "Newton heights and NURBS feet are exact whatever it is; smaller is slower.")
 @click.option("--format", "fmt", type=click.Choice(["markdown", "json"]), default="markdown", show_default=True)
-def report_cmd(part_path, grid, tol, points, seed, methods, axis, deflection, fmt) -> None:
+@click.option("--strict", is_flag=True, default=False, help=_STRICT_HELP)
+@click.option("--partial", is_flag=True, default=False, help=_PARTIAL_HELP)
+def report_cmd(part_path, grid, tol, points, seed, methods, axis, deflection, fmt, strict=False, partial=False) -> None:
     """Memory and accuracy of the base z-map, the CZ model and the EZ model (paper 004 Table 2)."""
     import json
 
-    from cad_io.step import read_step
+    from cad_io.reading import read_part
     from zmap.errors import StepImportError
 
     if not os.path.exists(part_path):
@@ -572,7 +584,7 @@ def report_cmd(part_path, grid, tol, points, seed, methods, axis, deflection, fm
                                  f"{grid:g} mm", param_hint="--tol")
     if deflection is not None and not (deflection > 0 and math.isfinite(deflection)):
         raise click.BadParameter(f"must be a positive number of mm, got {deflection!r}", param_hint="--deflection")
-    part = read_step(part_path)
+    part = read_part(part_path, strict=strict, partial=partial)
     if not part.faces:
         raise StepImportError(f"{part_path}: no faces in the file")
     from cad_io.view import view_part
@@ -581,4 +593,5 @@ def report_cmd(part_path, grid, tol, points, seed, methods, axis, deflection, fm
                       deflection=deflection, distance_deflection=deflection)
     rep["part"] = os.path.basename(part_path)
     rep["axis"] = axis
+    rep["warnings"] = list(part.warnings)
     click.echo(json.dumps(rep, indent=1) if fmt == "json" else format_report(rep))

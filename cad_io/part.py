@@ -133,6 +133,10 @@ class Part:
     source: str = ""
     shape: Any = None  # OCP TopoDS_Shape when read from STEP; None for geomdl input
     warnings: list[str] = field(default_factory=list)
+    #: faults of the file that change no face (:mod:`cad_io.damage`), one line each
+    notes: list[str] = field(default_factory=list)
+    #: True where the file is damaged (faces lost or changed; the first warning says how)
+    damaged: bool = False
 
     @property
     def bbox(self) -> tuple[float, float, float, float, float, float]:

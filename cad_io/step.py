@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 
@@ -103,8 +104,12 @@ def _damage(reader, shape) -> dict:
     from OCP.TopExp import TopExp
     from OCP.TopTools import TopTools_IndexedMapOfShape
 
+    from cad_io.damage import is_harmless
+
     model = reader.StepModel()
     first: list[str] = []
+    notes: list[str] = []
+    n_notes = [0]
 
     def label(ent, number: int) -> str:
         name = ent.DynamicType().Name().split("_", 1)[-1]
@@ -123,10 +128,17 @@ def _damage(reader, shape) -> dict:
                 ent = ch.Entity()
                 name = ent.DynamicType().Name() if ent is not None else ""
                 if ent is None or (name.startswith(_SHAPE_ENTITIES) and not name.startswith(_NOT_SHAPE)):
+                    where = label(ent, checks.Number()) if ent is not None else "syntax"
+                    if ent is not None and is_harmless([ch.CFail(j) for j in range(1, ch.NbFails() + 1)]):
+                        # a fault that changes no face: a note, not damage
+                        n_notes[0] += 1
+                        if len(notes) < 3:
+                            notes.append(f"{where}: {' '.join(ch.CFail(1).split())}")
+                        checks.Next()
+                        continue
                     k = ch.NbFails() if ent is None else 1  # syntax errors: one per bad record
                     n += k
                     if len(first) < 3:
-                        where = label(ent, checks.Number()) if ent is not None else "syntax"
                         first.append(f"{where}: {ch.CFail(1).strip()}")
             checks.Next()
         return n
@@ -141,7 +153,7 @@ def _damage(reader, shape) -> dict:
     if shape is not None and not shape.IsNull():
         TopExp.MapShapes_s(shape, TopAbs_FACE, fmap)
     return {"load_fails": load_fails, "transfer_fails": transfer_fails, "file_faces": file_faces,
-            "shape_faces": fmap.Extent(), "first": first}
+            "shape_faces": fmap.Extent(), "first": first, "notes": n_notes[0], "first_notes": notes}
 
 
 def _read_here(path: Path) -> tuple:
@@ -228,6 +240,15 @@ def _read_in_child(path: Path) -> tuple:
         return shape, got["damage"], ""
 
 
+def _note_message(damage: dict) -> str:
+    """One line on the reader's fails that change no face (:mod:`cad_io.damage`), or ""."""
+    n = damage.get("notes", 0) if damage else 0
+    if not n:
+        return ""
+    return (f"{n} {'entity' if n == 1 else 'entities'} with harmless faults ({'; '.join(damage['first_notes'])}): "
+            f"no face lost or changed")
+
+
 def _damage_message(damage: dict) -> str:
     """One line on what the reader lost, or "" when nothing was."""
     if not damage:
@@ -250,8 +271,15 @@ def _load_shape(path: Path, *, strict: bool = False, isolate: bool = True):
 
     StepImportError naming the file where it cannot be read, where OCC's reader crashes
     (the file is read in a child process where ``os.fork`` exists and ``isolate``), or
-    where ``strict`` and entities failed to load or transfer.
+    where ``strict`` and entities failed to load or transfer (faults that change no face,
+    :mod:`cad_io.damage`, are not refused).
     """
+    shape, damage = _load_shape_info(path, strict=strict, isolate=isolate)
+    return shape, _damage_message(damage)
+
+
+def _load_shape_info(path: Path, *, strict: bool = False, isolate: bool = True):
+    """:func:`_load_shape` with the reader's whole damage dict instead of its line."""
     if not path.exists():
         raise StepImportError(f"{path}: no such file")
     if not path.is_file():
@@ -274,7 +302,7 @@ def _load_shape(path: Path, *, strict: bool = False, isolate: bool = True):
     msg = _damage_message(damage)
     if msg and strict:
         raise StepImportError(f"{path}: {msg} (refused: strict)")
-    return shape, msg
+    return shape, damage
 
 
 def _kind(face) -> str:
@@ -461,10 +489,15 @@ def _wire_loop(wire, face, packed, tol: float) -> np.ndarray:
     from OCP.BRepTools import BRepTools_WireExplorer
     from OCP.TopAbs import TopAbs_REVERSED
 
+    from OCP.BRep import BRep_Tool
+
     pts: list[np.ndarray] = []
     ex = BRepTools_WireExplorer(wire, face)
     while ex.More():
         e = ex.Current()
+        if BRep_Tool.CurveOnSurface_s(e, face, 0.0, 0.0) is None:
+            # a damaged file's edge may lack its pcurve: OCC's adaptor would then crash the process
+            raise ValueError("an edge of the face has no curve on its surface")
         c2 = BRepAdaptor_Curve2d(e, face)
         t0, t1 = c2.FirstParameter(), c2.LastParameter()
         n0 = 2 if c2.GetType().name == "GeomAbs_Line" else 9
@@ -562,6 +595,8 @@ def _edges(shape, face_index, faces: list, surf_ok: list[bool]) -> list[Edge]:
         seam = len(adj) == 1 and BRep_Tool.IsClosed_s(e, faces[adj[0]])
         if seam:
             adj = [adj[0], adj[0]]
+        if BRep_Tool.Curve_s(e, 0.0, 0.0) is None:
+            continue  # no 3D curve (a damaged file): OCC's adaptor would crash the process
         c3 = BRepAdaptor_Curve(e)
         t0, t1 = c3.FirstParameter(), c3.LastParameter()
         try:
@@ -581,6 +616,8 @@ def _edges(shape, face_index, faces: list, surf_ok: list[bool]) -> list[Edge]:
                 if k not in adaptors:
                     adaptors[k] = BRepAdaptor_Surface(f, False)
                 ad = adaptors[k]
+                if BRep_Tool.CurveOnSurface_s(e, f, 0.0, 0.0) is None:
+                    continue
                 c2 = BRepAdaptor_Curve2d(e, f)
                 flip = -1.0 if f.Orientation() == TopAbs_REVERSED else 1.0
                 nk = np.full((len(ts), 3), np.nan)
@@ -621,7 +658,27 @@ def _ranges(ids: list[int]) -> str:
     return ", ".join(out)
 
 
-def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None, strict: bool = False) -> Part:
+def _without_faces(shape, faces: list, drop) -> Any:
+    """A compound of the faces of ``shape`` but ``drop`` (the faces keep their shared edges)."""
+    from OCP.BRep import BRep_Builder
+    from OCP.TopoDS import TopoDS_Compound
+
+    comp = TopoDS_Compound()
+    builder = BRep_Builder()
+    builder.MakeCompound(comp)
+    gone = set(int(i) for i in drop)
+    for i, f in enumerate(faces):
+        if i not in gone:
+            builder.Add(comp, f)
+    return comp
+
+
+def _box_text(box) -> str:
+    return ", ".join(f"{a} {box[k]:.4g} .. {box[k + 3]:.4g}" for k, a in enumerate("xyz"))
+
+
+def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None, strict: bool = False,
+              partial: bool = False, warn: Callable[[str], Any] | None = None) -> Part:
     """Read a STEP file into a :class:`Part` with exact NURBS faces.
 
     Parameters
@@ -632,9 +689,18 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None, 
         When given, also triangulate every face (:func:`cad_io.mesh.triangulate`) with this
         linear deflection in mm.
     strict : bool, keyword-only
-        Refuse (StepImportError) a file whose entities failed to load or transfer, or
-        whose faces did not all reach the shape; by default such a file is read and
-        ``warnings`` says how many were lost.
+        Refuse (StepImportError) a damaged file: entities that failed to load or transfer,
+        or faces that did not all reach the shape; by default such a file is read and
+        ``warnings`` says how many were lost. Faults that change no face (a seam curve
+        naming one pcurve twice, a name that is not a quoted string: :mod:`cad_io.damage`)
+        are never refused: ``notes`` lists them.
+    partial : bool, keyword-only
+        Read a damaged file that lost most of its faces (more than :data:`cad_io.damage.MOST_LOST`
+        of the file's faces missing from the shape or refused); by default it is refused,
+        since a map of what is left is not the part.
+    warn : callable, keyword-only
+        Called with each warning line as soon as it is known (the reader's damage right
+        after the file is read, before the faces are converted); they are in ``warnings`` too.
 
     Returns
     -------
@@ -652,10 +718,15 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None, 
     zmap.errors.StepImportError
         Missing file, not a STEP file, a STEP file the reader rejects or crashes on (the
         file is read in a child process, so a crash of OCC's reader is reported, not
-        suffered), one with no faces, or under ``strict`` a damaged one.
+        suffered), one with no faces, a damaged one that lost most of its faces (unless
+        ``partial``), or under ``strict`` a damaged one.
 
     Notes
     -----
+    On a damaged file, a face whose extent is absurd against the rest of the part
+    (:func:`cad_io.damage.absurd_faces`: OCC gives an unbounded plane a box of 1e100 mm) is
+    refused: it is left out of the part and its shape, and a warning names it.
+
     OCC's reader messages never reach stdout (they are caught in the child).
 
     Examples
@@ -672,13 +743,50 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None, 
 
     from cad_io.nurbs import MAX_DEGREE, pack
 
+    from cad_io.damage import MOST_LOST, absurd_faces, lost_share
+
     path = Path(path)
-    shape, damage = _load_shape(path, strict=strict)
+    shape, info = _load_shape_info(path, strict=strict)
+    damage = _damage_message(info)
+    warnings: list[str] = []
+
+    def tell(line: str) -> None:
+        warnings.append(line)
+        if warn is not None:
+            warn(line)
+
     fmap = TopTools_IndexedMapOfShape()
     TopExp.MapShapes_s(shape, TopAbs_FACE, fmap)
     if fmap.Extent() == 0:
-        raise StepImportError(f"{path}: STEP file has no faces")
+        raise StepImportError(f"{path}: STEP file has no faces" + (f"; {damage}" if damage else ""))
     faces = [TopoDS.Face_s(fmap.FindKey(i)) for i in range(1, fmap.Extent() + 1)]
+    boxes = [_bbox(f) for f in faces]
+    refused = absurd_faces(boxes) if damage else np.zeros(0, dtype=np.int64)
+    lost, share = lost_share(info.get("file_faces", 0), len(faces), len(refused))
+    if share > MOST_LOST and not partial:
+        bad = info.get("load_fails", 0) + info.get("transfer_fails", 0)
+        raise StepImportError(
+            f"{path}: {lost} of the file's {max(info.get('file_faces', 0), len(faces))} faces are lost "
+            f"({100 * share:.0f} %"
+            + (f", {len(refused)} refused for an absurd extent" if len(refused) else "")
+            + ")" + (f", {bad} entities failed to load or transfer ({'; '.join(info['first'])})" if bad else "")
+            + ": the file is damaged and a map of the rest would not be the part; "
+              "pass --partial (partial=True) to read what is left")
+    if damage:  # told before any face is converted: a damaged face can take long
+        tell(damage)
+    if len(refused):
+        keep = np.setdiff1d(np.arange(len(faces)), refused)
+        bulk = np.array([boxes[k] for k in keep], dtype=np.float64).reshape(-1, 6)
+        tell(f"{'face' if len(refused) == 1 else 'faces'} {_ranges([int(k) for k in refused])} of the "
+             f"{len(faces)} read refused: extent absurd against the part's"
+             + (f" ({_box_text((*np.nanmin(bulk[:, :3], axis=0), *np.nanmax(bulk[:, 3:], axis=0)))} mm)"
+                if len(keep) else "")
+             + f", reaching {_box_text(boxes[int(refused[0])])} mm: the file is damaged")
+        shape = _without_faces(shape, faces, refused)
+        faces = [faces[k] for k in keep]
+        boxes = [boxes[k] for k in keep]
+        fmap = TopTools_IndexedMapOfShape()
+        TopExp.MapShapes_s(shape, TopAbs_FACE, fmap)
     kinds = [_kind(f) for f in faces]
     conv, why = _convert(faces, kinds)
 
@@ -706,17 +814,15 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None, 
                 loops = []
         out_faces.append(Face(index=i, kind=kinds[i], surface=surface,
                               reversed=f.Orientation().name == "TopAbs_REVERSED",
-                              loops=loops, bbox=_bbox(f), topo=topo, tolerance=_edge_tolerance(f)))
+                              loops=loops, bbox=boxes[i], topo=topo, tolerance=_edge_tolerance(f)))
 
-    warnings: list[str] = [damage] if damage else []
     groups: dict[tuple[str, str], list[int]] = {}
     for fc in out_faces:
         if fc.surface is None:
             groups.setdefault((fc.kind, why[fc.index] or "unknown"), []).append(fc.index)
     for (kind, reason), ids in groups.items():
         word = "face" if len(ids) == 1 else "faces"
-        warnings.append(f"{word} {_ranges(ids)} ({kind}): conversion failed: {reason}; "
-                        f"facets used")
+        tell(f"{word} {_ranges(ids)} ({kind}): conversion failed: {reason}; facets used")
 
     def face_index(f) -> int:
         return fmap.FindIndex(f) - 1
@@ -724,8 +830,9 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None, 
     # dihedrals come from OCC's own surfaces: they exist wherever a face is not tessellated
     has_surface = [BRep_Tool.Surface_s(f) is not None for f in faces]
     edges = _edges(shape, face_index, faces, has_surface)
+    note = _note_message(info)
     part = Part(faces=out_faces, edges=edges, source=str(path), shape=shape,
-                warnings=warnings)
+                warnings=warnings, notes=[note] if note else [], damaged=bool(damage))
     if mesh_deflection is not None:
         from cad_io.mesh import triangulate
 
