@@ -184,9 +184,38 @@ def _check_args(d, step, q) -> tuple[float, float, int]:
     return d, step, int(q)
 
 
+def solid_rule(part: Part, solid: str = "auto") -> tuple[str, str]:
+    """The material rule for ``part`` and why (:mod:`zmap.access.solid`): ``'below'`` for an
+    open model (free boundary edges: a quilt of faces with no closed shell) or where asked,
+    else ``'auto'`` (a closed shell, or below where the paint leaks through it).
+
+    Returns
+    -------
+    (solid, note) : the rule to pass to :meth:`VoxelMap.from_samples` and the note it shows.
+    """
+    from zmap.access.solid import check_solid
+
+    solid, _ = check_solid(solid, None)
+    free = sum(1 for e in part.edges if e.is_boundary)
+    if solid == "below":
+        return "below", "asked (--solid below)"
+    if solid == "auto" and free:
+        return "below", f"open model: {free} free boundary edges"
+    if solid == "closed":
+        return "closed", "asked (--solid closed)"
+    return "auto", "no free boundary edge" if part.edges else ""
+
+
 def voxelize(part: Part, d: float, *, step: float | None = None, q: int = 4, exact: bool = True,
-             crease_deg: float = 10.0, check: bool = True) -> VoxelMap:
+             crease_deg: float = 10.0, check: bool = True, solid: str = "auto", floor: float | None = None,
+             max_uncertain: float | None = None) -> VoxelMap:
     """The visibility voxel map of ``part`` at voxel ``d`` (mm), sampled at ``step`` (d/4).
+
+    ``solid``: ``'auto'`` (default) the material below the top surface for an open model
+    (free boundary edges), else the closed shell's paint spreading (:func:`solid_rule`);
+    ``'closed'`` or ``'below'`` (down to ``floor`` or the lowest point) where asked.
+    ``max_uncertain``: the largest share of uncertain boundary area (walls or gaps thinner
+    than the voxel) before the map is refused (0.25).
 
     Examples
     --------
@@ -194,14 +223,17 @@ def voxelize(part: Part, d: float, *, step: float | None = None, q: int = 4, exa
     >>> vm = voxelize(cad_io.read_step("data/pocket.step"), 0.5, q=4)  # doctest: +SKIP
     """
     d, step, q = _check_args(d, step, q)
+    rule, note = solid_rule(part, solid)
     s = surface_samples(part, step)
     return VoxelMap.from_samples(s.points, s.normals, s.curvature, s.face, s.weight, d=d, q=q,
-                                 step=step, exact=exact, crease_deg=crease_deg, check=check)
+                                 step=step, exact=exact, crease_deg=crease_deg, check=check, solid=rule,
+                                 floor=floor, max_uncertain=max_uncertain, solid_note=note)
 
 
 def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float | None = None,
             cone: float | None = None, exact: bool = True, rays: int = 2, refine: bool = True,
-            progress=None, tool_step: float | None = None) -> AccessResult:
+            progress=None, tool_step: float | None = None, solid: str = "auto", floor: float | None = None,
+            max_uncertain: float | None = None) -> AccessResult:
     """The whole pipeline: voxel map, V'_g, A', 3-axis verdict and set-ups, with timings.
 
     ``rays``: lines per voxel edge of the cylinder casting (:func:`global_visibility`);
@@ -211,6 +243,7 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     (:func:`zmap.access.voxelmap.accessibility` with ``samples``), d / 2 (or d') by default (on
     featuretype.STEP the samples at d' = d / 4 gave the same agreement with OCC's tool in
     three times the time).
+    ``solid``, ``floor``, ``max_uncertain``: the material rule, as :func:`voxelize`.
     ``progress(message)`` is called at each stage (the CLI prints it).
     """
     say = progress or (lambda msg: None)
@@ -220,6 +253,10 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     if tool.diameter > float(np.nanmax(size)):
         raise AccessModelError(f"tool diameter {tool.diameter:g} mm is larger than the part "
                                f"({size[0]:.1f} x {size[1]:.1f} x {size[2]:.1f} mm)")
+    rule, note = solid_rule(part, solid)
+    from zmap.access.solid import check_solid
+
+    check_solid(rule, floor)
     sec = {}
     t0 = time.perf_counter()
     say(f"sampling faces at d' = {step:g} mm")
@@ -228,10 +265,13 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     t = time.perf_counter()
     say(f"{len(s):,} samples; voxel map at d = {d:g} mm, q = {q} (k = {20 * q * q})")
     vm = VoxelMap.from_samples(s.points, s.normals, s.curvature, s.face, s.weight, d=d, q=q, step=step,
-                               exact=exact, fine=refine)
+                               exact=exact, fine=refine, solid=rule, floor=floor, max_uncertain=max_uncertain,
+                               solid_note=note)
     sec["voxelize"] = time.perf_counter() - t
     t = time.perf_counter()
-    say(f"{vm.n_boundary:,} boundary, {vm.n_interior:,} interior voxels; cylinder casting")
+    say(f"material: {vm.solid_note}")
+    say(f"{vm.n_boundary:,} boundary, {vm.n_interior:,} interior, {int(vm.uncertain.sum()):,} uncertain voxels; "
+        "cylinder casting")
     if refine:
         vg, vg_pieces, vg_fine = global_visibility(vm, rays=rays, pieces=True, refine=True)
     else:
@@ -243,7 +283,9 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     if not (np.isfinite(tstep) and tstep > 0):
         raise AccessModelError(f"tool_step must be a positive number of mm, got {tool_step!r}")
     ts = s if tstep == step else surface_samples(part, tstep)
-    amap, amap_pieces = accessibility(vm, vg, tool, pieces=True, samples=(ts.points, ts.normals, ts.face))
+    amap, amap_pieces = accessibility(vm, vg, tool, pieces=True,
+                                      samples=(ts.points, vm.orient(ts.points, ts.normals, ts.face), ts.face),
+                                      vg_pieces=vg_pieces)
     sec["access"] = time.perf_counter() - t
     t = time.perf_counter()
     verdict = three_axis(vm, amap)
@@ -313,7 +355,7 @@ def reference_visibility(shape: Any, points, directions, *, offset: float = 1e-4
 
 
 def reference_tool(shape: Any, points, normals, directions, tool: Tool, *, tol: float = 1e-3,
-                   reach: float = 200.0, shrink: float = 0.0) -> np.ndarray:
+                   reach: float = 200.0, shrink: float = 0.0, material: str = "closed") -> np.ndarray:
     """Ball-end tool clearance by OCC: (n, k) bool, True where the tool fits.
 
     The ball of radius a touches each point from outside (centre ``p + a n``); along direction
@@ -327,6 +369,10 @@ def reference_tool(shape: Any, points, normals, directions, tool: Tool, *, tol: 
     ``shrink``: test the shank's capsule and the holder that much thinner, and the holder's
     face that much higher (the ball stays): with a voxel diagonal, a pair blocked at 0 and
     free here is blocked within one voxel.
+
+    ``material``: what the ball's centre must lie outside of: ``'closed'`` the solid
+    (``BRepClass3d_SolidClassifier``), ``'below'`` the material below the top surface of an
+    open model (a point is inside when the OCC ray from it along +z meets a face).
     """
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeVertex
     from OCP.BRepClass3d import BRepClass3d_SolidClassifier
@@ -357,10 +403,17 @@ def reference_tool(shape: Any, points, normals, directions, tool: Tool, *, tol: 
         ext = BRepExtrema_DistShapeShape(faces, cyl)
         return not ext.IsDone() or ext.Value() <= 0.0
 
+    if material not in ("closed", "below"):
+        raise ValueError(f"material must be 'closed' or 'below', got {material!r}")
+
+    def inside(c) -> bool:
+        if material == "below":
+            return not bool(reference_visibility(shape, c[None], np.array([[0.0, 0.0, 1.0]]), offset=0.0)[0][0, 0])
+        return BRepClass3d_SolidClassifier(shape, gp_Pnt(*map(float, c)), 1e-7).State() != TopAbs_OUT
+
     for i, (p, n) in enumerate(zip(pts, nrm)):
         c = p + a * n
-        cls = BRepClass3d_SolidClassifier(shape, gp_Pnt(*map(float, c)), 1e-7)
-        if cls.State() != TopAbs_OUT or dist(c, c) < a - tol:
+        if inside(c) or dist(c, c) < a - tol:
             continue
         for j, t in enumerate(dirs):
             if dist(c, c + reach * t) < a - tol - shrink:
@@ -422,11 +475,15 @@ def _by_piece(vm: VoxelMap, per_voxel: np.ndarray, per_piece: np.ndarray | None,
 
 
 def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int = 0,
-              tool: bool = False, samples: Samples | None = None, explain: bool = False) -> dict:
+              tool: bool = False, samples: Samples | None = None, explain: bool = False,
+              axis: str | None = None) -> dict:
     """Compare the voxel map with the OCC reference on random surface points x all k directions.
 
     ``tool=False`` compares ``V'_g`` with thin rays (:func:`reference_visibility`); ``tool=True``
-    compares ``A'`` with :func:`reference_tool` (slow: one distance query per pair).
+    compares ``A'`` with :func:`reference_tool` (slow: one distance query per pair), the ball's
+    centre outside the material of the map's rule (``result.vm.solid``). ``axis`` (e.g.
+    ``'+z'``): that direction alone (with ``tool``, the 3-axis verdict of each point).
+    The points' normals are turned as the map turned their faces (:meth:`VoxelMap.orient`).
 
     Returns
     -------
@@ -447,20 +504,24 @@ def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int
     rng = np.random.default_rng(seed)
     vox = vm.voxel_of(s.points)
     pick = rng.choice(np.flatnonzero(vox >= 0), size=min(n_points, int((vox >= 0).sum())), replace=False)
-    pts, nrm, vb = s.points[pick], s.normals[pick], vox[pick]
+    pts, vb = s.points[pick], vox[pick]
+    nrm = vm.orient(pts, s.normals[pick], s.face[pick])
     diag = np.sqrt(3.0) * vm.d
+    cols = np.arange(ds.k) if axis is None else np.array([ds.index(axis)])
+    dirs = ds.normals[cols]
+    material = "below" if vm.solid == "below" else "closed"
     if tool:
-        ref = reference_tool(part.shape, pts, nrm, ds.normals, result.tool)
-        mine = to_bool(point_access(result, vb, s.face[pick]), ds.k)
+        ref = reference_tool(part.shape, pts, nrm, dirs, result.tool, material=material)
+        mine = to_bool(point_access(result, vb, s.face[pick]), ds.k)[:, cols]
         # a pair the map frees and OCC blocks: blocked within one voxel when OCC frees it with
         # the shank and the holder a voxel diagonal thinner (hit 0), else beyond (hit inf)
         hit = np.where(ref, np.inf, 0.0)
         for a, b in zip(*np.nonzero(mine & ~ref)):
-            hit[a, b] = 0.0 if reference_tool(part.shape, pts[a:a + 1], nrm[a:a + 1], ds.normals[b:b + 1],
-                                              result.tool, shrink=diag)[0, 0] else np.inf
+            hit[a, b] = 0.0 if reference_tool(part.shape, pts[a:a + 1], nrm[a:a + 1], dirs[b:b + 1],
+                                              result.tool, shrink=diag, material=material)[0, 0] else np.inf
     else:
-        ref, hit = reference_visibility(part.shape, pts, ds.normals)
-        mine = to_bool(point_visibility(result, vb, s.face[pick], pts), ds.k)
+        ref, hit = reference_visibility(part.shape, pts, dirs)
+        mine = to_bool(point_visibility(result, vb, s.face[pick], pts), ds.k)[:, cols]
     vo = mine & ~ref
     near_sil = 0
     if not tool and explain:
@@ -472,7 +533,7 @@ def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int
             t1 /= np.linalg.norm(t1)
             t2 = np.cross(n, t1)
             offs = pts[a] + diag * np.array([t1, -t1, t2, -t2, n * 0.5, -n * 0.5])
-            free, _ = reference_visibility(part.shape, offs, ds.normals[b][None])
+            free, _ = reference_visibility(part.shape, offs, dirs[b][None])
             if (free[:, 0] != ref[a, b]).any():
                 near_sil += 1
     return {"pairs": int(ref.size), "agree_share": float((mine == ref).mean()),

@@ -67,6 +67,8 @@ def global_visibility_reference(vm, *, rays: int = 2, pieces: bool = False, fine
         pc = vm.fine if fine else vm.pieces
         pqc, pqh = _query_boxes(vm, pieces=True, fine=fine)
         q_point, q_normal, q_slab, q_vl, q_self = pc.point, pc.normal, pc.slab, pc.vl, np.full(len(pc.voxel), -3)
+        if vm.uncertain is not None:  # a piece of an uncertain voxel skips its cube, as the voxel does
+            q_self = np.where(vm.uncertain[pc.voxel], pc.voxel, q_self)
     skin = vm.skin()
     allc = np.concatenate([qc, skin]) if len(skin) else qc
     lo_, hi_ = allc.min(axis=0), allc.max(axis=0)

@@ -118,6 +118,12 @@ class VoxelMap:
         :func:`global_visibility`).
     flipped : list of int
         Faces whose normals pointed inward and were turned (the paper's SIGN = -1).
+    solid : str
+        The rule that made the interior: ``'closed'`` (paint spreading) or ``'below'`` (the
+        material below the top surface, down to ``floor``); ``solid_note`` says it in words.
+    uncertain : ndarray of shape (mb,), bool
+        Voxels whose side the map cannot tell (:mod:`zmap.access.solid`): their whole cube
+        blocks every direction in the casting; ``uncertain_info`` their figures.
     """
 
     origin: np.ndarray
@@ -144,6 +150,11 @@ class VoxelMap:
     tight_hi: np.ndarray | None = None
     pieces: Pieces | None = None
     fine: Pieces | None = None
+    solid: str = "closed"
+    solid_note: str = "closed shell (paint spreading)"
+    floor: float = float("nan")
+    uncertain: np.ndarray | None = None
+    uncertain_info: dict = field(default_factory=dict)
 
     @property
     def directions(self) -> DirectionSet:
@@ -183,7 +194,9 @@ class VoxelMap:
     @classmethod
     def from_samples(cls, points, normals, curvature, face, weight, *, d: float, q: int,
                      step: float | None = None, exact: bool = True, crease_deg: float = 10.0,
-                     pad: int = 2, check: bool = True, fine: bool = True) -> "VoxelMap":
+                     pad: int = 2, check: bool = True, fine: bool = True, solid: str = "closed",
+                     floor: float | None = None, max_uncertain: float | None = None,
+                     solid_note: str = "") -> "VoxelMap":
         """Build the map from surface samples (paper 002 §4.3 and §4.4).
 
         Parameters
@@ -212,15 +225,35 @@ class VoxelMap:
             Angle between normals of different faces in one voxel above which the voxel is
             a crease (condition 3 of the accessibility map).
         check : bool
-            Apply the model checks (raise :class:`AccessModelError` on failure).
+            Apply the model checks (raise :class:`AccessModelError` on failure) and find the
+            uncertain voxels.
         fine : bool
             Also build ``fine``, the half-voxel pieces that :func:`global_visibility` casts with
             ``refine=True`` (default True).
+        solid : {'closed', 'below', 'auto'}
+            The rule that makes the interior (:mod:`zmap.access.solid`): ``closed`` (default)
+            the paper's paint spreading, which needs a closed shell; ``below`` the material
+            below the top-most surface seen from +z, down to the lowest sample or ``floor`` (an
+            open die face); ``auto`` closed, or below where the paint leaks through the shell.
+        floor : float, optional
+            The material's lowest z (mm) with ``below``; at most the lowest sample's.
+        max_uncertain : float, optional
+            Largest share of the boundary area that may be uncertain (0.25 by default;
+            :data:`zmap.access.solid.MAX_UNCERTAIN`); a map with more raises.
+        solid_note : str
+            Why the caller chose ``solid`` (shown in the summary), e.g. the free edges of an
+            open model.
         """
         from ._access_kernels import (accumulate, orientation_votes, paint_exterior, patch_slab,
                                       piece_accumulate)
+        from ._solid_kernels import below_top, sample_sides
+        from .solid import MAX_UNCERTAIN, check_solid, kfloor_of, refusal, uncertain_report
 
         d = _check_d(d)
+        solid, floor = check_solid(solid, floor)
+        max_uncertain = MAX_UNCERTAIN if max_uncertain is None else float(max_uncertain)
+        if not (0 <= max_uncertain <= 1):
+            raise AccessModelError(f"max_uncertain must be a share in [0, 1], got {max_uncertain!r}")
         ds = _direction_set(q)
         if step is not None:
             step = float(step)
@@ -245,6 +278,13 @@ class VoxelMap:
         kmax = np.where(np.isfinite(kmax), kmax, np.inf)
         lo = pts.min(axis=0)
         hi = pts.max(axis=0)
+        zmin = float(lo[2])
+        if floor is not None:
+            if floor > zmin:
+                raise AccessModelError(f"floor z = {floor:g} mm is above the part's lowest point z = {zmin:.3f} mm: "
+                                       "the material below the top surface must hold every face")
+            lo = lo.copy()
+            lo[2] = floor
         origin = lo - pad * d
         shape = tuple(int(s) for s in np.floor((hi - origin) / d).astype(np.int64) + pad + 1)
         total = int(np.prod(np.array(shape, dtype=np.float64)))
@@ -262,21 +302,41 @@ class VoxelMap:
         paint_exterior(state)
         flipped: list[int] = []
         nf = int(fid.max()) + 1
-        if check:
+        rule = solid
+        if solid == "auto":
+            rule = "closed" if np.any(state == INTERIOR) else "below"
+            if rule == "below" and not solid_note:
+                solid_note = f"the paint leaked through the shell at d = {d:g} mm"
+        if rule == "below":
+            kfloor = kfloor_of(floor, zmin, float(origin[2]), d)
+            below_top(state, kfloor)
+            note = (f"below the top surface seen from +z, down to z = {floor if floor is not None else zmin:.3f} mm"
+                    f" ({solid_note or 'asked'})")
+        else:
+            note = "closed shell (paint spreading)" + (f" ({solid_note})" if solid_note else "")
+        if check and rule == "closed":
             _check_connected(state, index, fid, vox, pts)
             if not np.any(state == INTERIOR):
                 raise AccessModelError(
                     f"no interior voxels at d = {d:g} mm: the exterior paint leaks through the "
                     f"shell (an open surface, a gap wider than {d:g} mm, or walls thinner than the "
-                    "voxel); the paper needs a closed model at the voxel resolution")
+                    "voxel); the paper needs a closed model at the voxel resolution (an open die face: "
+                    "--solid below takes the material below its top surface)")
+        flags = np.zeros(n, dtype=np.uint8)
+        if check:
             votes = np.zeros((nf, 4), dtype=np.int64)
             orientation_votes(pts, nrm, fid, origin, d, state, votes)
-            flipped = _check_orientation(votes, fid, pts, nrm)
+            flipped = _orient(votes)
+            nrm = nrm.copy()
             if flipped:
                 turn = np.isin(fid, flipped)
-                nrm = nrm.copy()
                 nrm[turn] *= -1
                 kmax = np.where(turn, -kmax, kmax)  # concave and convex swap with the side
+            sample_sides(pts, nrm, origin, d, _REACH * d, state, flags)
+            # a sample with interior in front and exterior behind points inward: turned alone
+            inward = flags == 3
+            nrm[inward] *= -1
+            kmax = np.where(inward, -kmax, kmax)
         mb = len(uniq)
         W = ds.words
         step_ = float(step) if step is not None else 0.25 * d
@@ -354,12 +414,22 @@ class VoxelMap:
         pieces = Pieces(voxel=pvox, lo=np.maximum(pmn - pgrow, vlo[pvox]), hi=np.minimum(pmx + pgrow, vlo[pvox] + d),
                         light=plight, point=ppoint, normal=pnormal, slab=pslab,
                         face=(ukey % (int(fid.max()) + 1)).astype(np.int64), vl=pvl)
-        return cls(origin=origin, d=d, state=state, index=index, ijk=bijk, vl=vl, light=light,
-                   curvature=curv, surface=surf, crease=crease.astype(bool), point=point,
-                   normal=normal, area=area, q=ds.q, flipped=flipped,
-                   step=float(step) if step is not None else float("nan"), n_samples=n,
-                   box_lo=box_lo, box_hi=box_hi, slab=slab, tight_lo=tight_lo, tight_hi=tight_hi,
-                   pieces=pieces, fine=fine_pieces)
+        unc = np.zeros(mb, dtype=bool)
+        unc[vox[flags != 0]] = True
+        if unc.any():
+            light[unc] = vl_all(ds)  # an uncertain voxel blocks every direction
+        vm = cls(origin=origin, d=d, state=state, index=index, ijk=bijk, vl=vl, light=light,
+                 curvature=curv, surface=surf, crease=crease.astype(bool), point=point,
+                 normal=normal, area=area, q=ds.q, flipped=flipped,
+                 step=float(step) if step is not None else float("nan"), n_samples=n,
+                 box_lo=box_lo, box_hi=box_hi, slab=slab, tight_lo=tight_lo, tight_hi=tight_hi,
+                 pieces=pieces, fine=fine_pieces, solid=rule, solid_note=note,
+                 floor=(floor if floor is not None else zmin) if rule == "below" else float("nan"),
+                 uncertain=unc)
+        vm.uncertain_info = uncertain_report(vm, flags, vox, pts, nrm, fid)
+        if check and vm.uncertain_info["share"] > max_uncertain:
+            raise AccessModelError(refusal(vm, max_uncertain))
+        return vm
 
     def skin(self) -> np.ndarray:
         """Centres (ms, 3) of the interior voxels 26-adjacent to a non-interior voxel: every
@@ -373,7 +443,8 @@ class VoxelMap:
 
     def blockers(self) -> tuple[np.ndarray, ...]:
         """The casting's boundary blockers: the voxels crossed by one face (their tight
-        boxes) and the pieces of the others (all voxels where no pieces are known).
+        boxes), the pieces of the others (all voxels where no pieces are known), and last the
+        uncertain voxels, each its whole cube with every direction in ``light`` and no slab.
 
         Returns
         -------
@@ -382,14 +453,45 @@ class VoxelMap:
         """
         c, h = self.boxes(tight=True)
         plane = np.concatenate([self.point, self.normal, self.slabs()[:, None]], axis=1)
+        one, pk, unc = self._blocker_rows()
+        parts = [(c[one], h[one], one, self.light[one], plane[one])]
+        if pk is not None:
+            p = self.pieces
+            pplane = np.concatenate([p.point, p.normal, p.slab[:, None]], axis=1)
+            parts.append((0.5 * (p.lo[pk] + p.hi[pk]), 0.5 * (p.hi[pk] - p.lo[pk]), p.voxel[pk], p.light[pk],
+                          pplane[pk]))
+        if len(unc):
+            uplane = np.zeros((len(unc), 7))
+            uplane[:, :3] = self.centres[unc]
+            uplane[:, 6] = np.inf
+            parts.append((self.centres[unc], np.full((len(unc), 3), 0.5 * self.d), unc, self.light[unc], uplane))
+        return tuple(np.concatenate([x[i] for x in parts]) if i != 2 else
+                     np.concatenate([x[2] for x in parts]).astype(np.int64) for i in range(5))
+
+    def _blocker_rows(self) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """The rows of :meth:`blockers`: the voxels taken by their own box, the pieces (None
+        where no pieces are known) and the uncertain voxels."""
+        unc = self.uncertain if self.uncertain is not None else np.zeros(self.n_boundary, dtype=bool)
         if self.pieces is None:
-            return c, h, np.arange(self.n_boundary, dtype=np.int64), self.light, plane
-        one = np.flatnonzero(self.surface >= 0)
-        p = self.pieces
-        pplane = np.concatenate([p.point, p.normal, p.slab[:, None]], axis=1)
-        return (np.concatenate([c[one], 0.5 * (p.lo + p.hi)]), np.concatenate([h[one], 0.5 * (p.hi - p.lo)]),
-                np.concatenate([one, p.voxel]).astype(np.int64), np.concatenate([self.light[one], p.light]),
-                np.concatenate([plane[one], pplane]))
+            return np.flatnonzero(~unc), None, np.flatnonzero(unc)
+        return (np.flatnonzero((self.surface >= 0) & ~unc), np.flatnonzero(~unc[self.pieces.voxel]),
+                np.flatnonzero(unc))
+
+    def orient(self, points, normals, face) -> np.ndarray:
+        """Normals (n, 3) of other samples of the same faces as the map turned them: the faces
+        of ``flipped`` turned, and a sample with interior in front of it and exterior behind it
+        (:func:`~zmap.access._solid_kernels.sample_sides`) turned alone."""
+        from ._solid_kernels import sample_sides
+
+        pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        nrm = np.array(normals, dtype=np.float64).reshape(-1, 3)
+        if self.flipped:
+            nrm[np.isin(np.asarray(face).ravel(), self.flipped)] *= -1
+        flags = np.zeros(len(pts), dtype=np.uint8)
+        sample_sides(pts, nrm, np.ascontiguousarray(self.origin, dtype=np.float64), float(self.d), _REACH * self.d,
+                     self.state, flags)
+        nrm[flags == 3] *= -1
+        return nrm
 
     def slabs(self) -> np.ndarray:
         """``slab`` (mb,), inf where unknown (a map built without it)."""
@@ -510,30 +612,24 @@ def _check_connected(state, index, fid, vox, pts) -> None:
         f"shell): besides the largest, " + "; ".join(parts) + (" ..." if n > 4 else ""))
 
 
-def _check_orientation(votes, fid, pts, nrm) -> list[int]:
-    """Faces to turn (all normals inward); raises where a face points both ways."""
-    flipped = []
-    bad = []
-    for f in range(votes.shape[0]):
-        out_, in_ = votes[f, 0], votes[f, 1]
-        tot = out_ + in_
-        if tot == 0:
-            continue
-        if in_ <= 0.02 * tot:
-            continue
-        if out_ <= 0.02 * tot:
-            flipped.append(f)
-            continue
-        sel = (fid == f)
-        where = pts[sel].mean(axis=0)
-        bad.append(f"face {f} ({out_} samples point out, {in_} in, around "
-                   f"({where[0]:.1f}, {where[1]:.1f}, {where[2]:.1f}) mm)")
-    if bad:
-        raise AccessModelError("no consistent outward side: " + "; ".join(bad[:4])
-                               + (f" and {len(bad) - 4} more faces" if len(bad) > 4 else "")
-                               + " (a face with two outward sides, or a gap or wall narrower than the voxel:"
-                               " try a smaller --voxel)")
-    return flipped
+def _orient(votes) -> list[int]:
+    """Faces to turn: those whose samples point into the interior more often than out of it
+    (``orientation_votes``); the samples of a face that disagree with its majority make their
+    voxels uncertain (:mod:`zmap.access.solid`) instead of failing the part."""
+    return [int(f) for f in np.flatnonzero(votes[:, 1] > votes[:, 0])]
+
+
+#: how far (in voxel edges) a sample looks along its normal, each way, for the first voxel off
+#: the boundary (:func:`~zmap.access._solid_kernels.sample_sides`)
+_REACH = 3.0
+
+
+def vl_all(ds: DirectionSet) -> np.ndarray:
+    """The bitset (words,) uint64 of every direction of ``ds``."""
+    out = np.full(ds.words, np.uint64(0xFFFFFFFFFFFFFFFF), dtype=np.uint64)
+    if ds.k % 64:
+        out[-1] = np.uint64((1 << (ds.k % 64)) - 1)
+    return out
 
 
 def _ranges(ids) -> str:

@@ -188,6 +188,10 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True, pieces:
     faces as runs along their faces (:func:`_merged_blockers`: 152,877 blockers in 56,831),
     again with the same bits.
 
+    An uncertain voxel (``vm.uncertain``: a wall or gap thinner than the voxel) blocks as its
+    whole cube every direction; as a query it skips its own cube, and so do its pieces, and the
+    refinement leaves its half-voxel pieces with its own bits.
+
     ``pieces=True`` also casts each piece of the voxels where several faces meet
     (:class:`Pieces`) as a query of its own, from its own box and slab with its own ``V'_l``:
     the directions free from that face's patch in the voxel, which a point of the face has
@@ -233,8 +237,15 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True, pieces:
         p = vm.pieces
         px, ph = _query_boxes(vm, pieces=True)
         qx, qh = np.concatenate([qx, px]), np.concatenate([qh, ph])
-        qid = np.concatenate([qid, -3 - np.arange(len(p.voxel), dtype=np.int64)])  # skip nothing as itself
-        light, vl = np.concatenate([light, p.light]), np.concatenate([vl, p.vl])
+        pid = -3 - np.arange(len(p.voxel), dtype=np.int64)  # skip nothing as itself
+        plight = p.light
+        if vm.uncertain is not None and vm.uncertain.any():
+            # a piece of an uncertain voxel skips its voxel's cube, as the voxel does
+            pu = vm.uncertain[p.voxel]
+            pid = np.where(pu, p.voxel, pid)
+            plight = np.where(pu[:, None], vm.light[p.voxel], p.light)
+        qid = np.concatenate([qid, pid])
+        light, vl = np.concatenate([light, plight]), np.concatenate([vl, p.vl])
         ppt, pnrm, slab = np.concatenate([ppt, p.point]), np.concatenate([pnrm, p.normal]), np.concatenate([slab, p.slab])
     out = _cast(vm, cast, qx, qh, qid, light, vl, ppt, pnrm, slab, vm.d / rays, tile=_TILE)
     bits = np.empty((len(qx), ds.words), dtype=np.uint64)
@@ -363,6 +374,8 @@ def _refine(vm: VoxelMap, cast: tuple, vb: np.ndarray, pb: np.ndarray, rays: int
     has = pi >= 0
     parent[has] = pb[pi[has]]
     need = f.vl & ~parent
+    if vm.uncertain is not None:
+        need[vm.uncertain[f.voxel]] = 0  # an uncertain voxel keeps what its cube's cast keeps
     near = _REFINE_NEAR if near is None else near
     if near >= 0:
         # only near a direction's shadow edge: some voxel within `near` keeps it (in deep

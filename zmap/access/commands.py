@@ -38,8 +38,17 @@ __all__ = ["access_cmd"]
               help="Cast half-voxel pieces again where a voxel's cylinder is blocked (--no-refine: the "
                    "paper's casting alone, about half the visibility time, more conservative near "
                    "silhouettes).")
+@click.option("--solid", type=click.Choice(["auto", "closed", "below"]), default="auto", show_default=True,
+              help="The material: 'closed' the closed shell's inside (paint spreading); 'below' what lies below "
+                   "the top surface seen from +z, down to the lowest point or --floor (an open die face); "
+                   "'auto' below for an open model (free boundary edges), else closed.")
+@click.option("--floor", default=None, type=float, metavar="Z",
+              help="Lowest z of the material below the top surface, mm (default: the part's lowest point).")
+@click.option("--max-uncertain", default=25.0, show_default=True, type=float, metavar="PCT",
+              help="Refuse the map when more than this share of the boundary area is uncertain (walls or gaps "
+                   "thinner than the voxel), percent.")
 def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output, png, no_png, grid=None, rays=2,
-               refine=True) -> None:
+               refine=True, solid="auto", floor=None, max_uncertain=25.0) -> None:
     """Tool access directions from a visibility voxel map (paper 002): 3-axis verdict and set-ups."""
     import math
     import time
@@ -70,6 +79,10 @@ def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output,
         raise AccessModelError(f"--grid must be a positive number of mm, got {grid!r}")
     if rays < 1:
         raise AccessModelError(f"--rays must be an integer >= 1, got {rays!r}")
+    if not (0 <= max_uncertain <= 100):
+        raise AccessModelError(f"--max-uncertain must be a percentage in [0, 100], got {max_uncertain!r}")
+    if floor is not None and (solid == "closed" or not math.isfinite(floor)):
+        raise AccessModelError(f"--floor {floor!r} needs a finite z and --solid below or auto")
 
     def say(msg: str) -> None:
         click.echo(f"[{time.perf_counter() - t0:6.1f} s] {msg}", err=True)
@@ -77,7 +90,8 @@ def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output,
     say(f"reading {part_path}")
     part = read_step(part_path)
     result = analyse(part, d=d, q=q, tool=tool, step=step, cone=None if cone is None else math.radians(cone),
-                     rays=rays, refine=refine, progress=say)
+                     rays=rays, refine=refine, progress=say, solid=solid, floor=floor,
+                     max_uncertain=max_uncertain / 100.0)
     if grid is not None:
         import numpy as np
 

@@ -21,7 +21,8 @@ def three_axis(vm: VoxelMap, amap: np.ndarray, *, axis="+z") -> dict:
     dict
         ``axis_index``, ``reachable`` (bool (mb,)), ``area_total``, ``area_reachable``,
         ``area_other`` (accessible, but not along the axis), ``area_inaccessible`` (mm^2),
-        ``share`` (reachable / total).
+        ``share`` (reachable / total), ``area_uncertain`` and ``uncertain_share`` (the
+        uncertain voxels', counted in the others as their conservative directions say).
     """
     ds = vm.directions
     i = ds.index(axis)
@@ -29,11 +30,14 @@ def three_axis(vm: VoxelMap, amap: np.ndarray, *, axis="+z") -> dict:
     reach = ((bits[:, i >> 6] >> np.uint64(i & 63)) & np.uint64(1)).astype(bool)
     anyd = count(bits) > 0
     total = float(vm.area.sum())
+    unc = vm.uncertain if vm.uncertain is not None else np.zeros(vm.n_boundary, dtype=bool)
     return {"axis_index": i, "reachable": reach, "area_total": total,
             "area_reachable": float(vm.area[reach].sum()),
             "area_other": float(vm.area[anyd & ~reach].sum()),
             "area_inaccessible": float(vm.area[~anyd].sum()),
-            "share": float(vm.area[reach].sum() / total) if total > 0 else float("nan")}
+            "share": float(vm.area[reach].sum() / total) if total > 0 else float("nan"),
+            "area_uncertain": float(vm.area[unc].sum()),
+            "uncertain_share": float(vm.area[unc].sum() / total) if total > 0 else float("nan")}
 
 
 def set_cover(vm: VoxelMap, amap: np.ndarray, *, cone: float | None = None, axis="+z",
@@ -130,6 +134,9 @@ class AccessResult:
                  f"| inaccessible with this tool | {v['area_inaccessible']:,.1f} mm^2 "
                  f"({100 * v['area_inaccessible'] / tot if tot else 0:.1f} %) |",
                  f"| set-ups found | {len(self.setups)} |"]
+        if "area_uncertain" in v:
+            lines.insert(2, f"| uncertain (walls or gaps thinner than the voxel) | {v['area_uncertain']:,.1f} mm^2 "
+                            f"({100 * v['uncertain_share']:.2f} %) |")
         acc = v["area_reachable"] + v["area_other"]
         run = 0.0
         for need in (0.9, 0.99):
@@ -148,7 +155,9 @@ class AccessResult:
                     f"| {s['area']:,.1f} |\n")
         if len(self.setups) > 10:
             out += f"| ... | {len(self.setups) - 10} more | | {sum(s['area'] for s in self.setups[10:]):,.1f} |\n"
-        return out
+        from .solid import describe
+
+        return "\n".join(describe(self.vm)) + "\n\n" + out
 
     def save(self, path) -> None:
         """Write atomically (temporary name, then rename)."""
@@ -162,12 +171,14 @@ class AccessResult:
         header = {"format": "zmap.access", "version": 1, "d": vm.d, "q": vm.q, "step": vm.step,
                   "tool": vars(self.tool), "verdict": {k: v for k, v in self.verdict.items() if k != "reachable"},
                   "setups": [{k: v for k, v in s.items() if k != "voxels"} for s in self.setups],
-                  "seconds": self.seconds, "flipped": vm.flipped}
+                  "seconds": self.seconds, "flipped": vm.flipped, "solid": vm.solid, "solid_note": vm.solid_note,
+                  "floor": vm.floor, "uncertain": vm.uncertain_info}
         arrays = dict(origin=vm.origin, ijk=vm.ijk, state=vm.state, vl=vm.vl, light=vm.light, vg=self.vg,
                       amap=self.amap, curvature=vm.curvature, surface=vm.surface, point=vm.point,
                       normal=vm.normal, area=vm.area, setup=setup_of,
                       n_access=count(self.amap).astype(np.int32),
                       directions=vm.directions.normals,
+                      uncertain=vm.uncertain if vm.uncertain is not None else np.zeros(vm.n_boundary, dtype=bool),
                       header=np.frombuffer(json.dumps(header).encode(), dtype=np.uint8))
         if self.vg_pieces is not None and vm.pieces is not None and vm.pieces.face is not None:
             arrays.update(piece_voxel=vm.pieces.voxel, piece_face=vm.pieces.face, piece_vg=self.vg_pieces)

@@ -182,8 +182,8 @@ def _concave_creases(vm: VoxelMap) -> np.ndarray:
 def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | None = None,
                   cell_holder: float | None = None, method: str = "capsule",
                   pieces: bool = False,
-                  samples: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-                  ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+                  samples: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+                  vg_pieces: np.ndarray | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Ball-end accessibility map ``A'`` (paper 002 §4.6) with shank and holder.
 
     ``method="paper"``: n is in ``A'(v)`` when n is in ``V'_g(v)`` and
@@ -226,6 +226,13 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     :func:`tool_clearance` with ``samples``. (The voxel-sized slack of the blockers' boxes
     was most of what the map refused and OCC's tool allowed.)
 
+    With samples, an uncertain voxel (``vm.uncertain``) keeps only the directions its own
+    cast keeps too (``vg``; its pieces those of ``vg_pieces``, the pieces' ``V'_g`` of
+    :func:`global_visibility`, or none without it), and the tool is also tested against points
+    on the faces that interior voxels share with exterior ones
+    (:func:`zmap.access.solid.open_walls`: the sides and floor of the material below an open
+    surface, which has no samples there).
+
     Without samples, no blocker may reach above the ball's centre within the shank's radius, nor
     above the stick-out within the holder's radius (both tested upward without end; cells of
     the depth buffers: ``cell``, d by default, and ``cell_holder``, the larger of d and a fifth
@@ -257,7 +264,7 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
                         vm.index, vm.state, a - hd, a + hd, bad, cap, ds._centres, ds._frames, ds.q, local)
         return tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell, cell_holder=cell_holder)
     if samples is not None:
-        return _sampled_access(vm, tool, bad, pieces, samples, cell)
+        return _sampled_access(vm, tool, bad, pieces, samples, cell, vg, vg_pieces)
     fits = np.empty(vm.n_boundary, dtype=np.bool_)
     ball_fits(centre, vm.origin, vm.d, vm.state, a - hd, fits)
     # not ANDed with V'_g: the capsule holds the thin ray, and the cast's voxel-wide cylinders
@@ -313,9 +320,12 @@ def _hemisphere_bits(vm: VoxelMap, normal: np.ndarray) -> np.ndarray:
 
 def _sampled_access(vm: VoxelMap, tool: Tool, bad: np.ndarray, pieces: bool,
                     samples: tuple[np.ndarray, np.ndarray, np.ndarray],
-                    cell: float | None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+                    cell: float | None, vg: np.ndarray | None = None,
+                    vg_pieces: np.ndarray | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """:func:`accessibility` by the capsule on the surface samples (its ``samples``)."""
     from scipy.spatial import cKDTree
+
+    from .solid import open_walls
 
     spts = np.ascontiguousarray(samples[0], dtype=np.float64)
     snrm = np.asarray(samples[1], dtype=np.float64)
@@ -339,9 +349,23 @@ def _sampled_access(vm: VoxelMap, tool: Tool, bad: np.ndarray, pieces: bool,
         qp.append(pp)
         qn.append(pn)
     qp, qn, local = np.concatenate(qp), np.concatenate(qn), np.concatenate(local)
+    # the material's sides and floor without samples (below an open surface) block as they do
+    walls = open_walls(vm)
+    if len(walls):
+        spts = np.ascontiguousarray(np.concatenate([spts, walls]))
+        tree = cKDTree(spts)
     # the ball fits: no sample closer than a (less OCC's 1e-3 mm) to its centre
     dist, _ = tree.query(qp + a * qn, workers=-1)
     local[dist < a - 1e-3] = 0
+    unc = vm.uncertain
+    if unc is not None and unc.any() and vg is not None:
+        # an uncertain voxel keeps only what its own cast keeps too
+        mb = vm.n_boundary
+        local[:mb][unc] &= np.asarray(vg, dtype=np.uint64)[unc]
+        if len(local) > mb:
+            pu = np.flatnonzero(unc[p.voxel])
+            local[mb + pu] = (local[mb + pu] & np.asarray(vg_pieces, dtype=np.uint64)[pu]) if vg_pieces is not None \
+                else 0
     both = tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell,
                           queries=(qp, qn, np.full(len(qp), -1)), samples=spts)
     return _split_pieces(vm, both, pieces)
@@ -373,13 +397,14 @@ def _split_pieces(vm: VoxelMap, both: np.ndarray, pieces: bool) -> np.ndarray | 
 
 
 def _blocker_faces(vm: VoxelMap) -> np.ndarray:
-    """The face of each of :meth:`VoxelMap.blockers` (nb,) int64 (-1: several)."""
-    one = np.flatnonzero(vm.surface >= 0) if vm.pieces is not None else np.arange(vm.n_boundary)
-    face = vm.surface[one].astype(np.int64)
-    if vm.pieces is None:
-        return face
-    pf = vm.pieces.face if vm.pieces.face is not None else np.full(len(vm.pieces.voxel), -1)
-    return np.concatenate([face, np.asarray(pf, dtype=np.int64)])
+    """The face of each of :meth:`VoxelMap.blockers` (nb,) int64 (-1: several, or uncertain)."""
+    one, pk, unc = vm._blocker_rows()
+    parts = [vm.surface[one].astype(np.int64)]
+    if pk is not None:
+        pf = vm.pieces.face if vm.pieces.face is not None else np.full(len(vm.pieces.voxel), -1)
+        parts.append(np.asarray(pf, dtype=np.int64)[pk])
+    parts.append(np.full(len(unc), -1, dtype=np.int64))
+    return np.concatenate(parts)
 
 
 def _plane_faces(vm: VoxelMap, face: np.ndarray, plane: np.ndarray) -> np.ndarray:

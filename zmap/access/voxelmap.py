@@ -30,7 +30,7 @@ True
 from __future__ import annotations
 
 from .build import (BOUNDARY, EXTERIOR, INTERIOR, MAX_VOXELS, UNPAINTED, AccessModelError,  # noqa: F401
-                    Pieces, VoxelMap, _check_connected, _check_d, _check_orientation, _direction_set,
+                    Pieces, VoxelMap, _check_connected, _check_d, _direction_set, _orient, vl_all,
                     _fine_pieces, _octant, _octant_lo, _ranges, paint)
 from .casting import (_FINE_RAYS, _FINE_STRICT, _LAST_REFINE_STATS, _REFINE_NEAR, _TILE,  # noqa: F401
                       _FINE_TILE, _cast, _casting, _hide_masks, _merged_blockers, _opposite, _piece_index,

@@ -86,7 +86,10 @@ def test_fine_cast_matches_the_reference_on_a_bowl(small_bowl, monkeypatch):
     vb, pb, fb = global_visibility(vm, pieces=True, refine=True)
     parent = _parents(vm, vb0, pb0)
     ref = global_visibility_reference(vm, rays=4, fine=True)
-    assert (fb == (parent | ref)).all()
+    # the bowl's floor (0.5 mm) is thinner than the voxel: its uncertain voxels are not refined
+    unc = vm.uncertain[vm.fine.voxel]
+    assert unc.any() and (fb[unc] == parent[unc]).all()
+    assert (fb[~unc] == (parent | ref)[~unc]).all()
     assert (fb & ~parent).any()  # it frees something here
     f = vm.fine
     for b in range(vm.n_boundary):
@@ -242,7 +245,9 @@ def _check_strict_refinement(shift, r):
     (-0.06, -0.18, -0.14) is one)."""
     P, N, K, F, W = bowl_samples(r=r, half=3.0, depth=2.6, step=0.12)
     P = P + np.asarray(shift)
-    vm = VoxelMap.from_samples(P, N, K, F, W, d=0.5, q=2, step=0.12)
+    # the casting's own answers: without the uncertain voxels of the cavity's thin floor and
+    # walls (0.3-0.7 mm at d = 0.5), which would block the rays in question as whole cubes
+    vm = VoxelMap.from_samples(P, N, K, F, W, d=0.5, q=2, step=0.12, check=False)
     ds = vm.directions
     vb0, pb0 = global_visibility(vm, pieces=True)
     vb, pb, fb = global_visibility(vm, pieces=True, refine=True)
@@ -266,7 +271,7 @@ def test_default_refinement_misses_on_a_cavity_that_strict_catches():
     strict refinement do not keep it."""
     r = 1.8125
     P, N, K, F, W = bowl_samples(r=r, half=3.0, depth=2.6, step=0.12)
-    vm = VoxelMap.from_samples(P, N, K, F, W, d=0.5, q=2, step=0.12)
+    vm = VoxelMap.from_samples(P, N, K, F, W, d=0.5, q=2, step=0.12, check=False)  # the casting alone, as above
     ds = vm.directions
     vb0, pb0 = global_visibility(vm, pieces=True)
     parent = _parents(vm, vb0, pb0)
