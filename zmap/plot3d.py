@@ -16,7 +16,7 @@ import numpy as np
 
 from .grid import ZMap, atomic_write
 
-__all__ = ["zmap_3d", "stock_3d"]
+__all__ = ["zmap_3d", "stock_3d", "axes_in_mm"]
 
 _SCALARS = ("height",)
 
@@ -38,6 +38,61 @@ def _auto_z_scale(X: np.ndarray, Y: np.ndarray, Z: np.ndarray) -> float:
         return 1.0
     want = 0.35 * xy / z
     return float(max([f for f in (1, 2, 5, 10, 20) if f <= want], default=1))
+
+
+def _nice_ticks(lo: float, hi: float, n: int = 4) -> tuple[float, float, int]:
+    """Round ends and a count of ticks 1, 2, 2.5 or 5 x 10^k apart, about ``n`` intervals over [lo, hi].
+
+    >>> _nice_ticks(0.0, 39.8), _nice_ticks(-10.0, 0.0, 2), _nice_ticks(3.0, 3.0)
+    ((0.0, 40.0, 5), (-10.0, 0.0, 3), (3.0, 4.0, 5))
+    """
+    import math
+
+    span = hi - lo
+    if not span > 0:
+        lo, span = math.floor(lo), 1.0
+        hi = lo + span
+    raw = span / n
+    mag = 10.0 ** math.floor(math.log10(raw))
+    step = min((f * mag for f in (1, 2, 2.5, 5, 10) if f * mag >= raw * (1 - 1e-9)), default=10 * mag)
+    a = math.floor(lo / step + 1e-9) * step
+    b = math.ceil(hi / step - 1e-9) * step
+    return float(a), float(b), int(round((b - a) / step)) + 1
+
+
+def axes_in_mm(p: Any, bounds: tuple, *, z_scale: float = 1.0, font_size: int = 10) -> Any:
+    """Axes labelled ``x (mm)``, ``y (mm)``, ``z (mm)`` at round ticks around ``bounds``.
+
+    Parameters
+    ----------
+    p : pyvista.Plotter
+    bounds : (x0, x1, y0, y1, z0, z1) — the scene's extent in true mm.
+    z_scale : float — z is drawn stretched by this factor; the labels say true mm.
+    font_size : int
+
+    The axes span the ticks' round ends (3 z labels, about 5 on x and y), so no label is an
+    odd 39.8; x's last and y's first label are left blank, where the isometric view brings
+    them next to y's last and z's lowest, so no two labels overprint.
+    """
+    from vtkmodules.vtkCommonCore import vtkStringArray
+
+    (x0, x1, nx), (y0, y1, ny), (z0, z1, nz) = (_nice_ticks(bounds[0], bounds[1]),
+                                                _nice_ticks(bounds[2], bounds[3]),
+                                                _nice_ticks(bounds[4], bounds[5], 2))
+    actor = p.show_grid(bounds=(x0, x1, y0, y1, z0 * z_scale, z1 * z_scale), xtitle="x (mm)", ytitle="y (mm)",
+                        ztitle="z (mm)", color="black", font_size=font_size, n_xlabels=nx, n_ylabels=ny,
+                        n_zlabels=nz, location="outer")
+
+    def labels(lo: float, hi: float, n: int, blank: int | None) -> vtkStringArray:
+        out = vtkStringArray()
+        for k in range(n):
+            out.InsertNextValue("" if k == blank else f"{lo + (hi - lo) * k / (n - 1):.6g}")
+        return out
+
+    actor.SetAxisLabels(0, labels(x0, x1, nx, nx - 1))
+    actor.SetAxisLabels(1, labels(y0, y1, ny, 0))
+    actor.SetAxisLabels(2, labels(z0, z1, nz, None))
+    return actor
 
 
 def _surface_plot(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, values: np.ndarray, *, bar: str,
@@ -78,8 +133,7 @@ def _surface_plot(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, values: np.ndarra
                scalar_bar_args={"title": bar, "vertical": True, "fmt": "%.3g", "color": "black",
                                 "position_x": 0.86, "position_y": 0.15, "height": 0.7, "width": 0.06,
                                 "title_font_size": 16, "label_font_size": 14})
-    p.show_grid(xtitle="x (mm)", ytitle="y (mm)", ztitle="z (mm)", color="black", font_size=10, n_zlabels=3,
-                axes_ranges=ranges)
+    axes_in_mm(p, ranges[:4] + [lo, float(Zf.max())], z_scale=f)
     p.add_text(title, position="upper_left", font_size=11, color="black")
     p.view_isometric()
     p.camera.zoom(0.9)

@@ -55,7 +55,7 @@ class ViewerProcess:
 
 
 def serve(run_path: str | os.PathLike, *, design: str | os.PathLike | None = None,
-          program: str | os.PathLike | None = None, allowance: float = 0.01,
+          program: str | os.PathLike | None = None, allowance: float = 0.01, tol: float = 0.01,
           port: int = 0, timeout: float = 60.0, height: int = 700) -> ViewerProcess:
     """Start ``zmap view RUN.zsim`` on 127.0.0.1 in a child process and wait until it listens.
 
@@ -63,7 +63,7 @@ def serve(run_path: str | os.PathLike, *, design: str | os.PathLike | None = Non
     ----------
     run_path : path
         The ``.zsim`` file.
-    design, program, allowance :
+    design, program, allowance, tol :
         As ``zmap view`` takes them.
     port : int
         0 (default) picks a free port.
@@ -86,7 +86,7 @@ def serve(run_path: str | os.PathLike, *, design: str | os.PathLike | None = Non
 
     port = int(port) or free_port()
     args = [sys.executable, "-m", "zmap.cli", "view", os.fspath(run_path), "--port", str(port),
-            "--no-browser", "--allowance", repr(float(allowance))]
+            "--no-browser", "--allowance", repr(float(allowance)), "--tol", repr(float(tol))]
     if design is not None:
         args += ["--design", os.fspath(design)]
     if program is not None:

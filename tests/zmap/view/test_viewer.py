@@ -53,9 +53,57 @@ def test_deviation_from_a_design(pocket_run):
 
     s = pocket_run.stock
     design = ZMap(s.x0 - 1, s.y0 - 1, 0.5, 0.5, np.full((s.nx + 4, s.ny + 4), -2.0))
-    viewer = Viewer(pocket_run, design=design)
+    viewer = Viewer(pocket_run, design=design, tol=0.05)
     viewer.show_stage(0)
     np.testing.assert_allclose(viewer.poly["deviation (mm)"], 2.0)  # the box top is 2 mm above
+    # the colours follow the tolerance: bands of tol to +-3 tol, other colours beyond, a legend
+    actor = viewer.plotter.actors[next(k for k in viewer.plotter.actors if k.startswith("PolyData"))]
+    lut = actor.mapper.lookup_table
+    assert tuple(actor.mapper.scalar_range) == pytest.approx((-0.15, 0.15))
+    assert lut.n_values == 6 and lut.below_range_color is not None and lut.above_range_color is not None
+    assert tuple(lut.below_range_color.float_rgb) != tuple(lut.above_range_color.float_rgb)
+    assert viewer.plotter.legend is not None
+
+
+def test_deviation_bands():
+    from zmap.view.app import BAND_COLOURS, deviation_bands
+
+    b = deviation_bands(0.02)
+    assert b["clim"] == (-0.06, 0.06) and b["n_colors"] == 6
+    assert b["below_color"] not in BAND_COLOURS and b["above_color"] not in BAND_COLOURS
+    with pytest.raises(ValueError, match="tol must be a positive"):
+        deviation_bands(0.0)
+
+
+def test_stock_is_drawn_closed(pocket_run):
+    """Walls from every open edge of the top down to the stock's bottom, and a bottom: a drilled
+    hole is a hole in a solid, no spike hangs below a sheet."""
+    viewer = Viewer(pocket_run)
+    for k in (pocket_run.n_stages // 2, pocket_run.n_stages):
+        viewer.show_stage(k)
+        top, sides = viewer.poly, viewer.sides
+        tri = np.asarray(top.faces).reshape(-1, 4)[:, 1:]
+        e = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+        _, counts = np.unique(e, axis=0, return_counts=True)
+        assert sides.n_cells > (counts == 1).sum()  # one wall per open edge, and the bottom's triangles
+        assert sides.bounds[4] == pytest.approx(-10.0) and viewer.bottom == pytest.approx(-10.0)
+        # top + sides, cleaned, is closed
+        import pyvista as pv
+
+        solid = pv.merge([top, sides.triangulate()]).clean()
+        assert solid.extract_feature_edges(boundary_edges=True, feature_edges=False, manifold_edges=False,
+                                           non_manifold_edges=False).n_cells == 0
+
+
+def test_caption_quotes_the_program_kept_in_the_run(pocket_run, tmp_path):
+    from zmap.sim.session import Run
+
+    lines = (DATA / "demo_pocket.nc").read_text().splitlines()
+    run = Run.load(pocket_run.save(tmp_path / "pocket.zsim"))
+    viewer = Viewer(run)  # no program given: the .zsim keeps it
+    k = run.n_stages // 2
+    line = int(run.line[k - 1])
+    assert viewer.show_stage(k).startswith(f"stage {k} / {run.n_stages}, line {line}: {lines[line - 1].strip()}")
 
 
 def _chromium() -> str | None:
@@ -88,8 +136,9 @@ def test_page_in_headless_chromium(tmp_path, pocket_run):
 
     run_path = pocket_run.save(tmp_path / "pocket.zsim")
     port = free_port()
-    proc = subprocess.Popen([sys.executable, "-m", "zmap.cli", "view", str(run_path), "--program",
-                             str(DATA / "demo_pocket.nc"), "--port", str(port), "--no-browser"],
+    # no --program: the caption quotes the G-code kept in the .zsim
+    proc = subprocess.Popen([sys.executable, "-m", "zmap.cli", "view", str(run_path), "--port", str(port),
+                             "--no-browser"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
@@ -100,12 +149,22 @@ def test_page_in_headless_chromium(tmp_path, pocket_run):
                 "--no-sandbox", "--disable-gpu", "--disable-background-networking",
                 "--disable-component-update", "--disable-sync", "--no-first-run"])
             page = b.new_page(viewport={"width": 1000, "height": 760})
+            bad = []  # every failed request and console error of the page (the old POST /paraview/ 405)
+            page.on("response", lambda r: r.status >= 400 and bad.append(f"{r.status} {r.request.method} {r.url}"))
+            page.on("console", lambda m: m.type == "error" and bad.append(m.text))
             page.goto(f"http://127.0.0.1:{port}/")
             page.wait_for_function(f"document.querySelector('#caption') && "
                                    f"document.querySelector('#caption').innerText.includes('stage {n} / {n}')",
                                    timeout=60_000)
             view = page.locator("#view")
             y0 = _share_when(view, lambda y: y > 0.01)  # the first picture has arrived
+            # the caption: the line's G-code text, on its own line above the picture, full width
+            lines = (DATA / "demo_pocket.nc").read_text().splitlines()
+            last = lines[int(pocket_run.line[n - 1]) - 1].strip()
+            cap = page.locator("#caption")
+            assert last in cap.inner_text(), cap.inner_text()
+            cb, vb = cap.bounding_box(), view.bounding_box()
+            assert cb["y"] + cb["height"] <= vb["y"] + 1 and cb["width"] >= 0.9 * vb["width"], (cb, vb)
             page.locator("#stage-slider [role=slider], [role=slider]").first.focus()
             page.keyboard.press("Home")  # the slider to stage 0
             page.wait_for_function("document.querySelector('#caption').innerText.startsWith('stage 0 /')",
@@ -122,6 +181,7 @@ def test_page_in_headless_chromium(tmp_path, pocket_run):
             b.close()
         assert y1 > 1.3 * y0, (y0, y1)
         assert abs(y2 - y0) < 0.1 * y0, (y0, y2)
+        assert not bad, bad
     finally:
         proc.terminate()
         try:
