@@ -585,7 +585,10 @@ def simulate(program_or_positions: Any, stock: Any, *, tool: Any = None, tools: 
 
 
 def _program_text(obj: Any) -> str | None:
-    """The G-code text of a program given as a file or as text; None for anything else."""
+    """The G-code text of a program given as a file, as text or parsed from a file; None for anything else."""
+    fname = getattr(obj, "filename", None) if hasattr(obj, "moves") else None
+    if isinstance(fname, str) and os.path.isfile(fname):  # a Program read from a file
+        obj = fname
     if isinstance(obj, os.PathLike) or (isinstance(obj, str) and "\n" not in obj and os.path.isfile(obj)):
         return Path(obj).read_text(errors="replace")
     return obj if isinstance(obj, str) else None
