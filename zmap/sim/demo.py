@@ -37,6 +37,7 @@ def run_demo(out_dir: str | os.PathLike = "out", *, echo=print) -> list[Path]:
         The run file, the two pictures and the GIF, in that order.
     """
     from .render import StageFigure, program_lines, save_gif, save_png, stage_line, stage_title
+    from ..fmt import size
     from .session import Run, simulate
 
     out = Path(out_dir)
@@ -62,16 +63,16 @@ def run_demo(out_dir: str | os.PathLike = "out", *, echo=print) -> list[Path]:
     half, end = run.stage("1/2"), run.stage("end")
     p_half = save_png(out / "demo_pocket_half.png", fig.frame(run.display(half), title(half)))
     p_end = save_png(out / "demo_pocket_end.png", fig.frame(run.display(end), title(end)))
-    s1, s2 = run.stage("1/4"), run.stage("1/2")
-    step = max(1, (s2 - s1) // 40)
-    frames = [fig.frame(img, title(k)) for k, img in run.animate(s1, s2, step)]
+    # the whole program, from the stock to the end: pocket, groove, ring and holes
+    step = max(1, end // 60)
+    frames = [fig.frame(img, title(k)) for k, img in run.animate(0, end, step)]  # the last is the end
     fig.close()
     p_gif = save_gif(out / "demo_pocket.gif", frames, fps=12)
     result = [Path(zsim), Path(p_half), Path(p_end), Path(p_gif)]
     if echo is not None:
         s = run.summary
         echo(f"simulated {program.name}: {s['moves']} moves, {s['positions']} positions, {s['rays']} rays, "
-             f"{s['dexels_deleted']} dexels deleted, treap {s['history_bytes'] / 1e6:.2f} MB, {s['seconds']:.2f} s")
+             f"{s['dexels_deleted']} dexels deleted, treap {size(s['history_bytes'])}, {s['seconds']:.2f} s")
         echo(f"wrote {zsim}, {p_half}, {p_end}, {p_gif} ({len(frames)} frames)")
     return result
 

@@ -122,6 +122,18 @@ def test_run_demo_end_to_end(tmp_path):
     assert [p.name for p in written] == ["demo_pocket.zsim", "demo_pocket_half.png", "demo_pocket_end.png",
                                          "demo_pocket.gif"]
     assert all(p.stat().st_size > 0 for p in written)
+    # the GIF shows the whole program: its first frame the uncut stock, its last the finished part
+    from PIL import Image
+
+    run = Run.load(written[0])
+    with Image.open(written[3]) as gif:
+        assert gif.n_frames >= 40
+        gif.seek(0)
+        first = np.asarray(gif.convert("RGB"), dtype=float)
+        gif.seek(gif.n_frames - 1)
+        last = np.asarray(gif.convert("RGB"), dtype=float)
+    assert np.abs(first - last).mean() > 5  # the pocket, ring and holes are cut between them
+    assert run.n_stages == run.stage("end")
 
 
 @pytest.mark.slow
