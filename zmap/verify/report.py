@@ -168,9 +168,12 @@ def deviation_png(c: Any, path: str | os.PathLike, *, title: str | None = None, 
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     t = c.totals
-    ax.set_title(title or (f"deviation at stage {c.stage}/{c.n_stages}: {t['gouge_regions']} gouges "
-                           f"(max {t['max_gouge_mm']:.4g} mm), {t['excess_regions']} excesses "
-                           f"(max {t['max_excess_mm']:.4g} mm)"), fontsize=10)
+    # over the whole figure, wrapped: a title as wide as the axes would run under the colour bar
+    import textwrap
+
+    fig.suptitle(textwrap.fill(title or (f"deviation at stage {c.stage}/{c.n_stages}: {t['gouge_regions']} gouges "
+                                         f"(max {t['max_gouge_mm']:.4g} mm), {t['excess_regions']} excesses "
+                                         f"(max {t['max_excess_mm']:.4g} mm)"), 80), fontsize=10)
     g = c.first_gouge() if mark_first else None
     if g is not None:
         ax.plot(*g.first_xy, marker="x", color="k", ms=10)
