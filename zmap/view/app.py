@@ -155,7 +155,7 @@ class Viewer:
                                      ["stock left (above)", BAND_COLOURS[5]],
                                      [f"gouge beyond -{3 * self.tol:g} mm", GOUGE_BEYOND],
                                      [f"stock beyond +{3 * self.tol:g} mm", EXCESS_BEYOND]],
-                                    bcolor="white", border=True, size=(0.3, 0.2), loc="lower left", face="rectangle")
+                                    bcolor="white", border=True, size=(0.24, 0.15), loc="lower right", face="rectangle")
         else:
             stock_top = np.nanmax(run.display(0)) if run.stock.cnt.any() else 0.0
             values = self.poly[self.scalar_name]
