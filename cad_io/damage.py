@@ -19,7 +19,7 @@ import re
 
 import numpy as np
 
-__all__ = ["HARMLESS", "MOST_LOST", "absurd_faces", "is_harmless", "lost_share"]
+__all__ = ["HARMLESS", "MOST_LOST", "absurd_faces", "is_harmless", "lost_share", "refuse_runaway_meshes"]
 
 #: Fail messages of OCC's reader that change no face (a note, not damage): a seam curve
 #: naming one pcurve twice; a name, description or id that is not a quoted string.
@@ -98,3 +98,43 @@ def lost_share(file_faces: int, shape_faces: int, refused: int) -> tuple[int, fl
     lost = max(0, int(file_faces) - int(shape_faces)) + int(refused)
     total = max(int(file_faces), int(shape_faces), 1)
     return lost, lost / total
+
+
+def refuse_runaway_meshes(part) -> list[int]:
+    """Faces of ``part`` whose mesh runs absurdly far beyond the part's box, refused in place.
+
+    A control point whose coordinate a damaged file scales by ten (``89.03`` read as
+    ``89.03E1``) leaves the face's edges, and so OCC's box of the face, where they were, while
+    its surface spikes a metre away: the mesh follows the spike, the grid grows to cover it
+    and the sampler spends minutes on the spike's steep flanks. A face whose mesh nodes reach
+    beyond the union of the faces' boxes by more than :data:`ABSURD_REACH` times its largest
+    side loses its mesh and surface (it is skipped) and ``part.warnings`` names it.
+
+    Returns the indices of the faces refused.
+    """
+    import warnings as _warnings
+
+    from cad_io.part import FaceMesh
+
+    boxes = np.array([f.bbox for f in part.faces], dtype=np.float64).reshape(-1, 6)
+    if not np.isfinite(boxes).any():
+        return []
+    lo = np.nanmin(boxes[:, :3], axis=0)
+    hi = np.nanmax(boxes[:, 3:], axis=0)
+    reach = ABSURD_REACH * max(float(np.max(hi - lo)), 1.0)
+    out = []
+    for f in part.faces:
+        m = f.mesh
+        if m is None or len(m.nodes) == 0:
+            continue
+        over = float(max(np.max(lo - m.nodes.min(axis=0)), np.max(m.nodes.max(axis=0) - hi)))
+        if over > reach:
+            msg = (f"face {f.index} ({f.kind}) refused: its surface runs {over:,.0f} mm beyond the part's box "
+                   f"(x {lo[0]:.4g} .. {hi[0]:.4g}, y {lo[1]:.4g} .. {hi[1]:.4g}, z {lo[2]:.4g} .. {hi[2]:.4g} mm) "
+                   f"while its edges stay inside: a damaged control point; the face is left out")
+            f.mesh = FaceMesh(np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32), None, m.deflection)
+            f.surface = None
+            part.warnings.append(msg)
+            _warnings.warn(msg, stacklevel=3)
+            out.append(f.index)
+    return out

@@ -60,6 +60,10 @@ def triangulate(part: Part, deflection: float) -> None:
             face.mesh = _grid_mesh(face, deflection) if face.surface is not None else None
         return
     _occ_meshes(part, deflection)
+    # a face whose surface spikes far beyond its edges (a damaged control point) is left out
+    from cad_io.damage import refuse_runaway_meshes
+
+    refuse_runaway_meshes(part)
 
 
 # --------------------------------------------------------------------------------------

@@ -211,3 +211,27 @@ def test_the_bar_ticks_while_the_file_is_read(tmp_path, monkeypatch):
     frames = [f for f in text.split("\r") if f.startswith("reading:")]
     assert any("00:01" in f for f in frames), frames  # the elapsed time moved during the read
     assert len(frames) >= 5, frames
+
+
+# ---- no runaway on a damaged control point ------------------------------------------------------
+
+def test_a_spiked_face_is_refused_not_sampled_for_minutes(tmp_path, capfd):
+    """cornetta with one control point's coordinate scaled by 100 (``E2`` appended, seed 0) and
+    three CARTESIAN_POINT keywords broken: face 99's edges stay put (OCC boxes it 3 mm wide) while
+    its surface spikes 1.2 m away. Before: the grid grew to 281 x 1,326 nodes and the sampler
+    spent 110 s on the spike (12 s for the clean file); now the face is refused by its id."""
+    from zmap.grid import ZMap
+
+    bad = corrupt.scaled_control_point(DATA / "step" / "bug27693_cornetta-step.stp", tmp_path, 0, exponent="E2")
+    out = tmp_path / "s.zmap.npz"
+    t0 = time.perf_counter()
+    r = _cli(capfd, "convert", str(bad), "--grid", "1", "-o", str(out), "--no-progress")
+    seconds = time.perf_counter() - t0
+    assert r.returncode == 0, r.stderr
+    lines = r.stderr.splitlines()
+    assert lines[0].startswith("warning: 6 entities failed to load or transfer"), lines
+    assert any(w.startswith("warning: face 99 (bspline) refused: its surface runs 1,") and "mm beyond" in w
+               for w in lines), lines
+    zm = ZMap.load(out)
+    assert (zm.y0, zm.y1) == pytest.approx((-80, 80), abs=1)
+    assert seconds < 90, seconds
