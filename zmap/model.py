@@ -19,6 +19,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .errors import OutOfDomainError, ZMapFileError
+from .fmt import size
 from .grid import ZMap
 
 __all__ = ["PrecisionModel", "FORMAT_NAME", "FORMAT_VERSION", "SOURCES"]
@@ -197,7 +198,7 @@ class PrecisionModel:
     def __repr__(self) -> str:
         nb = self.nbytes
         return (f"PrecisionModel(base {self.base.nx}x{self.base.ny} dx={self.base.dx:g}, {len(self.cz)} CZ-maps, "
-                f"ez={'yes' if self.ez is not None else 'no'}, {nb['total'] / 1024:.1f} KB)")
+                f"ez={'yes' if self.ez is not None else 'no'}, {size(nb['total'])})")
 
     # ---- persistence --------------------------------------------------------------------
 

@@ -214,7 +214,8 @@ def stock_3d(run: Any, stage: Any, path: str | os.PathLike | None = None, *, des
     design : ZMap, optional — colour by ``stock - design`` (mm, bilinear design heights,
         symmetric range) instead of by height.
     name : str — the run's name in the title.
-    program : str or PathLike, optional — the run's G-code file, to quote the stage's line.
+    program : str or PathLike, optional — the run's G-code file, to quote the stage's line;
+        by default the program the run keeps (``run.program_text``).
     clim, cmap, window_size, z_scale : as in :func:`zmap_3d`.
 
     Returns
@@ -236,7 +237,9 @@ def stock_3d(run: Any, stage: Any, path: str | os.PathLike | None = None, *, des
     x = s.x0 + s.pitch * np.arange(s.nx)
     y = s.y0 + s.pitch * np.arange(s.ny)
     X, Y = np.meshgrid(x, y, indexing="ij")
-    title = stage_title(name, k, run.n_stages, stage_line(run, k), program_lines(program))
+    text = getattr(run, "program_text", None)  # the .zsim keeps the program it was made from
+    lines = program_lines(program) if program is not None else (text.splitlines() if text else None)
+    title = stage_title(name, k, run.n_stages, stage_line(run, k), lines)
     if design is None:
         values, bar = z, "height (mm)"
         clim = height_range(run) if clim is None else clim

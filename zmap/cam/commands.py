@@ -10,6 +10,8 @@ import os
 
 import click
 
+from ..fmt import count
+
 __all__ = ["toolpath_cmd"]
 
 
@@ -54,6 +56,6 @@ def toolpath_cmd(design_path, tool, stepover, angle, tol, step, bounds, feed, pl
                           name=os.path.basename(design_path), progress=progress)
     prog.save(output)
     s = prog.stats
-    click.echo(f"wrote {output}: {s['passes']} passes, {s['kept_points']} of {s['cl_points']} CL points kept "
+    click.echo(f"wrote {output}: {s['passes']} passes, {count(s['kept_points'])} of {count(s['cl_points'])} CL points kept "
                f"(chord tol {tol:g} mm), {s['retracts']} retracts, predicted scallop {prog.scallop:.4f} mm, "
                f"{s['seconds']:.1f} s", err=True)

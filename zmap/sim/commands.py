@@ -160,7 +160,8 @@ def replay_cmd(run_path, stage, png, view3d, span, gif, frames, fps, scale, prog
         raise click.UsageError("--gif needs --animate S1:S2")
     run = Run.load(run_path)
     name = os.path.basename(str(run_path))
-    lines = program_lines(program)
+    text = getattr(run, "program_text", None)  # the .zsim keeps the program it was made from
+    lines = program_lines(program) if program is not None else (text.splitlines() if text else None)
 
     def title(k: int) -> str:
         return stage_title(name, k, run.n_stages, stage_line(run, k), lines)
