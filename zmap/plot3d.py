@@ -98,11 +98,12 @@ def axes_in_mm(p: Any, bounds: tuple, *, z_scale: float = 1.0, font_size: int = 
 def _surface_plot(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, values: np.ndarray, *, bar: str,
                   title: str, clim: tuple[float, float] | None, cmap: str,
                   window_size: tuple[int, int], path: str | os.PathLike | None,
-                  z_scale: float | str = "auto") -> Any:
+                  z_scale: float | str = "auto", bottom: float | None = None) -> Any:
     """Render the grid surface ``Z`` over ``(X, Y)`` (NaN = no surface) coloured by ``values``.
 
     A flat surface is drawn with its z stretched by ``z_scale`` (said in the title); the axis
-    labels keep the true millimetres.
+    labels keep the true millimetres. With ``bottom`` (a stock's), the four sides down to it and
+    the bottom are drawn too, in grey: a closed solid.
     """
     _quiet_vtk()
     import pyvista as pv
@@ -115,6 +116,8 @@ def _surface_plot(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, values: np.ndarra
     f = _auto_z_scale(X[valid], Y[valid], Zf[valid]) if z_scale == "auto" else float(z_scale)
     if not (np.isfinite(f) and f > 0):
         raise ValueError(f"z_scale must be 'auto' or a positive number, got {z_scale!r}")
+    if bottom is not None:
+        lo = min(lo, float(bottom))
     ranges = [float(X.min()), float(X.max()), float(Y.min()), float(Y.max()), lo, float(Zf.max())]
     if f != 1.0:
         title += f"  (z drawn x{f:g})"
@@ -129,7 +132,15 @@ def _surface_plot(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, values: np.ndarra
             clim = (clim[0] - 0.5, clim[1] + 0.5)
     p = pv.Plotter(off_screen=path is not None, window_size=list(window_size))
     p.set_background("white")
-    p.add_mesh(mesh, scalars=bar, cmap=cmap, clim=clim, smooth_shading=True, nan_opacity=0.0,
+    if bottom is not None:  # the sides and the bottom of the stock
+        zb = float(bottom) * f
+        for sl in ((slice(None), 0), (slice(None), -1), (0, slice(None)), (-1, slice(None))):
+            xs, ys, zs = X[sl], Y[sl], Zf[sl] * f
+            side = pv.StructuredGrid(np.stack([xs, xs]), np.stack([ys, ys]), np.stack([zs, np.full_like(zs, zb)]))
+            p.add_mesh(side, color="#b8b8b8")
+        p.add_mesh(pv.StructuredGrid(X[[0, -1]][:, [0, -1]], Y[[0, -1]][:, [0, -1]], np.full((2, 2), zb)),
+                   color="#b8b8b8")
+    p.add_mesh(mesh, scalars=bar, cmap=cmap, clim=clim, smooth_shading=True,
                scalar_bar_args={"title": bar, "vertical": True, "fmt": "%.3g", "color": "black",
                                 "position_x": 0.86, "position_y": 0.15, "height": 0.7, "width": 0.06,
                                 "title_font_size": 16, "label_font_size": 14})
@@ -254,5 +265,7 @@ def stock_3d(run: Any, stage: Any, path: str | os.PathLike | None = None, *, des
             clim = (-lim, lim) if lim > 0 else (-1.0, 1.0)
         cmap = cmap or "RdBu_r"
         title += "\ncoloured by stock - design"
+    _, near, _ = run.stock.to_csr()
     return _surface_plot(X, Y, z, values, bar=bar, title=title, clim=clim, cmap=cmap,
-                         window_size=window_size, path=path, z_scale=z_scale)
+                         window_size=window_size, path=path, z_scale=z_scale,
+                         bottom=float(near.min()) if near.size else None)
