@@ -27,6 +27,7 @@ from zmap.access.voxelmap import (AccessModelError, AccessResult, Tool, VoxelMap
                                   global_visibility, set_cover, three_axis)
 
 __all__ = ["Samples", "surface_samples", "voxelize", "analyse", "agreement", "point_visibility", "point_access", "reference_visibility",
+           "solid_rule", "top_faces",
            "reference_tool", "read_part"]
 
 
@@ -541,3 +542,58 @@ def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int
             "voxel_only": int(vo.sum()), "voxel_only_near": int((vo & (hit <= diag)).sum()),
             "voxel_only_far": int((vo & (hit > diag)).sum()), "reference_only": int((ref & ~mine).sum()),
             "points": pts, "voxels": vb}
+
+
+def top_faces(source, path=None, *, side_tol: float = 1e-3):
+    """An open surface model of a die face, made from a solid: its faces less the block's
+    bottom (downward planes at its lowest z) and outer walls (vertical faces on a side of its
+    bounding box). A quilt of faces with free boundary edges and no solid, as die faces are
+    often delivered.
+
+    Parameters
+    ----------
+    source : str or path or OCP shape
+        A STEP file or a shape.
+    path : str or path, optional
+        Where to write the model as STEP (written to a temporary name, then renamed).
+
+    Returns
+    -------
+    shape : OCP TopoDS_Compound of the faces kept, and the number of faces kept and left out.
+
+    Examples
+    --------
+    >>> shape, kept, left = top_faces("data/step/bug27693_cornetta-step.stp")  # doctest: +SKIP
+    """
+    import os
+    import tempfile
+
+    import cadquery as cq
+
+    if isinstance(source, (str, os.PathLike)):
+        solid = cq.importers.importStep(os.fspath(source)).val()
+    else:
+        solid = cq.Shape.cast(getattr(source, "wrapped", source))
+    bb = solid.BoundingBox()
+    keep = []
+    faces = solid.Faces()
+    for f in faces:
+        n = f.normalAt()
+        fb = f.BoundingBox()
+        side = abs(n.z) < 1e-6 and (fb.xmin < bb.xmin + side_tol or fb.xmax > bb.xmax - side_tol
+                                     or fb.ymin < bb.ymin + side_tol or fb.ymax > bb.ymax - side_tol)
+        bottom = n.z < -1 + 1e-6 and fb.zmax < bb.zmin + side_tol
+        if not (side or bottom):
+            keep.append(f)
+    comp = cq.Compound.makeCompound(keep)
+    if path is not None:
+        path = os.fspath(path)
+        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(os.path.abspath(path)), prefix=".tmp-", suffix=".step")
+        os.close(fd)
+        try:
+            cq.exporters.export(comp, tmp, exportType="STEP")
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    return comp.wrapped, len(keep), len(faces) - len(keep)

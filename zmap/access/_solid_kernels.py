@@ -56,23 +56,20 @@ def sample_sides(pts, nrm, origin, d, reach, state, out):
 
 
 @njit(cache=True)
-def below_top(state, kfloor):
-    """The material below the top surface: per column (i, j), the voxels from layer ``kfloor``
-    up to the column's top-most boundary voxel that are not boundary become interior, every
-    other non-boundary voxel exterior. Returns the number of interior voxels."""
+def below_top(state, kfloor, ztop, z0, d):
+    """The material below the top surface: the non-boundary voxels of column (i, j) whose
+    centres lie at or above layer ``kfloor`` and below ``ztop[i, j]`` (the top surface's
+    height at the column's centre, -inf where none) become interior, the others exterior.
+    ``z0``: the grid's lowest z. Returns the number of interior voxels."""
     nx, ny, nz = state.shape
     n = 0
     for i in range(nx):
         for j in range(ny):
-            top = -1
-            for k in range(nz - 1, -1, -1):
-                if state[i, j, k] == BOUNDARY:
-                    top = k
-                    break
+            top = ztop[i, j]
             for k in range(nz):
                 if state[i, j, k] == BOUNDARY:
                     continue
-                if kfloor <= k < top:
+                if k >= kfloor and z0 + (k + 0.5) * d < top:
                     state[i, j, k] = INTERIOR
                     n += 1
                 else:

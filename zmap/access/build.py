@@ -247,7 +247,7 @@ class VoxelMap:
         from ._access_kernels import (accumulate, orientation_votes, paint_exterior, patch_slab,
                                       piece_accumulate)
         from ._solid_kernels import below_top, sample_sides
-        from .solid import MAX_UNCERTAIN, check_solid, kfloor_of, refusal, uncertain_report
+        from .solid import MAX_UNCERTAIN, check_solid, kfloor_of, refusal, top_heights, uncertain_report
 
         d = _check_d(d)
         solid, floor = check_solid(solid, floor)
@@ -300,6 +300,7 @@ class VoxelMap:
         index.ravel()[uniq] = np.arange(len(uniq), dtype=np.int32)
         bijk = np.stack(np.unravel_index(uniq, shape), axis=1).astype(np.int32)
         paint_exterior(state)
+        step_ = float(step) if step is not None else 0.25 * d
         flipped: list[int] = []
         nf = int(fid.max()) + 1
         rule = solid
@@ -309,7 +310,7 @@ class VoxelMap:
                 solid_note = f"the paint leaked through the shell at d = {d:g} mm"
         if rule == "below":
             kfloor = kfloor_of(floor, zmin, float(origin[2]), d)
-            below_top(state, kfloor)
+            below_top(state, kfloor, top_heights(pts, origin, d, shape, step_), float(origin[2]), d)
             note = (f"below the top surface seen from +z, down to z = {floor if floor is not None else zmin:.3f} mm"
                     f" ({solid_note or 'asked'})")
         else:
@@ -339,7 +340,6 @@ class VoxelMap:
             kmax = np.where(inward, -kmax, kmax)
         mb = len(uniq)
         W = ds.words
-        step_ = float(step) if step is not None else 0.25 * d
         # with the half-voxel pieces, the voxels' and pieces' bitsets are folded from theirs
         # (the same AND and OR over the same samples, each sample's hemisphere made once)
         fine_pieces, flight = _fine_pieces(vox, pts, nrm, fid, origin, d, bijk, step_, ds, exact) if fine else (None, None)

@@ -135,7 +135,7 @@ class AccessResult:
                  f"({100 * v['area_inaccessible'] / tot if tot else 0:.1f} %) |",
                  f"| set-ups found | {len(self.setups)} |"]
         if "area_uncertain" in v:
-            lines.insert(2, f"| uncertain (walls or gaps thinner than the voxel) | {v['area_uncertain']:,.1f} mm^2 "
+            lines.insert(6, f"| uncertain (walls or gaps thinner than the voxel) | {v['area_uncertain']:,.1f} mm^2 "
                             f"({100 * v['uncertain_share']:.2f} %) |")
         acc = v["area_reachable"] + v["area_other"]
         run = 0.0

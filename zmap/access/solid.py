@@ -4,7 +4,8 @@ Two rules make the interior. ``closed``: the paper's paint spreading (every voxe
 from the grid's border without crossing a boundary voxel is exterior, the rest interior); it
 needs a closed shell at the voxel's resolution. ``below``: the material is what lies below
 the top-most surface seen from +z, down to the part's lowest point or a floor, as a die is
-machined; it serves a die face delivered as an open surface model (a quilt of faces, no
+machined (per voxel column, below the surface's highest sample near the column's centre, as
+a z-map samples it); it serves a die face delivered as an open surface model (a quilt of faces, no
 solid), where the paint would leak through the shell. ``auto`` takes ``closed`` and turns to
 ``below`` when the paint leaks (no interior voxel at all).
 
@@ -62,6 +63,20 @@ def kfloor_of(floor: float | None, zmin: float, origin_z: float, d: float) -> in
     """The lowest voxel layer of the material below the top surface."""
     z = zmin if floor is None else floor
     return int(np.floor((z - origin_z) / d))
+
+
+def top_heights(pts: np.ndarray, origin: np.ndarray, d: float, shape, step: float) -> np.ndarray:
+    """The top surface's height (nx, ny) at each column's centre, as a z-map samples it: the
+    highest sample within ``max(d / 4, step / 2)`` of the centre along x and y (-inf where
+    none). A surface that only grazes a column's edge (a wall on a voxel boundary, a face
+    that ends there) leaves the column to its neighbours."""
+    h = max(0.25, 0.5 * step / d) * (1 + 1e-9)
+    u = (pts[:, :2] - origin[:2]) / d
+    ij = np.floor(u).astype(np.int64)
+    near = (np.abs(u - ij - 0.5) <= h).all(axis=1)
+    out = np.full(tuple(shape[:2]), -np.inf)
+    np.maximum.at(out, (ij[near, 0], ij[near, 1]), pts[near, 2])
+    return out
 
 
 def nice_voxel(thickness: float) -> float:
