@@ -256,8 +256,19 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
                                f"({size[0]:.1f} x {size[1]:.1f} x {size[2]:.1f} mm)")
     rule, note = solid_rule(part, solid)
     from zmap.access.solid import check_solid
+    from zmap.access.voxelmap import MAX_VOXELS
 
     check_solid(rule, floor)
+    # the grid's size from the part's box, before minutes of sampling (as from_samples counts it)
+    lo = bb[:3].copy()
+    if floor is not None:
+        lo[2] = min(lo[2], floor)
+    shape = np.floor((bb[3:] - lo) / d).astype(np.int64) + 5
+    if float(np.prod(shape.astype(np.float64))) > MAX_VOXELS:
+        total = int(np.prod(shape.astype(np.float64)))
+        raise AccessModelError(f"{shape[0]} x {shape[1]} x {shape[2]} = {total:,} voxels at d = {d:g} mm exceed "
+                               f"the limit of {MAX_VOXELS:,}: choose a larger --voxel (at least "
+                               f"{d * (total / MAX_VOXELS) ** (1 / 3):.2g} mm)")
     sec = {}
     t0 = time.perf_counter()
     say(f"sampling faces at d' = {step:g} mm")

@@ -236,7 +236,8 @@ class VoxelMap:
             below the top-most surface seen from +z, down to the lowest sample or ``floor`` (an
             open die face); ``auto`` closed, or below where the paint leaks through the shell.
         floor : float, optional
-            The material's lowest z (mm) with ``below``; at most the lowest sample's.
+            The material's lowest z (mm) with ``below``; at most the lowest sample's (default:
+            two voxels below it, so that the lowest faces stand on material too).
         max_uncertain : float, optional
             Largest share of the boundary area that may be uncertain (0.25 by default;
             :data:`zmap.access.solid.MAX_UNCERTAIN`); a map with more raises.
@@ -279,12 +280,15 @@ class VoxelMap:
         lo = pts.min(axis=0)
         hi = pts.max(axis=0)
         zmin = float(lo[2])
-        if floor is not None:
-            if floor > zmin:
-                raise AccessModelError(f"floor z = {floor:g} mm is above the part's lowest point z = {zmin:.3f} mm: "
-                                       "the material below the top surface must hold every face")
+        if floor is not None and floor > zmin:
+            raise AccessModelError(f"floor z = {floor:g} mm is above the part's lowest point z = {zmin:.3f} mm: "
+                                   "the material below the top surface must hold every face")
+        # the material below an open surface reaches under its lowest point by _UNDER voxels
+        # (the lowest faces stand on material too), or down to the floor
+        base = zmin - _UNDER * d if floor is None else floor
+        if solid != "closed":
             lo = lo.copy()
-            lo[2] = floor
+            lo[2] = base
         origin = lo - pad * d
         shape = tuple(int(s) for s in np.floor((hi - origin) / d).astype(np.int64) + pad + 1)
         total = int(np.prod(np.array(shape, dtype=np.float64)))
@@ -309,9 +313,9 @@ class VoxelMap:
             if rule == "below" and not solid_note:
                 solid_note = f"the paint leaked through the shell at d = {d:g} mm"
         if rule == "below":
-            kfloor = kfloor_of(floor, zmin, float(origin[2]), d)
+            kfloor = kfloor_of(base, float(origin[2]), d)
             below_top(state, kfloor, top_heights(pts, origin, d, shape, step_), float(origin[2]), d)
-            note = (f"below the top surface seen from +z, down to z = {floor if floor is not None else zmin:.3f} mm"
+            note = (f"below the top surface seen from +z, down to z = {base:.3f} mm"
                     f" ({solid_note or 'asked'})")
         else:
             note = "closed shell (paint spreading)" + (f" ({solid_note})" if solid_note else "")
@@ -424,7 +428,7 @@ class VoxelMap:
                  step=float(step) if step is not None else float("nan"), n_samples=n,
                  box_lo=box_lo, box_hi=box_hi, slab=slab, tight_lo=tight_lo, tight_hi=tight_hi,
                  pieces=pieces, fine=fine_pieces, solid=rule, solid_note=note,
-                 floor=(floor if floor is not None else zmin) if rule == "below" else float("nan"),
+                 floor=base if rule == "below" else float("nan"),
                  uncertain=unc)
         vm.uncertain_info = uncertain_report(vm, flags, vox, pts, nrm, fid)
         if check and vm.uncertain_info["share"] > max_uncertain:
@@ -619,6 +623,9 @@ def _orient(votes) -> list[int]:
     return [int(f) for f in np.flatnonzero(votes[:, 1] > votes[:, 0])]
 
 
+#: how far (in voxel edges) below the lowest sample the material below an open surface reaches
+#: without a floor
+_UNDER = 2.0
 #: how far (in voxel edges) a sample looks along its normal, each way, for the first voxel off
 #: the boundary (:func:`~zmap.access._solid_kernels.sample_sides`)
 _REACH = 3.0

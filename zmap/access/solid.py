@@ -3,7 +3,8 @@
 Two rules make the interior. ``closed``: the paper's paint spreading (every voxel reached
 from the grid's border without crossing a boundary voxel is exterior, the rest interior); it
 needs a closed shell at the voxel's resolution. ``below``: the material is what lies below
-the top-most surface seen from +z, down to the part's lowest point or a floor, as a die is
+the top-most surface seen from +z, down to a floor (two voxels under the part's lowest point
+unless given), as a die is
 machined (per voxel column, below the surface's highest sample near the column's centre, as
 a z-map samples it); it serves a die face delivered as an open surface model (a quilt of faces, no
 solid), where the paint would leak through the shell. ``auto`` takes ``closed`` and turns to
@@ -59,10 +60,10 @@ def check_solid(solid, floor) -> tuple[str, float | None]:
     return solid, floor
 
 
-def kfloor_of(floor: float | None, zmin: float, origin_z: float, d: float) -> int:
-    """The lowest voxel layer of the material below the top surface."""
-    z = zmin if floor is None else floor
-    return int(np.floor((z - origin_z) / d))
+def kfloor_of(floor: float, origin_z: float, d: float) -> int:
+    """The lowest voxel layer of the material below the top surface: the one whose centre
+    lies at or above ``floor``."""
+    return int(np.ceil((floor - origin_z) / d - 0.5 - 1e-9))
 
 
 def top_heights(pts: np.ndarray, origin: np.ndarray, d: float, shape, step: float) -> np.ndarray:
