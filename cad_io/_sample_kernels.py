@@ -169,9 +169,16 @@ def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps)
 
     Band ``b`` (``vlo + b*h`` .. ``vlo + (b+1)*h``, widened by the edges' slack) lists, in
     ``band_edges[band_ptr[first + b]:band_ptr[first + b + 1]]``, every edge (row of
-    ``edges`` = ua, va, ub, vb and, where present, the edge's own slack in uv) whose
-    v-range meets it, so a point tests only its band. A point within ``eps`` or the
-    edge's own slack of an edge counts as inside.
+    ``edges`` = ua, va, ub, vb and, where present, the edge's own slack in uv and its
+    bulge) whose v-range meets it, so a point tests only its band. A point within ``eps``
+    or the edge's own slack of an edge counts as inside.
+
+    The bulge ``kb`` (column 5, uv) places the true trim curve beside each chord of the
+    polygon: at ``kb * s * (1 - s)`` to the chord's left at fraction ``s`` along it (a
+    parabola through the chord's ends and the curve's point at the chord's middle). The
+    slack is then measured to that curve, and a point between the chord and the curve
+    (where the polygon and the face disagree) has its even-odd answer flipped: the test
+    follows the curve to far below the polygon's chordal error.
     """
     fb = (v - vlo) / h
     if fb < -1.0 or fb > nband + 1.0:
@@ -180,6 +187,7 @@ def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps)
     b = min(max(b, 0), nband - 1)
     inside = False
     own = edges.shape[1] > 4
+    lens = edges.shape[1] > 5
     for q in range(band_ptr[first + b], band_ptr[first + b + 1]):
         e = band_edges[q]
         ua = edges[e, 0]
@@ -189,7 +197,10 @@ def point_in_bands(u, v, edges, band_ptr, band_edges, first, nband, vlo, h, eps)
         se = eps
         if own:
             se = max(eps, edges[e, 4])
-        hit = _edge_test(u, v, ua, va, ub, vb, se * se)
+        if lens and edges[e, 5] != 0.0:
+            hit = _edge_test_bulged(u, v, ua, va, ub, vb, edges[e, 5], se * se)
+        else:
+            hit = _edge_test(u, v, ua, va, ub, vb, se * se)
         if hit == 2:
             return True
         if hit == 1:
@@ -259,6 +270,36 @@ def in_tolerance(u, v, x, y, z, k, edges, band_ptr, band_edges, face_bi, face_bf
         if dx_ * dx_ + dy_ * dy_ + dz_ * dz_ <= t3:
             return True
     return False
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _edge_test_bulged(u, v, ua, va, ub, vb, kb, eps2):
+    """:func:`_edge_test` against a chord whose true curve bulges ``kb * s * (1 - s)`` to its
+    left: 2 within sqrt(eps2) of the curve; else 1 where the +u ray crosses the chord XOR the
+    point lies between the chord and the curve; else 0."""
+    eu = ub - ua
+    ev = vb - va
+    ll = eu * eu + ev * ev
+    if not (ll > 0.0):
+        return _edge_test(u, v, ua, va, ub, vb, eps2)
+    t = ((u - ua) * eu + (v - va) * ev) / ll
+    between = False
+    if 0.0 <= t <= 1.0:
+        h = (eu * (v - va) - ev * (u - ua)) / math.sqrt(ll)
+        c = kb * t * (1.0 - t)
+        if (h - c) * (h - c) <= eps2:
+            return 2
+        between = (0.0 < h < c) or (c < h < 0.0)
+    else:
+        da = (u - ua) * (u - ua) + (v - va) * (v - va)
+        db = (u - ub) * (u - ub) + (v - vb) * (v - vb)
+        if min(da, db) <= eps2:
+            return 2
+    cross = False
+    if (va > v) != (vb > v):
+        ux = ua + (v - va) * (ub - ua) / (vb - va)
+        cross = u < ux
+    return 1 if cross != between else 0
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)

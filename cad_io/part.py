@@ -95,6 +95,10 @@ class Face:
     #: Largest tolerance (mm) of the face's edges in the file: its trim curves may lie that
     #: far from the true boundary (0 when unknown, e.g. geomdl input).
     tolerance: float = 0.0
+    #: Per loop of ``loops``, per chord (from point i to point i + 1, the last back to the
+    #: first): the true trim curve runs ``bulge * s * (1 - s)`` (uv) to the chord's left at
+    #: the fraction ``s`` along it; empty when unknown (geomdl input).
+    loop_bulges: list[np.ndarray] = field(default_factory=list)
 
 
 @dataclass

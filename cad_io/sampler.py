@@ -228,9 +228,21 @@ def _silhouette_triangles(nodes: np.ndarray, tris: np.ndarray) -> np.ndarray:
     return steep & near
 
 
-def _trim_slack_uv(packed, face_loops: dict[int, list[np.ndarray]], F: int) -> dict[int, np.ndarray]:
+def _loop_bulges(face, lps: list[np.ndarray]) -> np.ndarray | None:
+    """Per loop edge of ``face`` (its loops of 3 points or more) the bulge of the true trim
+    curve beside it (``Face.loop_bulges``); None where not known (geomdl input)."""
+    bulges = list(getattr(face, "loop_bulges", None) or [])
+    if len(bulges) != len(lps) or any(len(b) != len(lp) for b, lp in zip(bulges, lps)):
+        return None
+    keep = [np.asarray(b, dtype=np.float64) for b, lp in zip(bulges, lps) if len(lp) >= 3]
+    return np.concatenate(keep) if keep else None
+
+
+def _trim_slack_uv(packed, face_loops: dict[int, list[np.ndarray]], F: int,
+                   face_mm: dict[int, np.ndarray] | None = None) -> dict[int, np.ndarray]:
     """Per face, per loop edge, the uv distance across the edge that spans
-    :data:`TRIM_SLACK_MM` on the surface.
+    ``face_mm[k]`` (:func:`_loop_slack_mm`; :data:`TRIM_SLACK_MM` where not given) on the
+    surface.
 
     The trim loops are polylines within about 1e-4 mm of the true boundary, so a point
     exactly on a curved boundary can fall just outside the polygon of both faces that meet
@@ -260,7 +272,7 @@ def _trim_slack_uv(packed, face_loops: dict[int, list[np.ndarray]], F: int) -> d
         with np.errstate(invalid="ignore", divide="ignore"):
             nu, nv = -d[:, 1] / duv, d[:, 0] / duv
             across = np.linalg.norm(der[:, 1, :] * nu[:, None] + der[:, 2, :] * nv[:, None], axis=1)
-        mm = TRIM_SLACK_MM
+        mm = face_mm.get(k, TRIM_SLACK_MM) if face_mm else TRIM_SLACK_MM
         ok = np.isfinite(across) & (across > 0) & (duv > 0)
         slack = np.zeros(len(a))
         if ok.any():
@@ -363,7 +375,7 @@ def _with_band(trim: tuple, band: tuple) -> tuple:
     edges, band_ptr, band_edges, face_bi, face_bf = trim
     face_tol, face_seg, seg, seg_ptr, seg_members = band
     E, B = len(edges), len(band_ptr) - 1
-    edges = np.vstack([np.hstack([edges, np.zeros((E, 1))]), seg])
+    edges = np.vstack([edges, seg])  # loop rows: ua, va, ub, vb, slack, bulge; segment rows: x0 .. z1
     band_ptr = np.concatenate([band_ptr, band_ptr[-1] + seg_ptr[1:]]).astype(np.int64)
     band_edges = np.concatenate([band_edges, seg_members + E]).astype(np.int64)
     face_seg = np.where(face_seg[:, 1:] > 0, face_seg + np.array([B, 0]), 0)
@@ -400,14 +412,17 @@ def _bucket(lo: np.ndarray, hi: np.ndarray, vlo: float, h: float, nb: int) -> tu
 
 def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: int,
                 slack_uv: dict[int, np.ndarray] | None = None,
-                reach_uv: dict[int, float] | None = None) -> tuple[np.ndarray, ...]:
+                reach_uv: dict[int, float] | None = None,
+                bulge_uv: dict[int, np.ndarray] | None = None) -> tuple[np.ndarray, ...]:
     """Trim loop edges of every face bucketed in bands of v (see ``_sample_kernels.point_in_bands``).
 
     ``slack_uv[k]`` (optional, one value per loop edge of face k, from
     :func:`_trim_slack_uv`) widens face k's loops: points that close to an edge count as
     inside. ``reach_uv[k]`` (optional) widens the bands of face k's edges, so that a
     point's band lists every edge within that uv distance of it (the tolerance band of
-    ``_sample_kernels.in_tolerance``). Returns ``edges (E, 5)`` (ua, va, ub, vb, slack in uv), ``band_ptr (B+1,),
+    ``_sample_kernels.in_tolerance``). ``bulge_uv[k]`` (optional, one value per loop edge)
+    places face k's true trim curve beside each edge (``Face.loop_bulges``). Returns
+    ``edges (E, 6)`` (ua, va, ub, vb, slack in uv, bulge in uv), ``band_ptr (B+1,),
     band_edges (X,), face_bi (F, 2), face_bf (F, 3)``.
     """
     face_bi = np.zeros((F, 2), dtype=np.int64)
@@ -425,8 +440,12 @@ def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: 
         own = np.zeros(len(a))
         if slack_uv is not None and k in slack_uv:
             own = np.asarray(slack_uv[k], dtype=np.float64)
-        e = np.hstack([a, b, np.maximum(own, eps)[:, None]])
-        reach = np.maximum(e[:, 4], float(reach_uv.get(k, 0.0)) if reach_uv else 0.0)
+        bulge = np.zeros(len(a))
+        if bulge_uv is not None and k in bulge_uv:
+            bulge = np.asarray(bulge_uv[k], dtype=np.float64)
+        e = np.hstack([a, b, np.maximum(own, eps)[:, None], bulge[:, None]])
+        # an edge's band reaches its slack beyond its curve (a quarter of the bulge off the chord)
+        reach = np.maximum(e[:, 4] + 0.25 * np.abs(bulge), float(reach_uv.get(k, 0.0)) if reach_uv else 0.0)
         wide = float(reach.max()) if len(e) else eps
         vlo = float(min(a[:, 1].min(), b[:, 1].min())) - wide
         vhi = float(max(a[:, 1].max(), b[:, 1].max())) + wide
@@ -442,7 +461,7 @@ def _trim_bands(face_loops: dict[int, list[np.ndarray]], domain: np.ndarray, F: 
         n_edges += len(e)
         n_bands += nb
     if not edges_l:
-        return np.zeros((0, 5)), np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), face_bi, face_bf
+        return np.zeros((0, 6)), np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), face_bi, face_bf
     band_ptr = np.concatenate([[0], np.cumsum(np.concatenate(counts_l))]).astype(np.int64)
     return (np.ascontiguousarray(np.concatenate(edges_l)), band_ptr,
             np.ascontiguousarray(np.concatenate(members_l)).astype(np.int64), face_bi, face_bf)
@@ -606,6 +625,8 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
     fs.face_mode = np.full(F, 2, dtype=np.int8)
     fs.face_zgap = np.full(F, 1e-6)
     face_loops: dict[int, list[np.ndarray]] = {}
+    face_mm: dict[int, np.ndarray] = {}
+    face_bulge: dict[int, np.ndarray] = {}
     nodes_l, uv_l, tris_l, tface_l, check_l, margin_l = [], [], [], [], [], []
     n_nodes = 0
     lattice_set = set(lattice)
@@ -651,6 +672,11 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
             fs.face_zgap[k] = np.inf if on_lattice else max(20.0 * max(md, deflection), 1e-6)
             lps = [np.asarray(lp, dtype=np.float64).reshape(-1, 2) for lp in f.loops]
             face_loops[k] = [lp for lp in lps if len(lp) >= 3]
+            bulge = _loop_bulges(f, lps)
+            if bulge is not None and float(getattr(f, "tolerance", 0.0) or 0.0) > 0:
+                # the loops follow the trim curves (their bulges): the slack is the file's
+                face_bulge[k] = bulge
+                face_mm[k] = np.full(len(bulge), min(TRIM_SLACK_MM, float(f.tolerance)))
         tri = np.asarray(m.triangles, dtype=np.int64)
         nodes_l.append(np.asarray(m.nodes, dtype=np.float64))
         uv_l.append(np.asarray(m.uv, dtype=np.float64) if m.uv is not None else np.zeros((len(m.nodes), 2)))
@@ -693,10 +719,11 @@ def _face_set(vpart: Part, deflection: float, window: Sequence[float] | None = N
         fs.tri_face = np.ascontiguousarray(np.concatenate(tface_l))
         fs.tri_check = np.ascontiguousarray(np.concatenate(check_l))
         fs.tri_margin = np.ascontiguousarray(np.concatenate(margin_l))
-        slack = _trim_slack_uv(packed, face_loops, F)
+        slack = _trim_slack_uv(packed, face_loops, F, face_mm)
         band = _tolerance_band(vpart, face_loops)
         reach = {k: float(band[0][k, 1]) for k in np.flatnonzero(band[0][:, 0] > 0).tolist()}
-        fs.trim = _with_band(_trim_bands(face_loops, np.nan_to_num(packed.domain), F, slack, reach), band)
+        fs.trim = _with_band(_trim_bands(face_loops, np.nan_to_num(packed.domain), F, slack, reach, face_bulge),
+                             band)
     return fs
 
 

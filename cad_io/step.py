@@ -435,8 +435,10 @@ def _unperiodic(b, u0: float, u1: float, v0: float, v1: float):
 # trim loops
 
 
-def _pcurve_samples(c2, t0: float, t1: float, n0: int, packed, tol: float) -> np.ndarray:
-    """uv samples of a pcurve on [t0, t1] whose polygon lies within ``tol`` mm of it.
+def _pcurve_samples(c2, t0: float, t1: float, n0: int, packed, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """uv samples of a pcurve on [t0, t1] whose polygon lies within ``tol`` mm of it, and each
+    chord's bulge (uv): the pcurve runs ``bulge * s * (1 - s)`` to the chord's left at the
+    fraction ``s`` along it (a parabola through the chord's ends and the pcurve's middle).
 
     The deviation of each uv chord is measured on the surface, between the images of the
     chord's midpoint and of the pcurve's midpoint. A uniform first guess is resampled at
@@ -481,10 +483,23 @@ def _pcurve_samples(c2, t0: float, t1: float, n0: int, packed, tol: float) -> np
         tm = np.insert(tm, bad + 1, right)
         true = np.insert(true, bad + 1, new_true[k:], axis=0)
         d = np.insert(d, bad + 1, new_d[k:])
-    return uv
+    return uv, _bulges(uv, true)
 
 
-def _wire_loop(wire, face, packed, tol: float) -> np.ndarray:
+def _bulges(uv: np.ndarray, mid: np.ndarray) -> np.ndarray:
+    """Per chord ``uv[i]``-``uv[i + 1]`` the bulge of the curve through ``mid[i]`` (see
+    :func:`_pcurve_samples`); 0 for a chord of no length."""
+    d = uv[1:] - uv[:-1]
+    w = mid - uv[:-1]
+    ll = np.einsum("ij,ij->i", d, d)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s = np.clip(np.einsum("ij,ij->i", w, d) / ll, 0.05, 0.95)
+        h = (d[:, 0] * w[:, 1] - d[:, 1] * w[:, 0]) / np.sqrt(ll)
+        k = h / (s * (1.0 - s))
+    return np.where(ll > 0, np.nan_to_num(k, nan=0.0, posinf=0.0, neginf=0.0), 0.0)
+
+
+def _wire_loop(wire, face, packed, tol: float) -> tuple[np.ndarray, np.ndarray]:
     from OCP.BRepAdaptor import BRepAdaptor_Curve2d
     from OCP.BRepTools import BRepTools_WireExplorer
     from OCP.TopAbs import TopAbs_REVERSED
@@ -492,6 +507,7 @@ def _wire_loop(wire, face, packed, tol: float) -> np.ndarray:
     from OCP.BRep import BRep_Tool
 
     pts: list[np.ndarray] = []
+    devs: list[np.ndarray] = []
     ex = BRepTools_WireExplorer(wire, face)
     while ex.More():
         e = ex.Current()
@@ -501,36 +517,39 @@ def _wire_loop(wire, face, packed, tol: float) -> np.ndarray:
         c2 = BRepAdaptor_Curve2d(e, face)
         t0, t1 = c2.FirstParameter(), c2.LastParameter()
         n0 = 2 if c2.GetType().name == "GeomAbs_Line" else 9
-        uv = _pcurve_samples(c2, t0, t1, n0, packed, tol)
+        uv, dev = _pcurve_samples(c2, t0, t1, n0, packed, tol)
         if e.Orientation() == TopAbs_REVERSED:
-            uv = uv[::-1]
+            uv, dev = uv[::-1], -dev[::-1]  # the chords turn round: their left is the other side
         pts.append(uv[:-1])
+        devs.append(dev)
         ex.Next()
     if not pts:
-        return np.zeros((0, 2))
-    return np.ascontiguousarray(np.vstack(pts))
+        return np.zeros((0, 2)), np.zeros(0)
+    return np.ascontiguousarray(np.vstack(pts)), np.concatenate(devs)
 
 
-def _loops(face, packed, tol: float) -> list[np.ndarray]:
+def _loops(face, packed, tol: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The face's trim loops (outer first) and, per loop, each chord's bulge (uv)."""
     from OCP.BRepTools import BRepTools
     from OCP.TopAbs import TopAbs_WIRE
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopoDS import TopoDS
 
     outer = BRepTools.OuterWire_s(face)
-    loops: list[np.ndarray] = []
-    holes: list[np.ndarray] = []
+    loops: list[tuple[np.ndarray, np.ndarray]] = []
+    holes: list[tuple[np.ndarray, np.ndarray]] = []
     ex = TopExp_Explorer(face, TopAbs_WIRE)
     while ex.More():
         w = TopoDS.Wire_s(ex.Current())
         loop = _wire_loop(w, face, packed, tol)
-        if len(loop) >= 2:
+        if len(loop[0]) >= 2:
             if not outer.IsNull() and w.IsSame(outer):
                 loops.insert(0, loop)
             else:
                 holes.append(loop)
         ex.Next()
-    return loops + holes
+    both = loops + holes
+    return [lp for lp, _ in both], [dv for _, dv in both]
 
 
 def _edge_tolerance(face) -> float:
@@ -794,6 +813,7 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None, 
     for i, (f, cf) in enumerate(zip(faces, conv)):
         surface = None
         loops: list[np.ndarray] = []
+        errors: list[np.ndarray] = []
         if cf is not None:
             try:
                 surface = _nurbs_of(cf)
@@ -807,14 +827,15 @@ def read_step(path: str | os.PathLike, *, mesh_deflection: float | None = None, 
         topo = cf if cf is not None else f
         if surface is not None:
             try:
-                loops = _loops(cf, pack([surface]), LOOP_TOL)
+                loops, errors = _loops(cf, pack([surface]), LOOP_TOL)
             except Exception as err:  # noqa: BLE001 (OCCT errors on a broken wire)
                 why[i] = f"trim loops failed: {type(err).__name__}: {err}".strip()
                 surface = None
-                loops = []
+                loops, errors = [], []
         out_faces.append(Face(index=i, kind=kinds[i], surface=surface,
                               reversed=f.Orientation().name == "TopAbs_REVERSED",
-                              loops=loops, bbox=boxes[i], topo=topo, tolerance=_edge_tolerance(f)))
+                              loops=loops, bbox=boxes[i], topo=topo, tolerance=_edge_tolerance(f),
+                              loop_bulges=errors))
 
     groups: dict[tuple[str, str], list[int]] = {}
     for fc in out_faces:

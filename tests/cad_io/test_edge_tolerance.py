@@ -165,3 +165,31 @@ def test_in_tolerance_kernel():
     none = tol.copy()
     none[0, 0] = 0.0
     assert not band(0.5, -0.01, 5.0, -0.1, 0.0, none)
+
+
+def test_trim_follows_the_files_tolerance_on_curved_edges(tmp_path):
+    """A round boss (r 5, 12.7 mm high) on a plate, edges at 1e-7 mm as cadquery writes them.
+    The trim loops are polygons within 1e-4 mm of the circle, and a slack of 5e-4 mm let the
+    boss's top claim 383 of 400 points 1e-7 to 4e-4 mm outside the circle, 12.7 mm above the
+    plate that OCC's ray cast sees there (a NIST part's wall corners showed it). The loops now
+    carry each chord's bulge and the slack is the file's tolerance: every point farther than
+    twice the tolerance from the circle, inside or outside, has OCC's height."""
+    import cadquery as cq
+
+    from cad_io.raycast import RayCaster
+
+    path = tmp_path / "boss.step"
+    cq.exporters.export(cq.Workplane("XY").box(30, 30, 2, centered=(True, True, False))
+                        .faces(">Z").workplane().circle(5).extrude(12.7), str(path))
+    part = read_step(path)
+    assert max(f.tolerance for f in part.faces) <= 1e-7
+    rng = np.random.default_rng(0)
+    off = np.repeat([2e-7, 4e-7, 1e-6, 1e-5, 5e-5, 1e-4, 2e-4, 4e-4], 50)
+    a = rng.uniform(0, 2 * np.pi, off.size)
+    r = np.r_[5 + off, 5 - off]
+    a = np.r_[a, a]
+    x, y = r * np.cos(a), r * np.sin(a)
+    z = sample_points(part, x, y)[0]
+    zr = RayCaster(part.shape)(x, y)[0]
+    assert np.all(zr[: off.size] == pytest.approx(2.0)) and np.all(zr[off.size:] == pytest.approx(14.7))
+    np.testing.assert_allclose(z, zr, rtol=0, atol=1e-9)
