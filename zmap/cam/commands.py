@@ -28,9 +28,12 @@ __all__ = ["toolpath_cmd"]
 @click.option("--plunge-feed", type=float, default=None, help="Plunge feed, mm/min (default feed/3).")
 @click.option("--spindle", type=float, default=10000.0, show_default=True, help="Spindle speed, rpm.")
 @click.option("--clearance", type=float, default=5.0, show_default=True, help="Rapids this far above the highest CL point, mm.")
+@click.option("--outside", default="skip", show_default=True, metavar="skip|lowest|Z",
+              help="Where the design has no height: 'skip' breaks the pass where no design is under the cutter; "
+                   "'lowest' is a floor at the lowest CL height; a number is a floor at that Z (mm).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Program to write (.nc, .ngc).")
 def toolpath_cmd(design_path, tool, stepover, angle, tol, step, bounds, feed, plunge_feed, spindle, clearance,
-                 output) -> None:
+                 outside, output) -> None:
     """Write a zig-zag finishing program over DESIGN (drop-cutter CL surface, chord tolerance)."""
     from ..errors import ZMapFileError
     from ..verify.deviation import load_design
@@ -42,6 +45,14 @@ def toolpath_cmd(design_path, tool, stepover, angle, tol, step, bounds, feed, pl
                     ("--clearance", clearance)):
         if not (math.isfinite(v) and v > 0):
             raise click.BadParameter(f"must be a positive number, got {v:g}", param_hint=name)
+    if outside not in ("skip", "lowest"):
+        try:
+            outside = float(outside)
+        except ValueError:
+            raise click.BadParameter(f"must be skip, lowest or a height in mm, got {outside!r}",
+                                     param_hint="--outside") from None
+        if not math.isfinite(outside):
+            raise click.BadParameter(f"must be a finite height in mm, got {outside!r}", param_hint="--outside")
     from .drop import as_cutter
 
     cut = as_cutter(tool)
@@ -53,7 +64,7 @@ def toolpath_cmd(design_path, tool, stepover, angle, tol, step, bounds, feed, pl
 
     prog = raster_program(model, cut, stepover=stepover, angle=math.radians(angle), tol=tol, step=step,
                           bounds=bounds, feed=feed, plunge_feed=plunge_feed, spindle=spindle, clearance=clearance,
-                          name=os.path.basename(design_path), progress=progress)
+                          name=os.path.basename(design_path), outside=outside, progress=progress)
     prog.save(output)
     s = prog.stats
     click.echo(f"wrote {output}: {s['passes']} passes, {count(s['kept_points'])} of {count(s['cl_points'])} CL points kept "

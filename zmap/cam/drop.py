@@ -1,32 +1,29 @@
 """Drop-cutter: the cutter-location (CL) height of a flat, ball or bull cutter over a design.
 
 The CL height at an axis position ``(x, y)`` is the lowest tool-tip height at which the
-cutter touches the surface without entering it::
+cutter touches the design without entering it::
 
     cl(x, y) = max over |u - (x, y)| <= R of  h(u) - envelope(|u - (x, y)|)
 
 (``envelope`` is the cutter's lower envelope, :meth:`zmap.sim.tools.Cutter.lower_envelope`).
-It is computed on the model given, with its own heights ``h``: a ``ZMap`` (its Bezier
-surface), a ``PrecisionModel`` (:meth:`~zmap.model.PrecisionModel.height`), a ``cad_io.Part``
-(exact top-most heights on the B-rep, :func:`cad_io.sampler.height_function`) or any
-``heights(x, y)`` callable. Three steps:
+:func:`drop_cutter` computes it by branch and bound on the design's Bezier patches
+(:mod:`zmap.cam.bounds`): a lower bound from exact points of the design, an upper bound per
+cell from its control net, cells split until no cell can beat the lower bound by more than
+``eps`` (1e-5 mm). The value returned is the largest bound left: never below the true height
+and never above it by more than ``eps``, which is what a finishing program needs (a CL point
+below the true height is a gouge).
 
-1. a discrete drop over height samples of the model at ``pitch`` (a ZMap's own nodes), numba:
-   on a tensor grid of axes (a meshgrid) a max-plus convolution of the samples with the
-   cutter, one upper envelope per sample column (:mod:`zmap.cam._grid_kernels`); elsewhere,
-   and for the bounds that step 3 needs, a block-max pyramid that visits blocks best bound
-   first and stops when no block can beat the contact found (:mod:`zmap.cam._drop_kernels`),
-   warm-started by the grid's contacts;
-2. for every point, the paraboloid through the 3 x 3 samples around the best sample gives a
-   sub-sample contact, whose exact height is evaluated (a smooth contact is then within
-   ~1e-6 mm);
-3. points whose contact is not smooth (a wall or edge beside it: a height jump in the 3 x 3
-   samples, a sample without surface, the rim of the cutter, a neighbourhood that is not
-   concave) are finished by a pattern search on the exact heights (8 directions projected
-   onto the cutter's disk, step halved down to ``xtol``), which walks onto the edge.
+* A :class:`~zmap.ZMap` is dropped on exactly: its own Bezier surface
+  (:func:`zmap.interpolate.bezier`) and its nodes. The answer is certified.
+* A :class:`~zmap.model.PrecisionModel`, a STEP part (``cad_io.Part``, exact top-most heights
+  of the B-rep) or a ``heights(x, y)`` callable is sampled on a grid over the region the
+  cutter can reach (every ``pitch``, and ``check`` times finer for the margins of
+  :func:`zmap.cam.bounds.from_heights`); the answer is as sure as those samples: a feature
+  narrower than the fine spacing can be under-rated.
 
-Every value returned is an exact contact height of a real surface point (so never above the
-true CL); what can be missed is a feature narrower than ``pitch`` between the samples.
+``refine=False`` gives the discrete drop alone (the samples at ``pitch`` and a max-plus
+convolution, :mod:`zmap.cam._grid_kernels`): fast and never above the true height, but low by up
+to the surface's rise between samples.
 """
 
 from __future__ import annotations
@@ -42,13 +39,7 @@ from ..errors import ZMapError
 __all__ = ["drop_cutter", "model_heights", "as_cutter"]
 
 _B = 8
-_K = 4  # candidate samples by bound, searched from while their bound beats the contact found
 _MAX_SAMPLES = 200_000_000
-# how far along a crease (a wall's top, a sharp edge, the rim) the numba refinement walks
-# from the contact the compass search stopped at, as a share of the cutter radius
-_REACH = 0.1
-# compass iterations per start in the numba refinement (creases are followed by the ridge walk)
-_MAX_ITER = 200
 
 
 _PACKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -107,88 +98,6 @@ def model_heights(model: Any) -> tuple[Callable, Any, float | None]:
                      f"got {type(model).__name__}")
 
 
-def _contact(hf, cut, qx, qy, ux, uy):
-    """Exact contact height h(u) - envelope(|u - q|); -inf outside the disk or without surface."""
-    from . import _drop_kernels as K
-
-    d = np.hypot(ux - qx, uy - qy).ravel()
-    env = np.empty(d.size)
-    K.envelope_many(cut.code, cut.radius, cut.corner_radius, np.ascontiguousarray(d), env)
-    h = np.asarray(hf(ux.ravel(), uy.ravel()), dtype=np.float64)
-    g = h - env
-    g[~np.isfinite(g)] = -np.inf
-    return g.reshape(np.shape(ux))
-
-
-class _Serial:
-    """numba kernels on one thread inside (the setting is thread-local and restored): the
-    refinement calls the height kernels hundreds of times on small batches, where starting
-    the parallel workers costs more than the work, and much more on a busy machine."""
-
-    def __enter__(self):
-        import numba
-
-        self.n = numba.get_num_threads()
-        numba.set_num_threads(1)
-
-    def __exit__(self, *exc):
-        import numba
-
-        numba.set_num_threads(self.n)
-
-
-def _pattern_search(hf, cut, qx, qy, ux, uy, g, step, xtol, max_iter=400):
-    """Maximise the contact height around (ux, uy): compass steps in x, y and in polar
-    coordinates about the axis (radius and arc, alone and together: a contact sliding along
-    a curved edge needs the two at once), all kept on the cutter's disk; a step that finds
-    nothing better is halved, down to ``xtol``."""
-    R = cut.radius
-    s = np.array(step, dtype=np.float64) * np.ones(qx.shape)
-    c8 = np.array([[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [-1, 1], [1, -1], [-1, -1]], dtype=np.float64)
-    cart = c8.copy()
-    cart[4:] *= 0.7071067811865476
-    # polar moves (dr, arc): the eight, and arcs with a small step inwards (an edge nearly
-    # square to the radius is followed by turning much and coming in a little)
-    pol = np.vstack([c8, [[-1 / 4, 1], [-1 / 4, -1], [-1 / 16, 1], [-1 / 16, -1], [-1 / 64, 1], [-1 / 64, -1],
-                          [-1 / 256, 1], [-1 / 256, -1]]])
-    act = np.flatnonzero(s > xtol)
-    it = 0
-    while act.size and it < max_iter:
-        it += 1
-        sa = s[act, None]
-        qxa, qya = qx[act, None], qy[act, None]
-        # cartesian candidates
-        cx1 = ux[act, None] + sa * cart[None, :, 0]
-        cy1 = uy[act, None] + sa * cart[None, :, 1]
-        # polar candidates about the axis: dr, and arc length r*dtheta
-        ox, oy = ux[act] - qx[act], uy[act] - qy[act]
-        r0 = np.hypot(ox, oy)
-        th0 = np.arctan2(oy, ox)
-        rr = np.clip(r0[:, None] + sa * pol[None, :, 0], 0.0, R)
-        th = th0[:, None] + sa * pol[None, :, 1] / np.maximum(r0[:, None], sa)
-        cx2 = qxa + rr * np.cos(th)
-        cy2 = qya + rr * np.sin(th)
-        cx = np.concatenate([cx1, cx2], axis=1)
-        cy = np.concatenate([cy1, cy2], axis=1)
-        ox, oy = cx - qxa, cy - qya
-        r = np.hypot(ox, oy)
-        over = r > R
-        f = np.where(over, R / np.where(over, r, 1.0), 1.0)
-        cx = qxa + ox * f
-        cy = qya + oy * f
-        gc = _contact(hf, cut, qxa, qya, cx, cy)
-        k = np.argmax(gc, axis=1)
-        gb = gc[np.arange(act.size), k]
-        better = gb > g[act]
-        a = act[better]
-        ux[a] = cx[better, k[better]]
-        uy[a] = cy[better, k[better]]
-        g[a] = gb[better]
-        s[act[~better]] *= 0.5
-        act = act[s[act] > xtol]
-    return ux, uy, g
-
-
 def _tensor_grid(xb: np.ndarray) -> int | None:
     """0 where the axes form a tensor grid with equal x along each row (``indexing='ij'``),
     1 where equal x down each column (``indexing='xy'``), None otherwise (or too small)."""
@@ -230,9 +139,99 @@ def _grid_drop(Z, x0, y0, dx, dy, cut, xb, yb, kind):
     return (np.ascontiguousarray(out).ravel(), np.ascontiguousarray(oi).ravel(), np.ascontiguousarray(oj).ravel())
 
 
+def _sampler(model: Any, hf: Callable) -> Callable:
+    """``sample(x0, y0, h, nx, ny) -> (nx, ny)`` heights of the design on a grid (a STEP part's
+    own grid sampler, the fast path of its exact heights; others through ``hf``)."""
+    if hasattr(model, "faces") and hasattr(model, "bbox"):  # cad_io.Part
+        import cad_io
+
+        def part_grid(x0, y0, h, nx, ny):
+            zm = cad_io.sample(model, h, bounds=(x0, y0, x0 + (nx - 1) * h, y0 + (ny - 1) * h))
+            out = np.full((nx, ny), np.nan)
+            i0 = int(round((zm.x0 - x0) / h))
+            j0 = int(round((zm.y0 - y0) / h))
+            a = zm.z[max(0, -i0):, max(0, -j0):][:nx - max(i0, 0), :ny - max(j0, 0)]
+            out[max(i0, 0):max(i0, 0) + a.shape[0], max(j0, 0):max(j0, 0) + a.shape[1]] = a
+            return out
+        return part_grid
+
+    def grid(x0, y0, h, nx, ny):
+        X, Y = np.meshgrid(x0 + h * np.arange(nx), y0 + h * np.arange(ny), indexing="ij")
+        return np.asarray(hf(X.ravel(), Y.ravel()), dtype=np.float64).reshape(nx, ny)
+    return grid
+
+
+_BOUNDS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def bounding_surface(model: Any, region: tuple, *, pitch: float | None = None, check: int | None = None) -> Any:
+    """The :class:`zmap.cam.bounds.BoundingSurface` the drop-cutter uses for ``model`` over
+    ``region`` ``(xmin, ymin, xmax, ymax)``: a z-map's own (kept per z-map), else the design
+    sampled every ``pitch`` (default: a precision model's base grid / 4, a part's 0.5 mm) with
+    ``check`` (default 4; a part 2) fine samples per interval, kept per model while later
+    regions fall inside it."""
+    from ..grid import ZMap
+    from . import bounds as BD
+
+    if isinstance(model, ZMap):
+        tok = (id(model.z), model.z.ctypes.data, model.z.shape)
+        hit = _BOUNDS.get(model)
+        if hit is not None and hit[0] == tok:
+            return hit[1]
+        bs = BD.from_zmap(model)
+        _BOUNDS[model] = (tok, bs)
+        return bs
+    hf, _zm, natural = model_heights(model)
+    part = hasattr(model, "faces") and hasattr(model, "bbox")
+    if pitch is None:
+        pitch = 0.5 if part else (natural or 0.1)
+    if check is None:
+        check = 2 if part else 4
+    pitch = float(pitch)
+    try:
+        hit = _BOUNDS.get(model)
+    except TypeError:  # a model that cannot be weakly referenced
+        hit = None
+    if hit is not None and hit[0] == (pitch, check) and hit[1].covers(*region):
+        return hit[1]
+    if not part:
+        M = _fast_heights(model)
+        if M is not None:
+            hf = M
+    x0, y0 = region[0], region[1]
+    nx = int(math.ceil((region[2] - x0) / pitch - 1e-9)) + 1
+    ny = int(math.ceil((region[3] - y0) / pitch - 1e-9)) + 1
+    if nx * ny * check * check > _MAX_SAMPLES:
+        raise ZMapError(f"the drop-cutter would sample {nx * check} x {ny * check} heights at "
+                        f"{pitch / check:g} mm (cap {_MAX_SAMPLES:.0e}): give a coarser pitch or a smaller region")
+    F = _sampler(model, hf)(x0, y0, pitch / check, (nx - 1) * check + 1, (ny - 1) * check + 1)
+    bs = BD.from_samples(F, x0, y0, pitch, check, source=type(model).__name__)
+    try:
+        _BOUNDS[model] = ((pitch, check), bs)
+    except TypeError:
+        pass
+    return bs
+
+
+def _fast_heights(model: Any) -> Callable | None:
+    """A precision model's heights through its numba kernel (:mod:`zmap.cam._model_eval`), or None."""
+    from . import _model_eval as ME
+
+    if not ME.supported(model) or not hasattr(model, "base"):
+        return None
+    M = _packed(model)
+
+    def hf(x, y, M=M):
+        xs = np.ascontiguousarray(np.ravel(np.asarray(x, dtype=np.float64)))
+        ys = np.ascontiguousarray(np.ravel(np.asarray(y, dtype=np.float64)))
+        out = np.empty(xs.size)
+        ME.threaded(ME.heights, xs.size, M, xs, ys, out, chunk=16384)
+        return out.reshape(np.shape(x))
+    return hf
+
+
 def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None = None,
-                xtol: float = 1e-6, return_contact: bool = False, refine: bool = True,
-                engine: str = "auto") -> Any:
+                return_contact: bool = False, refine: bool = True, eps: float = 1e-5) -> Any:
     """Cutter-location heights of a cutter dropped onto a design at axis positions (x, y).
 
     Parameters
@@ -241,16 +240,16 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
         The design; NaN heights are "no surface" (the cutter falls past them).
     cutter : Cutter or str — e.g. ``"ball:6"``, ``"flat:10"``, ``"bull:10:1"``.
     x, y : array_like of float — axis positions in mm (broadcast together).
-    pitch : float, optional — spacing of the height samples of the discrete drop, mm; default:
-        a ZMap's own grid, a PrecisionModel's base grid / 4, a Part's extent / 400, and never
-        more than the cutter radius / 8. Features narrower than it may be missed.
-    xtol : float — mm, the final step of the pattern search on non-smooth contacts.
+    pitch : float, optional — spacing of the design's samples, mm, for a design that is not a
+        z-map (a z-map is dropped on its own surface and ignores it); default a precision
+        model's base grid / 4, a part's 0.5 mm, a callable's cutter radius / 8. With
+        ``refine=False``, the spacing of the discrete drop's samples for every design.
     return_contact : bool — also return the contact points ``(cx, cy, cz)``.
-    refine : bool — steps 2 and 3 (exact heights); False: the discrete drop alone.
-    engine : {"auto", "numba", "python"} — where step 3 runs: "numba" (a ZMap or a
-        PrecisionModel: one kernel per point, with a ridge walk along creases,
-        :mod:`zmap.cam._model_eval`), "python" (batched height calls, any model; no ridge
-        walk), "auto" (numba where the model allows).
+    refine : bool — True: the certified drop (:mod:`zmap.cam.bounds`); False: the discrete
+        drop over samples alone (never above the true height, low by up to the rise between
+        samples).
+    eps : float — mm; the certified drop's answer is never below the true height, and never
+        above it by more on exact cells.
 
     Returns
     -------
@@ -261,19 +260,22 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
     Examples
     --------
     >>> import numpy as np
-    >>> from zmap import ZMap
     >>> step = lambda x, y: np.where(x > 0.01, 2.0, 0.0)      # a wall at x = 0.01, 2 mm high
-    >>> round(float(drop_cutter(step, "ball:6", -1.0, 0.0, pitch=0.1)), 6)
-    1.824872
-    >>> round(2 - (3 - float(np.sqrt(9 - 1.01 ** 2))), 6)          # the ball touches its top edge
-    1.824872
+    >>> cl = float(drop_cutter(step, "ball:6", -1.0, 0.0, pitch=0.1))
+    >>> exact = 2 - (3 - float(np.sqrt(9 - 1.01 ** 2)))        # the ball on the wall's top edge
+    >>> 0 <= cl - exact < 0.01                                   # sampled: never below, within a cell
+    True
+    >>> from zmap import ZMap
+    >>> dome = ZMap.from_function(lambda x, y: 5 - 0.01 * (x * x + y * y), (-10, -10, 10, 10), 0.5)
+    >>> round(float(drop_cutter(dome, "ball:6", 0.0, 0.0)), 4)   # a z-map: exact
+    5.0
     """
     from ..grid import ZMap
     from . import _drop_kernels as K
 
     cut = as_cutter(cutter)
-    if engine not in ("auto", "numba", "python"):
-        raise ValueError(f"engine must be 'auto', 'numba' or 'python', got {engine!r}")
+    if not (isinstance(eps, (int, float)) and math.isfinite(eps) and eps > 0):
+        raise ValueError(f"eps must be a positive number of mm, got {eps!r}")
     xb, yb = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
     shape = xb.shape
     qx = np.ascontiguousarray(xb.ravel())
@@ -281,235 +283,77 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
     if not (np.isfinite(qx).all() and np.isfinite(qy).all()):
         raise ValueError("x and y must be finite axis positions in mm")
     R = cut.radius
-    hf, zm, natural = model_heights(model)
-    M = None
-    if engine != "python":
-        from . import _model_eval as ME
-
-        if ME.supported(model):
-            M = _packed(model)
-            if zm is None:  # a PrecisionModel: sample it through the same kernel
-                def hf(x, y, M=M):
-                    xs = np.ascontiguousarray(np.ravel(np.asarray(x, dtype=np.float64)))
-                    ys = np.ascontiguousarray(np.ravel(np.asarray(y, dtype=np.float64)))
-                    out = np.empty(xs.size)
-                    ME.threaded(ME.heights, xs.size, M, xs, ys, out, chunk=16384)
-                    return out.reshape(np.shape(x))
-        elif engine == "numba":
-            raise ValueError(f"engine='numba' needs a ZMap or a PrecisionModel without dense lattices, "
-                             f"got {type(model).__name__}")
     if pitch is not None:
         pitch = float(pitch)
         if not (math.isfinite(pitch) and pitch > 0):
             raise ValueError(f"pitch must be a positive number of mm, got {pitch!r}")
+    hf, zm, natural = model_heights(model)
     n = qx.size
     if n == 0:
         out = np.zeros(shape)
         return (out, out.copy(), out.copy(), out.copy()) if return_contact else out
-    if zm is not None and pitch is None:
-        Z, x0, y0, dx, dy = np.ascontiguousarray(zm.z, dtype=np.float64), zm.x0, zm.y0, zm.dx, zm.dy
-    else:
-        p = pitch or min(natural or R / 8, R / 8)
-        lo_x, hi_x = qx.min() - R - p, qx.max() + R + p
-        lo_y, hi_y = qy.min() - R - p, qy.max() + R + p
-        nx = int(math.ceil((hi_x - lo_x) / p)) + 1
-        ny = int(math.ceil((hi_y - lo_y) / p)) + 1
-        if nx * ny > _MAX_SAMPLES:
-            raise ZMapError(f"drop_cutter would sample {nx} x {ny} heights at pitch {p:g} mm "
-                            f"(cap {_MAX_SAMPLES:.0e}): give a coarser pitch or fewer points")
-        x0, y0, dx, dy = lo_x, lo_y, p, p
-        X, Y = np.meshgrid(x0 + dx * np.arange(nx), y0 + dy * np.arange(ny), indexing="ij")
-        Z = np.ascontiguousarray(np.asarray(hf(X.ravel(), Y.ravel()), dtype=np.float64).reshape(nx, ny))
-    nx, ny = Z.shape
-    # a tensor grid of axes (rows of equal x and columns of equal y, as meshgrid gives): the
-    # discrete drop as a max-plus convolution, exact over the samples (zmap.cam._grid_kernels)
-    gv = gi = gj = None
-    tg = _tensor_grid(xb)
-    if tg is not None:
-        gv, gi, gj = _grid_drop(Z, float(x0), float(y0), float(dx), float(dy), cut, xb, yb, tg)
-        if gv is not None and not refine:
-            val, oi, oj = gv, gi, gj
-    # each sample's height raised by half its largest drop to a neighbour: a bound of the
-    # surface within half a pitch of it (a local maximum between samples, at an edge)
-    ZU = Z
     if refine:
-        rise = np.zeros_like(Z)
-        P = np.pad(Z, 1, constant_values=np.nan)
-        with np.errstate(invalid="ignore"):
-            for a in (-1, 0, 1):
-                for b in (-1, 0, 1):
-                    if a or b:
-                        dz = Z - P[1 + a:1 + a + nx, 1 + b:1 + b + ny]
-                        np.fmax(rise, dz, out=rise)
-        ZU = np.ascontiguousarray(Z + 0.5 * rise)
-    if gv is None or refine:
-        bm = np.empty(((nx + _B - 1) // _B, (ny + _B - 1) // _B))
-        K.block_max(ZU, _B, bm)
-        val = np.empty(n)
-        oi = np.empty(n, dtype=np.int64)
-        oj = np.empty(n, dtype=np.int64)
-    slack = 0.75 * math.hypot(dx, dy) if refine else 0.0
-    cell = 0.5 * math.hypot(dx, dy) if refine else 0.0
-    uval = np.empty((n, _K))
-    ui = np.empty((n, _K), dtype=np.int64)
-    uj = np.empty((n, _K), dtype=np.int64)
-    band = np.empty(n)
-    if gv is None or refine:
-        if gv is None:
-            w0, wi, wj = np.full(n, -np.inf), np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
-        else:
-            w0, wi, wj = gv, gi, gj
-        K.drop_samples(Z, ZU, float(x0), float(y0), float(dx), float(dy), bm, _B, cut.code, R, cut.corner_radius,
-                       slack, cell, qx, qy, val, oi, oj, uval, ui, uj, band, w0, wi, wj)
-    ok = oi >= 0
-    ux = np.where(ok, x0 + oi * dx, np.nan)
-    uy = np.where(ok, y0 + oj * dy, np.nan)
-    if refine and ok.any():
-        # a best sample just outside the disk: start from its projection on the rim, exactly
-        ox, oy = ux - qx, uy - qy
-        rr = np.hypot(ox, oy)
-        out_ = np.flatnonzero(ok & (rr > R))
-        if out_.size:
-            f = R / rr[out_]
-            ux[out_] = qx[out_] + ox[out_] * f
-            uy[out_] = qy[out_] + oy[out_] * f
-            val[out_] = _contact(hf, cut, qx[out_], qy[out_], ux[out_], uy[out_])
-        idx = np.flatnonzero(ok)
-        I, J = oi[idx], oj[idx]
-        gn = np.empty((idx.size, 3, 3))
-        zn = np.empty((idx.size, 3, 3))
-        for a in (-1, 0, 1):
-            for b in (-1, 0, 1):
-                ii, jj = I + a, J + b
-                inside = (ii >= 0) & (ii < nx) & (jj >= 0) & (jj < ny)
-                zz = np.where(inside, Z[np.clip(ii, 0, nx - 1), np.clip(jj, 0, ny - 1)], np.nan)
-                d = np.hypot(x0 + ii * dx - qx[idx], y0 + jj * dy - qy[idx])
-                env = np.empty(d.size)
-                K.envelope_many(cut.code, R, cut.corner_radius, np.ascontiguousarray(d), env)
-                zn[:, a + 1, b + 1] = zz
-                gn[:, a + 1, b + 1] = zz - env
-        g0 = gn[:, 1, 1]
-        cxx = gn[:, 0, 1] + gn[:, 2, 1] - 2 * g0
-        cyy = gn[:, 1, 0] + gn[:, 1, 2] - 2 * g0
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rng = np.nanmax(zn.reshape(-1, 9), axis=1) - np.nanmin(zn.reshape(-1, 9), axis=1)
-            smooth = (np.isfinite(gn).all(axis=(1, 2)) & (cxx < 0) & (cyy < 0)
-                      & (rng <= 3.0 * max(dx, dy)))
-            tx = np.clip(0.5 * (gn[:, 0, 1] - gn[:, 2, 1]) / cxx, -0.5, 0.5)
-            ty = np.clip(0.5 * (gn[:, 1, 0] - gn[:, 1, 2]) / cyy, -0.5, 0.5)
-        if cut.code == 2:  # a bull's envelope has a kink where the flat bottom meets the torus
-            r0 = R - cut.corner_radius
-            db = np.hypot(ux[idx] - qx[idx], uy[idx] - qy[idx])
-            smooth &= np.abs(db - r0) > 3.0 * max(dx, dy)
-        tx = np.where(smooth, tx, 0.0)
-        ty = np.where(smooth, ty, 0.0)
-        px = ux[idx] + tx * dx
-        py = uy[idx] + ty * dy
-        gs = _contact(hf, cut, qx[idx], qy[idx], px, py)
-        g_here = val[idx]
-        better = gs > g_here
-        ux[idx[better]] = px[better]
-        uy[idx[better]] = py[better]
-        val[idx[better]] = gs[better]
-        # starts of the pattern search (all searched together, one height call per step):
-        # the contacts that are not smooth (walls, edges, rim, kinks)
-        rough = idx[~smooth]
-        st_p, st_x, st_y, st_g, st_s = [rough], [ux[rough]], [uy[rough]], [val[rough]], \
-            [np.full(rough.size, 0.5 * max(dx, dy))]
-        st_b = [np.full(rough.size, np.inf)]
-        # a sample whose cell could hold a higher contact than the one found (an edge between
-        # samples near the rim, where the envelope is steep): search from it too
-        for kk in range(_K):
-            # only samples away from the best one (its neighbourhood is searched already):
-            # another local maximum that the samples may under-rate
-            away = (np.abs(ui[:, kk] - oi) > 1) | (np.abs(uj[:, kk] - oj) > 1)
-            other = np.flatnonzero(ok & away & (uval[:, kk] > val + 1e-9))
-            if other.size:
-                sx0 = x0 + ui[other, kk] * dx
-                sy0 = y0 + uj[other, kk] * dy
-                ox, oy = sx0 - qx[other], sy0 - qy[other]
-                rr = np.hypot(ox, oy)
-                f = np.where(rr > R, R / np.maximum(rr, 1e-300), 1.0)
-                sx0, sy0 = qx[other] + ox * f, qy[other] + oy * f
-                st_p.append(other)
-                st_x.append(sx0)
-                st_y.append(sy0)
-                st_g.append(_contact(hf, cut, qx[other], qy[other], sx0, sy0))
-                st_s.append(np.full(other.size, 0.5 * max(dx, dy)))
-                st_b.append(uval[other, kk])
-        # the rim: a feature may reach into the disk between samples there; sample a band of
-        # three rings every pitch/4 of arc exactly, and search from the best ring point
-        # (a flat end mill touches a slope with its rim, where maxima between samples hide:
-        # its rims are always sampled)
-        ring = np.flatnonzero(ok) if cut.code == 0 else np.flatnonzero(ok & (band > val + 1e-9))
-        if M is not None:
-            from . import _model_eval as ME
+        if zm is None and pitch is None and natural is None:
+            pitch = R / 8
+        p = pitch or natural or R / 8
+        region = (qx.min() - R - p, qy.min() - R - p, qx.max() + R + 2 * p, qy.max() + R + 2 * p)
+        from .bounds import drop_bound
 
-            # every point with a start or a ring is searched in one kernel, per point
-            sp = np.concatenate(st_p)
-            need = np.zeros(n, dtype=bool)
-            need[sp] = True
-            need[ring] = True
-            pts = np.flatnonzero(need)
-            # per point, its starts best bound first (the rough contact itself: unbounded)
-            bnd = np.concatenate(st_b)
-            order = np.lexsort((-bnd, sp))
-            cnt = np.bincount(sp, minlength=n)[pts]
-            ptr = np.zeros(pts.size + 1, dtype=np.int64)
-            np.cumsum(cnt, out=ptr[1:])
-            bandf = np.full(n, -np.inf)
-            bandf[ring] = np.inf if cut.code == 0 else band[ring]
-            sub_v = np.ascontiguousarray(val[pts])
-            sub_x = np.ascontiguousarray(ux[pts])
-            sub_y = np.ascontiguousarray(uy[pts])
-            ME.threaded(ME.refine_points, pts.size, M, cut.code, R, cut.corner_radius,
-                        np.ascontiguousarray(qx[pts]), np.ascontiguousarray(qy[pts]), ptr,
-                        np.ascontiguousarray(np.concatenate(st_x)[order], dtype=np.float64),
-                        np.ascontiguousarray(np.concatenate(st_y)[order], dtype=np.float64),
-                        np.ascontiguousarray(np.concatenate(st_s)[order], dtype=np.float64),
-                        np.ascontiguousarray(bnd[order], dtype=np.float64),
-                        np.ascontiguousarray(bandf[pts]), min(dx, dy), cell, _REACH * R, xtol, _MAX_ITER,
-                        sub_v, sub_x, sub_y, chunk=64)
-            b = sub_v > val[pts]
-            val[pts[b]], ux[pts[b]], uy[pts[b]] = sub_v[b], sub_x[b], sub_y[b]
-            ring = ring[:0]
-            st_p, st_x, st_y, st_g, st_s = [np.zeros(0, np.int64)], [np.zeros(0)], [np.zeros(0)], [np.zeros(0)], \
-                [np.zeros(0)]
-        if ring.size:
-            h = 0.25 * min(dx, dy)
-            m = max(16, int(math.ceil(2 * math.pi * R / h)))
-            th = 2 * math.pi * np.arange(m) / m
-            rad = np.array([R, R - cell / 2, R - cell])
-            ox = (rad[:, None] * np.cos(th)[None, :]).ravel()
-            oy = (rad[:, None] * np.sin(th)[None, :]).ravel()
-            for part in np.array_split(ring, max(1, ring.size * ox.size // 2_000_000)):
-                px = qx[part, None] + ox[None, :]
-                py = qy[part, None] + oy[None, :]
-                gr = _contact(hf, cut, qx[part, None], qy[part, None], px, py)
-                k = np.argmax(gr, axis=1)
-                r_ = np.arange(part.size)
-                st_p.append(part)
-                st_x.append(px[r_, k])
-                st_y.append(py[r_, k])
-                st_g.append(gr[r_, k])
-                st_s.append(np.full(part.size, h))
-        sp = np.concatenate(st_p)
-        if sp.size:
-            with _Serial():
-                sx, sy, sg = _pattern_search(hf, cut, qx[sp], qy[sp], np.concatenate(st_x).astype(np.float64),
-                                             np.concatenate(st_y).astype(np.float64),
-                                             np.concatenate(st_g).astype(np.float64), np.concatenate(st_s), xtol)
-            order = np.lexsort((-sg, sp))  # per point, its best search first
-            first = np.r_[True, sp[order][1:] != sp[order][:-1]]
-            w = order[first]
-            b = sg[w] > val[sp[w]]
-            ux[sp[w][b]], uy[sp[w][b]], val[sp[w][b]] = sx[w][b], sy[w][b], sg[w][b]
-    cl = np.where(np.isfinite(val), val, np.nan).reshape(shape)
+        bs = bounding_surface(model, region, pitch=pitch)
+        cl, ux, uy, _kept = drop_bound(bs, cut, qx, qy, eps=eps)
+        ok = np.isfinite(cl)
+    else:
+        if zm is not None and pitch is None:
+            Z, x0, y0, dx, dy = np.ascontiguousarray(zm.z, dtype=np.float64), zm.x0, zm.y0, zm.dx, zm.dy
+        else:
+            if zm is None and not isinstance(model, ZMap):
+                fast = _fast_heights(model)
+                hf = fast or hf
+            p = pitch or min(natural or R / 8, R / 8)
+            x0, y0 = qx.min() - R - p, qy.min() - R - p
+            nx = int(math.ceil((qx.max() + R + p - x0) / p)) + 1
+            ny = int(math.ceil((qy.max() + R + p - y0) / p)) + 1
+            if nx * ny > _MAX_SAMPLES:
+                raise ZMapError(f"drop_cutter would sample {nx} x {ny} heights at pitch {p:g} mm "
+                                f"(cap {_MAX_SAMPLES:.0e}): give a coarser pitch or fewer points")
+            dx = dy = p
+            Z = np.ascontiguousarray(_sampler(model, hf)(x0, y0, p, nx, ny))
+        cl, ux, uy = _discrete(Z, float(x0), float(y0), float(dx), float(dy), cut, xb, yb, qx, qy)
+        ok = np.isfinite(cl)
+    cl = np.where(ok, cl, np.nan).reshape(shape)
     if not return_contact:
         return cl[()] if cl.ndim == 0 else cl
-    cz = cl + np.where(ok, 0.0, np.nan).reshape(shape)
     d = np.hypot(ux - qx, uy - qy)
     env = np.empty(d.size)
-    K.envelope_many(cut.code, R, cut.corner_radius, np.ascontiguousarray(np.nan_to_num(d, nan=2 * R)), env)
-    cz = (cl.ravel() + env).reshape(shape)
-    return cl, ux.reshape(shape), uy.reshape(shape), cz
+    K.envelope_many(cut.code, R, cut.corner_radius, np.ascontiguousarray(np.nan_to_num(np.minimum(d, R), nan=R)),
+                    env)
+    cz = (cl.ravel() + np.where(ok, env, np.nan)).reshape(shape)
+    return cl, np.where(ok, ux, np.nan).reshape(shape), np.where(ok, uy, np.nan).reshape(shape), cz
+
+
+def _discrete(Z, x0, y0, dx, dy, cut, xb, yb, qx, qy):
+    """The discrete drop over samples: ``(val, contact x, contact y)`` flat (-inf: none)."""
+    from . import _drop_kernels as K
+
+    n = qx.size
+    nx, ny = Z.shape
+    tg = _tensor_grid(xb)
+    if tg is not None:
+        gv, gi, gj = _grid_drop(Z, x0, y0, dx, dy, cut, xb, yb, tg)
+        if gv is not None:
+            ok = gi >= 0
+            return gv, np.where(ok, x0 + gi * dx, np.nan), np.where(ok, y0 + gj * dy, np.nan)
+    bm = np.empty(((nx + _B - 1) // _B, (ny + _B - 1) // _B))
+    K.block_max(Z, _B, bm)
+    val = np.empty(n)
+    oi = np.empty(n, dtype=np.int64)
+    oj = np.empty(n, dtype=np.int64)
+    uval = np.empty((n, 1))
+    ui = np.empty((n, 1), dtype=np.int64)
+    uj = np.empty((n, 1), dtype=np.int64)
+    band = np.empty(n)
+    w0, wi, wj = np.full(n, -np.inf), np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
+    K.drop_samples(Z, Z, x0, y0, dx, dy, bm, _B, cut.code, cut.radius, cut.corner_radius, 0.0, 0.0, qx, qy, val,
+                   oi, oj, uval, ui, uj, band, w0, wi, wj)
+    ok = oi >= 0
+    return val, np.where(ok, x0 + oi * dx, np.nan), np.where(ok, y0 + oj * dy, np.nan)

@@ -2,7 +2,7 @@
 
 The kernel's heights are held to ``PrecisionModel.height`` on real EZ models (a layout change
 in zmap.refine shows up here), and the CL heights to the brute-force reference on models
-with walls: ours is an exact contact, so it may exceed a lattice search but must never be
+with walls: ours is an upper bound, so it may exceed a lattice search but must never be
 below it by more than 1e-4 mm (below would be a missed maximum: a gouge).
 """
 
@@ -127,26 +127,25 @@ def test_never_below_the_brute_force_on_walls(seed, spec):
     y = np.r_[cy + d * np.sin(t), rng.uniform(-4, 4, 2)]
     got, gx, gy, _ = drop_cutter(model, c, x, y, pitch=0.1, return_contact=True)
     ref = drop_cutter_reference(model.height, c, x, y, h=0.02, levels=3)
+    # the reference is a lattice search over real points: never above the true CL; ours never
+    # below it (the model is sampled every 0.025 mm, walls bounded on their safe side)
     assert np.all(got >= ref - 1e-4), (got - ref).min()
-    # never above the true CL: every value is the contact of a real point of the model on
-    # the cutter's disk (the reference, a lattice search, may be below it near a wall)
     d = np.hypot(gx - x, gy - y)
     assert np.all(d <= c.radius * (1 + 1e-12))
-    np.testing.assert_allclose(got, model.height(gx, gy) - c.lower_envelope(np.minimum(d, c.radius)),
-                               rtol=0, atol=1e-12)
+    # off the wall (the disk clear of the boss's edge by a pitch) ours is the reference's
+    far = np.abs(np.hypot(x - cx, y - cy) - rr) > c.radius + 0.2
+    assert np.all(np.abs(got - ref)[far] < 1e-4)
 
 
-def test_engines_agree_off_walls():
+def test_discrete_drop_is_never_above_the_certified_one():
     model, _ = _wall_model(7)
     rng = np.random.default_rng(3)
     x, y = rng.uniform(-7, 7, (2, 30))
-    a = drop_cutter(model, "ball:4", x, y, pitch=0.1, engine="numba")
-    b = drop_cutter(model, "ball:4", x, y, pitch=0.1, engine="python")
-    assert np.all(a >= b - 1e-7)
-    with pytest.raises(ValueError, match="engine"):
-        drop_cutter(model, "ball:4", x, y, engine="gpu")
-    with pytest.raises(ValueError, match="numba"):
-        drop_cutter(lambda x, y: 0 * x, "ball:4", x, y, pitch=0.2, engine="numba")
+    a = drop_cutter(model, "ball:4", x, y, pitch=0.1)
+    b = drop_cutter(model, "ball:4", x, y, pitch=0.1, refine=False)
+    assert np.all(a >= b - 1e-9)
+    with pytest.raises(ValueError, match="eps"):
+        drop_cutter(model, "ball:4", x, y, eps=0)
 
 
 # Off-axis points of a 120 x 120 grid over the cornetta window of bench/verify.py where the
@@ -169,10 +168,6 @@ def test_cornetta_wall_tops_against_the_brute_force():
     x = np.array([xs[i] for i, _ in _GRID_POINTS])
     y = np.array([ys[j] for _, j in _GRID_POINTS])
     ball = parse_tool_spec("ball:6")
-    got, gx, gy, _ = drop_cutter(model, ball, x, y, pitch=0.1, return_contact=True)
+    got = drop_cutter(model, ball, x, y, pitch=0.1)
     ref = drop_cutter_reference(model.height, ball, x, y, h=0.005, levels=3)
     assert np.all(got >= ref - 1e-4), np.round(got - ref, 6)
-    d = np.hypot(gx - x, gy - y)
-    assert np.all(d <= 3.0 * (1 + 1e-12))
-    np.testing.assert_allclose(got, model.height(gx, gy) - ball.lower_envelope(np.minimum(d, 3.0)), rtol=0,
-                               atol=1e-12)

@@ -39,7 +39,7 @@ def test_sliver_at_the_rim(spec):
     old = drop_cutter_reference(f, c, [0.0], [0.0], h=0.02, levels=3)[0]
     assert old <= got + 1e-12
     ours = float(drop_cutter(f, c, 0.0, 0.0, pitch=0.1))
-    assert ours <= want + 1e-9  # an exact contact: never above the true CL
+    assert ours >= want - 1e-9  # sampled, the sliver bounded on its safe side: never below
 
 
 def test_wiggly_crest():

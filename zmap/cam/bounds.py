@@ -1,0 +1,250 @@
+"""Certified drop-cutter: the design as Bezier patches with bounds, split until the answer is sure.
+
+:class:`BoundingSurface` holds a design as a grid of bicubic Bezier patches (control nets),
+their exact nodes and, per cell, a margin by which the design may rise above its patch.
+:func:`drop_bound` drops a cutter onto it by branch and bound (:mod:`zmap.cam._bound_kernels`):
+a lower bound from exact points of the design, an upper bound per cell from its control net
+minus the tangent plane of the cutter's envelope, cells split until no bound beats the lower
+one by more than ``eps``. The answer is the largest bound left: never below the design's true
+cutter-location height (a program made from it does not gouge), and never above it by more
+than ``eps`` where the cells are exact.
+
+Where the surface comes from:
+
+* a :class:`~zmap.ZMap`: its own Bezier surface (:func:`zmap.interpolate.bezier`), exactly:
+  every cell's net is the patch, margin 0. The answer is certified.
+* any other design (a :class:`~zmap.model.PrecisionModel`, a STEP part's exact heights, a
+  callable): :func:`from_heights` samples it on a grid (the nodes are exact design heights)
+  and on a grid ``check`` times finer; the margin of a cell is how far the design's samples
+  inside it rise above the patch through its nodes, times :data:`MARGIN_FACTOR`. A cell whose
+  margin is more than :data:`ROUGH` (a wall, a step, an edge between the nodes) is bounded by a
+  flat patch at its highest sample or patch point plus margin, the safe side of a step.
+  Cells with part of the design missing (the outline) are bounded the same way by the samples
+  they have. The answer is then as sure as the samples: a feature narrower than the fine
+  grid's spacing between two samples can still be under-rated.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+__all__ = ["BoundingSurface", "from_zmap", "from_heights", "from_samples", "drop_bound", "MARGIN_FACTOR", "ROUGH"]
+
+#: a sampled cell's margin is its samples' largest rise above the patch times this
+MARGIN_FACTOR = 1.5
+#: mm: a sampled cell whose samples stray further from its patch is a flat patch (a step, a wall)
+ROUGH = 5e-4
+#: mm: margins below this count as 0 (exact cells); the drop's answer can then be below the
+#: sampled design by this at most
+TINY = 1e-5
+#: a rise steeper than this between two neighbouring samples is a wall, not a slope
+WALL = 10.0
+#: cells per side of a block of the pruning pyramid
+_B = 8
+#: mm: the default certainty of the answer
+EPS = 1e-5
+
+
+@dataclass
+class BoundingSurface:
+    """A design as Bezier patches with bounds (see the module docstring).
+
+    Attributes
+    ----------
+    nets : ndarray (ncx, ncy, 4, 4) — each cell's control net, NaN where the cell has no patch.
+    cmax : ndarray (ncx, ncy) — each net's highest control point (-inf: no patch).
+    margin : ndarray (ncx, ncy) — mm the design may rise above the patch (0: exact).
+    z : ndarray (nx, ny) — the nodes, exact heights of the design (NaN: none).
+    x0, y0, dx, dy : float — the node grid, mm.
+    source : str — what the surface was made from.
+    """
+
+    nets: np.ndarray
+    cmax: np.ndarray
+    margin: np.ndarray
+    z: np.ndarray
+    x0: float
+    y0: float
+    dx: float
+    dy: float
+    source: str
+
+    def __post_init__(self) -> None:
+        from ._drop_kernels import block_max
+
+        top = np.where(np.isfinite(self.cmax), self.cmax + self.margin, -np.inf)
+        self.bcell = np.empty(((top.shape[0] + _B - 1) // _B, (top.shape[1] + _B - 1) // _B))
+        block_max(np.ascontiguousarray(top), _B, self.bcell)
+        self.bnode = np.empty(((self.z.shape[0] + _B - 1) // _B, (self.z.shape[1] + _B - 1) // _B))
+        block_max(self.z, _B, self.bnode)
+
+    @property
+    def exact(self) -> bool:
+        """True where every cell is the design itself (a z-map's own surface)."""
+        return bool(not np.any(self.margin > 0))
+
+    def covers(self, lo_x: float, lo_y: float, hi_x: float, hi_y: float) -> bool:
+        """Whether the node grid covers the rectangle."""
+        nx, ny = self.z.shape
+        return (self.x0 <= lo_x + 1e-9 and self.y0 <= lo_y + 1e-9 and self.x0 + (nx - 1) * self.dx >= hi_x - 1e-9
+                and self.y0 + (ny - 1) * self.dy >= hi_y - 1e-9)
+
+
+def _nets_of(z: np.ndarray, dx: float, dy: float) -> tuple[np.ndarray, np.ndarray]:
+    from .._interp_kernels import BOUNDARY_DUMMY, TANGENT_CIRCLE, slope_tables
+    from . import _bound_kernels as BK
+
+    z = np.ascontiguousarray(z, dtype=np.float64)
+    sx = np.empty_like(z)
+    sy = np.empty_like(z)
+    slope_tables(z, dx, dy, TANGENT_CIRCLE, BOUNDARY_DUMMY, sx, sy)
+    nx, ny = z.shape
+    nets = np.empty((max(nx - 1, 0), max(ny - 1, 0), 4, 4))
+    cmax = np.empty(nets.shape[:2])
+    BK.cell_nets(z, sx, sy, dx, dy, nets, cmax)
+    return nets, cmax
+
+
+def from_zmap(zm: Any) -> BoundingSurface:
+    """A z-map's own Bezier surface (:func:`zmap.interpolate.bezier`, circle tangents, dummy
+    boundary), exactly: margin 0 everywhere."""
+    if zm.has_frame:
+        raise ValueError("the drop-cutter takes z-maps without a local frame")
+    z = np.ascontiguousarray(zm.z, dtype=np.float64)
+    nets, cmax = _nets_of(z, zm.dx, zm.dy)
+    return BoundingSurface(nets, cmax, np.zeros(cmax.shape), z, float(zm.x0), float(zm.y0), float(zm.dx),
+                           float(zm.dy), "z-map")
+
+
+def from_heights(heights: Callable, bounds: tuple, pitch: float, *, check: int = 4,
+                 source: str = "sampled heights") -> BoundingSurface:
+    """A design known by its heights, sampled: nodes every ``pitch`` over ``bounds``
+    ``(xmin, ymin, xmax, ymax)``, margins from a grid ``check`` times finer.
+
+    Parameters
+    ----------
+    heights : callable ``heights(x, y)`` — the design's heights, mm, NaN where it has none.
+    bounds : (xmin, ymin, xmax, ymax) — the region, mm (the grid covers it).
+    pitch : float — node spacing, mm.
+    check : int — fine samples per node interval (>= 2).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> bs = from_heights(lambda x, y: 0.1 * x * y, (0, 0, 2, 2), 0.5)
+    >>> bs.z.shape, float(bs.margin.max()) < 1e-12
+    ((5, 5), True)
+    """
+    check = int(check)
+    if check < 2:
+        raise ValueError(f"check must be at least 2, got {check}")
+    x0, y0, x1, y1 = (float(v) for v in bounds)
+    nx = int(math.ceil((x1 - x0) / pitch - 1e-9)) + 1
+    ny = int(math.ceil((y1 - y0) / pitch - 1e-9)) + 1
+    h = pitch / check
+    X, Y = np.meshgrid(x0 + h * np.arange((nx - 1) * check + 1), y0 + h * np.arange((ny - 1) * check + 1),
+                       indexing="ij")
+    F = np.asarray(heights(X.ravel(), Y.ravel()), dtype=np.float64).reshape(X.shape)
+    return from_samples(F, x0, y0, pitch, check, source=source)
+
+
+def from_samples(F: np.ndarray, x0: float, y0: float, pitch: float, check: int, *,
+                 source: str = "sampled heights") -> BoundingSurface:
+    """:func:`from_heights` from the fine samples themselves: ``F[a, b]`` is the design's height
+    at ``(x0 + a * pitch / check, y0 + b * pitch / check)``; its shape is
+    ``((nx - 1) * check + 1, (ny - 1) * check + 1)``."""
+    from . import _bound_kernels as BK
+
+    check = int(check)
+    F = np.asarray(F, dtype=np.float64)
+    if F.ndim != 2 or (F.shape[0] - 1) % check or (F.shape[1] - 1) % check or min(F.shape) < check + 1:
+        raise ValueError(f"samples of shape {F.shape} are not (n - 1) * {check} + 1 on each side")
+    h = pitch / check
+    fx = x0 + h * np.arange(F.shape[0])
+    fy = y0 + h * np.arange(F.shape[1])
+    z = np.ascontiguousarray(F[::check, ::check])
+    nets, cmax = _nets_of(z, pitch, pitch)
+    # the patch at every fine sample, and each cell's largest rise of the samples above it
+    P = np.empty(F.size)
+    XX, YY = np.meshgrid(fx, fy, indexing="ij")
+    BK.patch_heights(nets, x0, y0, pitch, pitch, np.ascontiguousarray(XX.ravel()), np.ascontiguousarray(YY.ravel()),
+                     P)
+    del XX, YY
+    P = P.reshape(F.shape)
+    ncx, ncy = cmax.shape
+    rise = np.full((ncx, ncy), -np.inf)
+    dev = np.zeros((ncx, ncy))
+    smax = np.full((ncx, ncy), -np.inf)
+    with np.errstate(invalid="ignore"):
+        D = F - P
+        for a in range(check + 1):
+            for b in range(check + 1):
+                f = F[a:a + ncx * check:check, b:b + ncy * check:check][:ncx, :ncy]
+                d = D[a:a + ncx * check:check, b:b + ncy * check:check][:ncx, :ncy]
+                np.fmax(rise, d, out=rise)
+                np.fmax(dev, np.abs(d), out=dev)
+                np.fmax(smax, f, out=smax)
+        # the steepest slope between neighbouring samples, a jump (a wall: steeper than
+        # WALL) left out: how far the design can rise between a sample and the next
+        slope = np.zeros((ncx, ncy))
+        for Dd, (ax, bx) in ((np.abs(np.diff(F, axis=0)), (check, check + 1)),
+                             (np.abs(np.diff(F, axis=1)), (check + 1, check))):
+            Dd = np.where(Dd <= WALL * h, Dd, 0.0)
+            for a in range(ax):
+                for b in range(bx):
+                    d = Dd[a:a + ncx * check:check, b:b + ncy * check:check][:ncx, :ncy]
+                    np.fmax(slope, d, out=slope)
+    full = np.isfinite(cmax)
+    margin = np.where(full, np.maximum(np.nan_to_num(rise, neginf=0.0), 0.0) * MARGIN_FACTOR, 0.0)
+    # a rise this small is rounding (the samples and the patch agree): the cell counts as exact
+    margin[margin < TINY] = 0.0
+    # a step or a wall between the nodes (the patch through them strays from the samples, or
+    # its control net far above them), or a cell on the outline: a flat patch on its highest
+    # sample raised by its steepest rise from one sample to the next, the safe side of a step
+    with np.errstate(invalid="ignore"):
+        flat = (full & ((dev > ROUGH) | (cmax - smax > 10 * ROUGH))) | (~full & np.isfinite(smax))
+    nets[flat] = (smax + slope)[flat][:, None, None]
+    margin[flat] = 1e-9
+    BK.cell_max(nets, cmax)
+    return BoundingSurface(np.ascontiguousarray(nets), cmax, np.ascontiguousarray(margin), z, x0, y0, float(pitch),
+                           float(pitch), source)
+
+
+def drop_bound(bs: BoundingSurface, cutter: Any, x: np.ndarray, y: np.ndarray, *, eps: float = EPS,
+               min_size: float = 1e-4) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Cutter-location heights over a bounding surface: ``(cl, cx, cy, kept)``.
+
+    ``cl`` is NaN where no node or patch lies under the cutter; ``(cx, cy)`` is the contact
+    (the best exact point, or the centre of the cell whose bound was kept, pulled onto the
+    disk); ``kept`` counts
+    the cells whose bound was kept without being resolved to ``eps`` (0 on exact cells but for
+    a contact sharper than ``min_size``).
+    """
+    from . import _bound_kernels as BK
+    from .drop import as_cutter
+
+    cut = as_cutter(cutter)
+    qx = np.ascontiguousarray(np.ravel(x), dtype=np.float64)
+    qy = np.ascontiguousarray(np.ravel(y), dtype=np.float64)
+    n = qx.size
+    out = np.empty(n)
+    cx = np.empty(n)
+    cy = np.empty(n)
+    kept = np.empty(n)
+    if n:
+        BK.drop_bound(bs.nets, bs.cmax, bs.margin, bs.z, bs.x0, bs.y0, bs.dx, bs.dy, bs.bcell, bs.bnode, _B,
+                      cut.code, cut.radius, cut.corner_radius, float(eps), float(min_size), qx, qy, out, cx, cy,
+                      kept, max(16, min(1024, n // 64 + 1)))
+    out[~np.isfinite(out)] = np.nan
+    # a kept cell's centre may lie beyond the rim: its contact is on the disk
+    r = np.hypot(cx - qx, cy - qy)
+    far = r > cut.radius
+    if far.any():
+        f = cut.radius / r[far]
+        cx[far] = qx[far] + (cx[far] - qx[far]) * f
+        cy[far] = qy[far] + (cy[far] - qy[far]) * f
+    return out, cx, cy, kept.astype(np.int64)
