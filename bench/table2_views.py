@@ -65,6 +65,7 @@ def main() -> None:
     ap.add_argument("--points", type=int, default=5000)
     ap.add_argument("--side", default="+y", choices=("+x", "-x", "+y", "-y"))
     ap.add_argument("--only", nargs="*", default=None, help="substrings of the part file names to run")
+    ap.add_argument("--views", nargs="*", default=None, help="view axes to run (default +z and --side)")
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds per view (child process)")
     ap.add_argument("--markdown", type=Path, default=None)
     a = ap.parse_args()
@@ -75,7 +76,7 @@ def main() -> None:
            "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"), "parts": {}}
     for path in paths:
         res["parts"][path.name] = {}
-        for axis in ("+z", a.side):
+        for axis in a.views or ("+z", a.side):
             grid = a.large_grid if path.name in LARGE else a.grid
             plan = {"grid": grid, "axis": axis, "methods": ("ez",), "points": a.points}
             print(f"[{time.strftime('%H:%M:%S')}] {path.name} from {axis}", file=sys.stderr, flush=True)
