@@ -2,26 +2,36 @@
 
 * ``cl_pps``: drop-cutter CL points per second on a 1000 x 1000 axis grid, 6 mm ball, over the
   EZ precision model (tol 0.01, base grid 0.5 mm) of a window of a real die (OCCT's
-  ``bug27693_cornetta-step.stp``, walls and edges inside), sample pitch 0.1 mm, JIT warm;
-  ``cl_discrete_pps``: the discrete phase alone (``refine=False``: sampling the model and the
-  tensor-grid max-plus drop) on the same grid;
+  ``bug27693_cornetta-step.stp``, walls and edges inside), the model sampled every 0.1 mm
+  (``pitch``), JIT warm; the time includes sampling the model (``cl_bounds_s`` alone: its
+  bounding surface of :mod:`zmap.cam.bounds`); ``cl_discrete_pps``: the discrete drop alone
+  (``refine=False``) on the same grid;
   ``cl_max_err``: largest |ours - reference| on random points of the grid and on points whose
   contact is off-axis by more than 1 mm (walls and edges), the reference being
   ``zmap.cam._reference.drop_cutter_reference_dense`` (a 0.02 mm lattice on the whole disk and
   the rim as a curve at 0.005 mm, refinement around every candidate within its bound) on the same
-  model's ``PrecisionModel.height``; signed: ``cl_max_below_ref`` (ours low: a missed maximum,
-  the tool would gouge) and ``cl_max_above_ref`` (ours high: the reference missed one).
+  model's ``PrecisionModel.height``; signed: ``cl_max_below_ref`` (ours low: the tool would
+  gouge; the certified drop is never low) and ``cl_max_above_ref`` (ours high: beside a wall,
+  a sampled design's bound on its safe side, or the reference missing a maximum).
 * OpenCAMLib (``pip install '.[bench]'``): ``BatchDropCutter`` with a 6 mm ``BallCutter`` on the
   same part's triangles (BRepMesh at 0.01 mm deflection, the faces in the window), 1 and 2
   threads, in the same run; ``cl_vs_ocl2``: ``cl_pps`` over OCL's 2-thread rate;
   ``ocl_max_diff``: its largest difference from our CL heights on those points.
+* ``cl_part_max_gouge_mm`` / ``ocl_part_max_gouge_mm``: on ``part_points`` of those points, how
+  far the ball at our CL / OCL's enters the exact part (the ball's radius less OCC's distance
+  from its centre to the B-rep): speed and truth side by side (ours is dropped on the EZ model,
+  within its tolerance of the part; OCL on a 0.01 mm mesh).
+* ``finish_die_s``: ``zmap toolpath data/step/bug27693_cornetta-step.stp --tool ball:6
+  --stepover 0.5 --tol 0.002`` (the whole die, 280 x 160 mm, from the STEP part itself), timed
+  as a command; ``finish_die_max_gouge_mm``: the same OCC check on ``finish_die_checked_points``
+  of its CL points.
 * ``compare_s``: a full :func:`zmap.verify.compare` (deviation, classes, regions, first
   offending stage and line of every gouge ray) of ``flower_mold.nc``'s stock at the end
   (CAMotics stock and tool, 0.26 mm rays, treap history) against a design z-map at the same
   0.26 mm rays: the stock as it stood half way (everything cut after it is a gouge);
   ``first_gouge_ms``: the first offending stage of one ray from the history.
 
-Run: ``.venv/bin/python bench/verify.py [--n 1000]``. The figures depend on the machine and
+Run: ``.venv/bin/python bench/verify.py [--n 1000] [--no-die]``. The figures depend on the machine and
 its load; the README quotes one run.
 """
 
@@ -96,30 +106,57 @@ def ocl_rates(part, xs, ys, cl_ours):
         out[f"ocl_pps_{threads}thread"] = round(xs.size / dt, 1)
         z = np.array([p.z for p in bdc.getCLPoints()])
     out["ocl_max_diff"] = float(np.max(np.abs(z - cl_ours)))
+    out["ocl_cl"] = z.tolist()
     return out
 
 
-def _searched_share(model, ball, X, Y) -> float:
-    """Share of the points (of the first 60 rows of the grid) that the numba refinement
-    searches: its kernel's point count, read by wrapping it."""
-    import zmap.cam._model_eval as ME
-    from zmap.cam import drop_cutter
+def part_gouge(part, cutter, x, y, cl) -> np.ndarray:
+    """How far a ball at each CL point enters the exact part, mm (0: clear): the ball's radius
+    less OCC's distance (``BRepExtrema_DistShapeShape``) from its centre to the part's faces."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.gp import gp_Pnt
 
-    seen = []
-    orig = ME.threaded
+    from cad_io.distance import faces_compound
 
-    def count(kernel, n, *args, **kw):
-        if kernel is ME.refine_points:
-            seen.append(n)
-        return orig(kernel, n, *args, **kw)
+    faces = faces_compound(part.shape)
+    R = cutter.radius
+    out = np.zeros(len(x))
+    for k in range(len(x)):
+        if not np.isfinite(cl[k]):
+            continue
+        v = BRepBuilderAPI_MakeVertex(gp_Pnt(float(x[k]), float(y[k]), float(cl[k]) + R)).Vertex()
+        ext = BRepExtrema_DistShapeShape(faces, v)
+        out[k] = max(0.0, R - ext.Value()) if ext.IsDone() else np.nan
+    return out
 
-    rows = min(X.shape[0], 60)
-    ME.threaded = count
-    try:
-        drop_cutter(model, ball, X[:rows], Y[:rows], pitch=0.1)
-    finally:
-        ME.threaded = orig
-    return sum(seen) / (rows * X.shape[1])
+
+def finish_die(args, res) -> None:
+    """``zmap toolpath`` on the whole die from its STEP file, timed as a user runs it, and the
+    gouge of a sample of its CL points against the exact part."""
+    import subprocess
+    import tempfile
+
+    import cad_io
+    from zmap.sim.tools import parse_tool_spec
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "die.nc"
+        cmd = [sys.executable, "-m", "zmap.cli", "toolpath", str(DIE), "--tool", "ball:6", "--stepover", "0.5",
+               "--tol", "0.002", "-o", str(out)]
+        log("whole die from the STEP file: " + " ".join(cmd[2:]))
+        t = time.perf_counter()
+        subprocess.run(cmd, check=True, cwd=ROOT)
+        res["finish_die_s"] = round(time.perf_counter() - t, 1)
+        pts = np.array([[float(w[1:]) for w in ln.split()[1:4]] for ln in out.read_text().splitlines()
+                        if ln.startswith("G1 X") and " Y" in ln and " Z" in ln])
+    res["finish_die_cl_points_kept"] = int(len(pts))
+    rng = np.random.default_rng(1)
+    pick = rng.choice(len(pts), min(args.die_check, len(pts)), replace=False)
+    part = cad_io.read_step(DIE)
+    g = part_gouge(part, parse_tool_spec("ball:6"), pts[pick, 0], pts[pick, 1], pts[pick, 2])
+    res["finish_die_checked_points"] = int(pick.size)
+    res["finish_die_max_gouge_mm"] = float(np.nanmax(g))
 
 
 def main() -> None:
@@ -130,6 +167,10 @@ def main() -> None:
     ap.add_argument("--ref-h", type=float, default=0.02, help="the reference's lattice spacing on the disk, mm")
     ap.add_argument("--discrete-n", type=int, default=1000,
                     help="grid side (n x n) of the discrete-phase figure cl_discrete_pps")
+    ap.add_argument("--part-points", type=int, default=200,
+                    help="CL points checked against the exact part (OCC distance), ours and OpenCAMLib's")
+    ap.add_argument("--die-check", type=int, default=300, help="CL points of the whole-die program checked")
+    ap.add_argument("--no-die", action="store_true", help="skip the whole-die program (finish_die_s)")
     args = ap.parse_args()
     from zmap.cam import drop_cutter
     from zmap.cam._reference import drop_cutter_reference_dense
@@ -147,6 +188,17 @@ def main() -> None:
     ys = np.linspace(w[1], w[3], args.n)
     X, Y = np.meshgrid(xs, ys, indexing="ij")
     drop_cutter(model, ball, X[:20, :20], Y[:20, :20], pitch=0.1)  # JIT warm-up
+    # the bounding surface the drop samples (part of cl_s: timed alone here, then dropped)
+    import zmap.cam.drop as D
+
+    D._BOUNDS.clear()
+    t = time.perf_counter()
+    R = ball.radius
+    bs = D.bounding_surface(model, (w[0] - R - 0.1, w[1] - R - 0.1, w[2] + R + 0.2, w[3] + R + 0.2), pitch=0.1)
+    res["cl_bounds_s"] = round(time.perf_counter() - t, 3)
+    res["cl_bounds_nodes"] = int(bs.z.size)
+    D._BOUNDS.clear()
+    del bs
     log(f"drop-cutter on {X.size} points ...")
     t = time.perf_counter()
     cl, cx, cy, _cz = drop_cutter(model, ball, X, Y, pitch=0.1, return_contact=True)
@@ -164,7 +216,6 @@ def main() -> None:
     res["cl_discrete_points"] = int(XD.size)
     res["cl_discrete_pps"] = round(XD.size / res["cl_discrete_s"], 1)
     del XD, YD
-    res["cl_refined_share"] = round(_searched_share(model, ball, X, Y), 4)
     # error against the brute force: random points and points with off-axis contacts
     rng = np.random.default_rng(0)
     flat = rng.choice(X.size, args.ref_points // 2, replace=False)
@@ -197,6 +248,16 @@ def main() -> None:
     res.update(ocl_rates(part, X.ravel()[sel], Y.ravel()[sel], cl.ravel()[sel]))
     if "ocl_pps_2thread" in res:
         res["cl_vs_ocl2"] = round(res["cl_pps"] / res["ocl_pps_2thread"], 1)
+    # truth side by side: both against the exact part (the design the model stands for)
+    k = min(args.part_points, sel.size)
+    log(f"OCC distance from the ball to the part at {k} CL points, ours and OpenCAMLib's ...")
+    res["part_points"] = k
+    res["cl_part_max_gouge_mm"] = float(np.nanmax(part_gouge(part, ball, X.ravel()[sel[:k]], Y.ravel()[sel[:k]],
+                                                             cl.ravel()[sel[:k]])))
+    if "ocl_cl" in res:
+        z = np.asarray(res.pop("ocl_cl"))[:k]
+        res["ocl_part_max_gouge_mm"] = float(np.nanmax(part_gouge(part, ball, X.ravel()[sel[:k]],
+                                                                  Y.ravel()[sel[:k]], z)))
     # compare on flower_mold.nc
     log("flower_mold.nc: simulate and compare ...")
     from zmap import ZMap
@@ -232,6 +293,8 @@ def main() -> None:
         first_offending(run, ray, lev)
         ts.append(time.perf_counter() - t)
     res["first_gouge_ms"] = round(1000 * float(np.median(ts)), 4)
+    if not args.no_die:
+        finish_die(args, res)
     print(json.dumps(res, indent=1))
 
 

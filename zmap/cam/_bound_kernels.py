@@ -4,7 +4,9 @@ The design is a grid of cells, each a bicubic Bezier patch given by its 4 x 4 co
 ``nets[ci, cj, k, l]`` (``k`` along x, ``l`` along y; control point ``(k, l)`` sits at
 ``(x0 + (ci + k/3) dx, y0 + (cj + l/3) dy)``), a margin ``margin[ci, cj] >= 0`` by which the
 design may rise above the patch (0: the patch is the design), and the nodes ``z[i, j]``,
-exact points of the design (NaN: none). A cell without a patch has ``cmax = -inf``.
+exact points of the design (NaN: none). A cell without a patch has ``cmax = -inf``. A cell
+with ``subidx[ci, cj] = k >= 0`` is flat sub-cells instead, ``sub[k]`` (n x n heights, NaN:
+none): its contacts are exact on them (a flat cell's best point is its point nearest the axis).
 
 For one axis position ``q`` the cutter-location height is the largest contact
 ``g(u) = h(u) - envelope(|u - q|)`` over the disk. The kernel keeps two numbers:
@@ -290,7 +292,7 @@ def _dmin(qx, qy, xa, ya, xb, yb):
 
 
 @njit(cache=True)
-def _drop_one(nets, cmax, margin, z, x0, y0, dx, dy, bcell, bnode, B, code, R, rc, eps, min_size, qx, qy,
+def _drop_one(nets, cmax, margin, sub, subidx, z, x0, y0, dx, dy, bcell, bnode, B, code, R, rc, eps, min_size, qx, qy,
               sn, sr, sm, sb, res, tv, tw, tmp, half, sc):
     """One axis position: ``res = (cl, contact x, contact y, kept)``; cl -inf: no design under the disk."""
     nx, ny = z.shape
@@ -386,6 +388,39 @@ def _drop_one(nets, cmax, margin, z, x0, y0, dx, dy, bcell, bnode, B, code, R, r
                         b = hm - _env(code, R, rc, dm)
                         if b <= L + eps:
                             if b > Up:
+                                Up = b
+                            continue
+                        k = subidx[i, j]
+                        if k >= 0:
+                            # a flat cell of sub-cells, each flat: its contacts exactly
+                            nsub = sub.shape[1]
+                            hx = dx / nsub
+                            hy = dy / nsub
+                            b = -np.inf
+                            bx = np.nan
+                            by = np.nan
+                            for a in range(nsub):
+                                for c in range(nsub):
+                                    v = sub[k, a, c]
+                                    if not (v > L):
+                                        continue
+                                    sxa = xa + a * hx
+                                    sya = ya + c * hy
+                                    dm = _dmin(qx, qy, sxa, sya, sxa + hx, sya + hy)
+                                    if dm > R:
+                                        continue
+                                    g = v - _env(code, R, rc, dm)
+                                    if g > b:
+                                        b = g
+                                        bx = min(max(qx, sxa), sxa + hx)
+                                        by = min(max(qy, sya), sya + hy)
+                            if b > L + eps:
+                                if b > U:
+                                    U = b
+                                    ux = bx
+                                    uy = by
+                                kept += 1
+                            elif b > Up:
                                 Up = b
                             continue
                         net = nets[i, j].ravel()
@@ -553,7 +588,7 @@ def _drop_one(nets, cmax, margin, z, x0, y0, dx, dy, bcell, bnode, B, code, R, r
 
 
 @njit(cache=True, parallel=True)
-def drop_bound(nets, cmax, margin, z, x0, y0, dx, dy, bcell, bnode, B, code, R, rc, eps, min_size, qx, qy,
+def drop_bound(nets, cmax, margin, sub, subidx, z, x0, y0, dx, dy, bcell, bnode, B, code, R, rc, eps, min_size, qx, qy,
                out, cxo, cyo, kept, chunk):
     """:func:`_drop_one` over every point, in chunks of ``chunk`` points (one stack per chunk)."""
     n = qx.shape[0]
@@ -570,7 +605,7 @@ def drop_bound(nets, cmax, margin, z, x0, y0, dx, dy, bcell, bnode, B, code, R, 
         half = np.empty((4, 16))
         sc = np.empty(12)
         for p in range(c * chunk, min(n, (c + 1) * chunk)):
-            _drop_one(nets, cmax, margin, z, x0, y0, dx, dy, bcell, bnode, B, code, R, rc, eps, min_size,
+            _drop_one(nets, cmax, margin, sub, subidx, z, x0, y0, dx, dy, bcell, bnode, B, code, R, rc, eps, min_size,
                       qx[p], qy[p], sn, sr, sm, sb, res, tv, tw, tmp, half, sc)
             out[p] = res[0]
             cxo[p] = res[1]

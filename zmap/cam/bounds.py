@@ -27,6 +27,7 @@ Where the surface comes from:
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -61,6 +62,8 @@ class BoundingSurface:
     z : ndarray (nx, ny) — the nodes, exact heights of the design (NaN: none).
     x0, y0, dx, dy : float — the node grid, mm.
     source : str — what the surface was made from.
+    sub, subidx : ndarray — flat cells as finer flat sub-cells: ``sub[subidx[ci, cj]]`` their
+        heights (n x n, NaN: none); ``subidx`` -1 for a patch.
     """
 
     nets: np.ndarray
@@ -72,10 +75,15 @@ class BoundingSurface:
     dx: float
     dy: float
     source: str
+    sub: np.ndarray = None
+    subidx: np.ndarray = None
 
     def __post_init__(self) -> None:
         from ._drop_kernels import block_max
 
+        if self.sub is None:
+            self.sub = np.zeros((0, 1, 1))
+            self.subidx = np.full(self.cmax.shape, -1, dtype=np.int64)
         top = np.where(np.isfinite(self.cmax), self.cmax + self.margin, -np.inf)
         self.bcell = np.empty(((top.shape[0] + _B - 1) // _B, (top.shape[1] + _B - 1) // _B))
         block_max(np.ascontiguousarray(top), _B, self.bcell)
@@ -210,8 +218,19 @@ def from_samples(F: np.ndarray, x0: float, y0: float, pitch: float, check: int, 
     nets[flat] = (smax + slope)[flat][:, None, None]
     margin[flat] = 1e-9
     BK.cell_max(nets, cmax)
+    # and finer: each fine sub-cell of a flat cell flat at its highest corner plus the rise
+    fi, fj = np.nonzero(flat)
+    subidx = np.full((ncx, ncy), -1, dtype=np.int64)
+    subidx[fi, fj] = np.arange(fi.size)
+    sub = np.empty((fi.size, check, check))
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an empty sub-cell: NaN, no surface
+        for a in range(check):
+            for b in range(check):
+                c4 = np.stack([F[fi * check + a + s0, fj * check + b + s1] for s0 in (0, 1) for s1 in (0, 1)])
+                sub[:, a, b] = np.nanmax(c4, axis=0) + slope[fi, fj]
     return BoundingSurface(np.ascontiguousarray(nets), cmax, np.ascontiguousarray(margin), z, x0, y0, float(pitch),
-                           float(pitch), source)
+                           float(pitch), source, sub, subidx)
 
 
 def drop_bound(bs: BoundingSurface, cutter: Any, x: np.ndarray, y: np.ndarray, *, eps: float = EPS,
@@ -236,7 +255,7 @@ def drop_bound(bs: BoundingSurface, cutter: Any, x: np.ndarray, y: np.ndarray, *
     cy = np.empty(n)
     kept = np.empty(n)
     if n:
-        BK.drop_bound(bs.nets, bs.cmax, bs.margin, bs.z, bs.x0, bs.y0, bs.dx, bs.dy, bs.bcell, bs.bnode, _B,
+        BK.drop_bound(bs.nets, bs.cmax, bs.margin, bs.sub, bs.subidx, bs.z, bs.x0, bs.y0, bs.dx, bs.dy, bs.bcell, bs.bnode, _B,
                       cut.code, cut.radius, cut.corner_radius, float(eps), float(min_size), qx, qy, out, cx, cy,
                       kept, max(16, min(1024, n // 64 + 1)))
     out[~np.isfinite(out)] = np.nan
