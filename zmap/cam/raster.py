@@ -5,9 +5,10 @@ each pass is sampled every ``step`` mm, dropped onto the design with :func:`drop
 (never below the true CL height: the CL points do not gouge), then thinned with a chord
 tolerance: a point is left out only if the straight feed that replaces it stays within ``tol``
 above every dropped CL height it spans and never below one. Between two CL points a feed can
-still pass under the CL surface by its sag, ``step**2 / (8 r)`` over a convex edge for a
-cutter of corner radius ``r`` (ball: 4.2e-4 mm for a 6 mm ball at step 0.1). Where no surface
-lies under the cutter a pass is broken, or the empty space is a floor (``outside``). Two pass ends are joined by a straight
+still pass under the CL surface (by ``chord**2 / (8 r)`` over a convex edge for a cutter of
+corner radius ``r``): where it would by more than ``sag`` at a quarter, half or three
+quarters of the way (a steep stretch, a wall's top edge), the middle is dropped and added. Where no surface lies under the
+cutter a pass is broken, or the empty space is a floor (``outside``). Two pass ends are joined by a straight
 feed when that link stays above the CL surface along it (checked by dropping the cutter
 every ``step``); otherwise by a safe retract: G0 up to the clearance height, G0 across, and
 a feed down at the plunge rate.
@@ -155,7 +156,7 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
                    bounds: Any = None, step: float | None = None, feed: float = 1000.0,
                    plunge_feed: float | None = None, spindle: float = 10000.0, clearance: float = 5.0,
                    name: str = "design", pitch: float | None = None, outside: str | float = "skip",
-                   progress: Any = None) -> RasterProgram:
+                   sag: float = 1e-3, progress: Any = None) -> RasterProgram:
     """A zig-zag finishing program over a design, from its drop-cutter CL surface.
 
     Parameters
@@ -179,6 +180,10 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
         "lowest" treats the empty space as a floor at the lowest CL height of the passes, a
         number as a floor at that z: every CL point is then at least the floor and passes run
         on across gaps. The design itself is never cut into either way.
+    sag : float — mm; where the straight feed between two CL points would pass more than this
+        under the CL surface at a quarter, half or three quarters of the way (a steep or sharply
+        curved stretch: over a wall's top edge), the middle is dropped and added, down to
+        ``step / 256``.
     progress : callable, optional — ``progress(done, total)`` after each block of passes.
 
     Returns
@@ -249,24 +254,26 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
         floor = float(np.nanmin(Z)) if outside == "lowest" else float(outside)
         Z = np.where(inside, np.fmax(Z, floor), np.nan)
     safe = float(np.nanmax(Z)) + clearance
-    # passes: runs of finite CL, thinned, zig-zag
-    passes = []
+    # runs of finite CL along each pass, then points added where a feed would sag under the
+    # CL surface, then thinned; zig-zag
+    runs = []
     for j in range(nv):
-        z = Z[:, j]
-        ok = np.isfinite(z)
-        if not ok.any():
-            continue
+        ok = np.isfinite(Z[:, j])
         edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
-        runs = list(zip(edges[::2], edges[1::2]))
-        if len(passes) % 2 == 1:
-            runs = runs[::-1]
-        for a, e in runs:
-            idx = np.arange(a, e)
-            if len(passes) % 2 == 1:
-                idx = idx[::-1]
-            keep = simplify_chords(us[idx], z[idx], tol, below=0.0)
-            pts = np.column_stack([X[idx[keep], j], Y[idx[keep], j], z[idx[keep]]])
-            passes.append(pts)
+        runs += [(j, us[a:e].copy(), Z[a:e, j].copy()) for a, e in zip(edges[::2], edges[1::2])]
+    added = _refine_sag(model, cut, runs, ca, sa, vs, pitch, floor, sag)
+    passes = []
+    by_line: dict = {}
+    for j, u, z in runs:
+        by_line.setdefault(j, []).append((u, z))
+    for j in sorted(by_line):
+        flip = len(passes) % 2 == 1  # zig-zag: every other pass runs back
+        for u, z in (by_line[j][::-1] if flip else by_line[j]):
+            if flip:
+                u, z = u[::-1], z[::-1]
+            keep = simplify_chords(u, z, tol, below=0.0)
+            uu = u[keep]
+            passes.append(np.column_stack([uu * ca - vs[j] * sa, uu * sa + vs[j] * ca, z[keep]]))
     c = cut
     kind = {"flat": "flat end mill", "ball": "ball end mill", "bull": "bull nose"}[c.kind]
     head = [f"(zmap toolpath: raster finishing of {name})",
@@ -345,7 +352,44 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
               "plunge_feed": plunge_feed, "spindle": spindle, "clearance_z": safe, "bounds": b,
               "outside": outside if floor is None else {"rule": outside if outside == "lowest" else "floor",
                                                         "floor_z": floor}}
-    stats = {"passes": len(passes), "cl_points": int(np.isfinite(Z).sum()),
+    stats = {"passes": len(passes), "cl_points": int(np.isfinite(Z).sum()) + added,
              "kept_points": int(sum(len(p) for p in passes)), "retracts": retracts, "links": links,
              "seconds": round(time.perf_counter() - t0, 3)}
     return RasterProgram(text, passes, scallop, params, stats)
+
+
+def _refine_sag(model: Any, cut: Any, runs: list, ca: float, sa: float, vs: np.ndarray, pitch: Any,
+                floor: float | None, sag: float, rounds: int = 8) -> int:
+    """Add CL points in place where a feed between two would pass more than ``sag`` under the
+    CL surface at a quarter, the middle or three quarters of the way (all runs' tests dropped
+    together, ``rounds`` times at most; the middle is added); the number added."""
+    added = 0
+    fr = np.array([0.25, 0.5, 0.75])
+    for _ in range(rounds):
+        segs = [(q, len(u) - 1) for q, (_j, u, _z) in enumerate(runs) if len(u) >= 2]
+        if not segs:
+            break
+        ua = np.concatenate([runs[q][1][:-1] for q, _m in segs])
+        ub = np.concatenate([runs[q][1][1:] for q, _m in segs])
+        za = np.concatenate([runs[q][2][:-1] for q, _m in segs])
+        zb = np.concatenate([runs[q][2][1:] for q, _m in segs])
+        v = np.concatenate([np.full(m, vs[runs[q][0]]) for q, m in segs])
+        ut = ua[:, None] + fr[None, :] * (ub - ua)[:, None]
+        vt = np.broadcast_to(v[:, None], ut.shape)
+        cl = drop_cutter(model, cut, ut * ca - vt * sa, ut * sa + vt * ca, pitch=pitch)
+        if floor is not None:
+            cl = np.fmax(cl, floor)
+        chord = za[:, None] + fr[None, :] * (zb - za)[:, None]
+        need = (np.isfinite(cl) & (cl > chord + sag)).any(axis=1)
+        if not need.any():
+            break
+        added += int(need.sum())
+        start = 0
+        for q, m in segs:
+            sel = need[start:start + m]
+            if sel.any():
+                k = np.flatnonzero(sel)
+                j, u, z = runs[q]
+                runs[q] = (j, np.insert(u, k + 1, ut[start + k, 1]), np.insert(z, k + 1, cl[start + k, 1]))
+            start += m
+    return added

@@ -10,7 +10,7 @@ from tests.conftest import DATA
 from zmap import ZMap
 from zmap.cam import drop_cutter
 from zmap.cam._reference import drop_cutter_reference
-from zmap.interpolate import bezier
+from tests.zmap.cam.brute import brute_zmap as _brute_zmap
 from zmap.sim.tools import Cutter, parse_tool_spec
 
 
@@ -166,33 +166,6 @@ def test_brep_walls_edges_and_corners(boss):
     want = 16 - env(d)
     assert (got - want >= -1e-4).all()
     assert (got - want <= env(d) - env(np.clip(d - 0.1 * np.sqrt(2), 0, 3)) + 1e-4).all()
-
-
-def _brute_zmap(zm, c, x, y, h=0.01):
-    """Independent CL over a z-map: every node under the cutter and the Bezier surface
-    (:func:`zmap.interpolate.bezier`) on an ``h`` lattice over the disk and its rim."""
-    R = c.radius
-    g = np.arange(-R, R + h / 2, h)
-    U, V = np.meshgrid(g, g, indexing="ij")
-    m = U * U + V * V <= R * R
-    th = np.linspace(0, 2 * np.pi, int(2 * np.pi * R / h), endpoint=False)
-    U = np.r_[U[m], R * np.cos(th)]
-    V = np.r_[V[m], R * np.sin(th)]
-    env = np.nan_to_num(_env(c, np.minimum(np.hypot(U, V), R)), nan=np.inf)
-    nx, ny = zm.z.shape
-    out = np.empty(len(x))
-    for k, (qx, qy) in enumerate(zip(x, y)):
-        hh = bezier(zm, qx + U, qy + V)
-        best = np.nanmax(hh - env) if np.isfinite(hh).any() else -np.inf
-        i = np.arange(max(0, int(np.ceil((qx - R - zm.x0) / zm.dx))), min(nx, int((qx + R - zm.x0) / zm.dx) + 1))
-        j = np.arange(max(0, int(np.ceil((qy - R - zm.y0) / zm.dy))), min(ny, int((qy + R - zm.y0) / zm.dy) + 1))
-        I, J = np.meshgrid(i, j, indexing="ij")
-        dd = np.hypot(zm.x0 + I * zm.dx - qx, zm.y0 + J * zm.dy - qy)
-        z = np.where(dd <= R, zm.z[I, J], np.nan)
-        if np.isfinite(z).any():
-            best = max(best, np.nanmax(z - np.nan_to_num(_env(c, np.minimum(dd, R)), nan=np.inf)))
-        out[k] = best if np.isfinite(best) else np.nan
-    return out
 
 
 @settings(max_examples=8, deadline=None, derandomize=True)
