@@ -16,9 +16,13 @@ Where the surface comes from:
 * any other design (a :class:`~zmap.model.PrecisionModel`, a STEP part's exact heights, a
   callable): :func:`from_heights` samples it on a grid (the nodes are exact design heights)
   and on a grid ``check`` times finer; the margin of a cell is how far the design's samples
-  inside it rise above the patch through its nodes, times :data:`MARGIN_FACTOR`. A cell whose
-  margin is more than :data:`ROUGH` (a wall, a step, an edge between the nodes) is bounded by a
-  flat patch at its highest sample or patch point plus margin, the safe side of a step.
+  inside it rise above the patch through its nodes, times :data:`MARGIN_FACTOR`. A cell with a
+  wall or a step inside or beside it (two neighbouring samples differ by more than :data:`WALL`
+  times their spacing) where the samples stray from the patch by more than :data:`ROUGH`, or one whose
+  samples stray far, is bounded by flat sub-cells, one per fine spacing, each at its highest
+  corner sample plus the cell's steepest rise between two samples (walls left out): the safe
+  side of a step, high by what moving the wall one fine spacing (diagonally) toward the cutter
+  gives.
   Cells with part of the design missing (the outline) are bounded the same way by the samples
   they have. The answer is then as sure as the samples: a feature narrower than the fine
   grid's spacing between two samples can still be under-rated.
@@ -210,11 +214,26 @@ def from_samples(F: np.ndarray, x0: float, y0: float, pitch: float, check: int, 
     margin = np.where(full, np.maximum(np.nan_to_num(rise, neginf=0.0), 0.0) * MARGIN_FACTOR, 0.0)
     # a rise this small is rounding (the samples and the patch agree): the cell counts as exact
     margin[margin < TINY] = 0.0
-    # a step or a wall between the nodes (the patch through them strays from the samples, or
-    # its control net far above them), or a cell on the outline: a flat patch on its highest
-    # sample raised by its steepest rise from one sample to the next, the safe side of a step
+    # a step or a wall between the nodes (a jump between two samples and the patch through the
+    # nodes strays from them, or it strays far, or its control net is far above them), or a
+    # cell on the outline: flat, at its highest sample raised by its steepest rise from one
+    # sample to the next, the safe side of a step
     with np.errstate(invalid="ignore"):
-        flat = (full & ((dev > ROUGH) | (cmax - smax > 10 * ROUGH))) | (~full & np.isfinite(smax))
+        # a jump between two neighbouring samples steeper than WALL: a wall or a step inside
+        jump = np.zeros((ncx, ncy), dtype=bool)
+        for Dd, (ax, bx) in ((np.abs(np.diff(F, axis=0)), (check, check + 1)),
+                             (np.abs(np.diff(F, axis=1)), (check + 1, check))):
+            for a in range(ax):
+                for b in range(bx):
+                    jump |= Dd[a:a + ncx * check:check, b:b + ncy * check:check][:ncx, :ncy] > WALL * h
+        # and the cells beside it (the node slopes across a step bend their patches too)
+        near = jump.copy()
+        near[1:, :] |= jump[:-1, :]
+        near[:-1, :] |= jump[1:, :]
+        near[:, 1:] |= near[:, :-1].copy()
+        near[:, :-1] |= near[:, 1:].copy()
+        flat = ((full & ((near & (dev > ROUGH)) | (dev > 100 * ROUGH) | (cmax - smax > 10 * ROUGH)))
+                | (~full & np.isfinite(smax)))
     nets[flat] = (smax + slope)[flat][:, None, None]
     margin[flat] = 1e-9
     BK.cell_max(nets, cmax)

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..grid import atomic_write
+from ..grid import ZMap, atomic_write
 from .drop import as_cutter, drop_cutter
 
 __all__ = ["raster_program", "RasterProgram", "scallop_height", "simplify_chords"]
@@ -235,6 +235,13 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
     Y = U * sa + V * ca
     inside = (X >= b[0] - 1e-9) & (X <= b[2] + 1e-9) & (Y >= b[1] - 1e-9) & (Y <= b[3] + 1e-9)
     Z = np.full(X.shape, np.nan)
+    if not isinstance(model, ZMap):
+        # one bounding surface over the whole region (a design that is sampled: every drop
+        # below, passes, links and the sag test, then reuses it)
+        from .drop import bounding_surface
+
+        pad = cut.radius + 2.0 * max(pitch or 0.0, 1.0)
+        bounding_surface(model, (b[0] - pad, b[1] - pad, b[2] + pad, b[3] + pad), pitch=pitch)
     cols = np.array_split(np.arange(nv), max(1, min(nv, 10, int(np.ceil(X.size / 200_000)))))
     for q, cidx in enumerate(cols):
         sel = inside[:, cidx]
@@ -369,27 +376,47 @@ def _refine_sag(model: Any, cut: Any, runs: list, ca: float, sa: float, vs: np.n
         segs = [(q, len(u) - 1) for q, (_j, u, _z) in enumerate(runs) if len(u) >= 2]
         if not segs:
             break
-        ua = np.concatenate([runs[q][1][:-1] for q, _m in segs])
-        ub = np.concatenate([runs[q][1][1:] for q, _m in segs])
-        za = np.concatenate([runs[q][2][:-1] for q, _m in segs])
-        zb = np.concatenate([runs[q][2][1:] for q, _m in segs])
-        v = np.concatenate([np.full(m, vs[runs[q][0]]) for q, m in segs])
+        # where the CL is straight (second differences at both ends within sag) and not
+        # steep, a feed cannot leave it by more: only the other segments are tested
+        test = np.concatenate([_bent(runs[q][1], runs[q][2], sag) for q, _m in segs])
+        if not test.any():
+            break
+        ua = np.concatenate([runs[q][1][:-1] for q, _m in segs])[test]
+        ub = np.concatenate([runs[q][1][1:] for q, _m in segs])[test]
+        za = np.concatenate([runs[q][2][:-1] for q, _m in segs])[test]
+        zb = np.concatenate([runs[q][2][1:] for q, _m in segs])[test]
+        v = np.concatenate([np.full(m, vs[runs[q][0]]) for q, m in segs])[test]
         ut = ua[:, None] + fr[None, :] * (ub - ua)[:, None]
         vt = np.broadcast_to(v[:, None], ut.shape)
         cl = drop_cutter(model, cut, ut * ca - vt * sa, ut * sa + vt * ca, pitch=pitch)
         if floor is not None:
             cl = np.fmax(cl, floor)
         chord = za[:, None] + fr[None, :] * (zb - za)[:, None]
-        need = (np.isfinite(cl) & (cl > chord + sag)).any(axis=1)
-        if not need.any():
+        bad = (np.isfinite(cl) & (cl > chord + sag)).any(axis=1)
+        if not bad.any():
             break
-        added += int(need.sum())
+        added += int(bad.sum())
+        need = np.zeros(test.size, dtype=bool)
+        need[test] = bad
+        at = np.full(test.size, -1)
+        at[test] = np.arange(int(test.sum()))
         start = 0
         for q, m in segs:
             sel = need[start:start + m]
             if sel.any():
                 k = np.flatnonzero(sel)
                 j, u, z = runs[q]
-                runs[q] = (j, np.insert(u, k + 1, ut[start + k, 1]), np.insert(z, k + 1, cl[start + k, 1]))
+                w = at[start + k]
+                runs[q] = (j, np.insert(u, k + 1, ut[w, 1]), np.insert(z, k + 1, cl[w, 1]))
             start += m
     return added
+
+
+def _bent(u: np.ndarray, z: np.ndarray, sag: float) -> np.ndarray:
+    """Per segment of a run: whether the CL bends at either end (second difference over sag) or
+    climbs steeper than 1:1 (where a feed could leave the CL surface by more than ``sag``)."""
+    d2 = np.zeros(len(u))
+    if len(u) >= 3:
+        d2[1:-1] = np.abs(z[:-2] - 2 * z[1:-1] + z[2:])
+    steep = np.abs(np.diff(z)) > np.abs(np.diff(u))
+    return steep | (d2[:-1] > sag) | (d2[1:] > sag)
