@@ -11,8 +11,8 @@ none): its contacts are exact on them (a flat cell's best point is its point nea
 For one axis position ``q`` the cutter-location height is the largest contact
 ``g(u) = h(u) - envelope(|u - q|)`` over the disk. The kernel keeps two numbers:
 
-* a lower bound ``L``: the best contact at exact points of the design (the nodes, and the
-  corners of sub-patches of exact cells, which lie on the patch);
+* a lower bound ``L``: the best contact at points of the design (the nodes) and of the patches
+  (the corners of sub-patches, which lie on the patch);
 * an upper bound of every cell that may beat it. Over a cell, ``envelope(|u - q|)`` is a convex
   function of ``u`` (a convex non-decreasing profile of a norm), so it lies above its tangent
   plane ``T`` at any point of the disk; a Bezier patch minus a plane is a Bezier patch whose
@@ -24,7 +24,8 @@ Cells whose bound beats ``L + eps`` are split (de Casteljau at the middle, four 
 depth first, the best child on top, until none does; a cell too small to split further, or one
 that finds the stack full, keeps its bound. Every cell ends split, dropped with its bound or
 kept with it, so the largest of ``L`` and those bounds is never below the true height; on exact
-cells it is at most ``L + eps``, on cells with a margin above it by about their margin.
+cells it is at most ``L + eps``, on cells with a margin above it by about their margin (a cell
+is split while its patch's bound beats ``L``, and its margin rides on every bound it leaves).
 """
 
 from __future__ import annotations
@@ -372,12 +373,15 @@ def _drop_one(nets, cmax, margin, sub, subidx, z, x0, y0, dx, dy, bcell, bnode, 
                 for i in range(ia, ib + 1):
                     xa = x0 + i * dx
                     for j in range(ja, jb + 1):
-                        hm = cmax[i, j] + margin[i, j]
+                        # a cell is split while its patch's bound beats L; its margin rides
+                        # on every bound it leaves behind
+                        mg = margin[i, j]
+                        hm = cmax[i, j]
                         if not (hm > L + eps):
-                            if hm > L:  # may still lie above L: its envelope-aware bound counts
+                            if hm + mg > L:  # may still lie above L: its envelope-aware bound counts
                                 ya = y0 + j * dy
                                 dm = _dmin(qx, qy, xa, ya, xa + dx, ya + dy)
-                                b = hm - _env(code, R, rc, min(dm, R))
+                                b = hm + mg - _env(code, R, rc, min(dm, R))
                                 if dm <= R and b > Up:
                                     Up = b
                             continue
@@ -387,8 +391,8 @@ def _drop_one(nets, cmax, margin, sub, subidx, z, x0, y0, dx, dy, bcell, bnode, 
                             continue
                         b = hm - _env(code, R, rc, dm)
                         if b <= L + eps:
-                            if b > Up:
-                                Up = b
+                            if b + mg > Up:
+                                Up = b + mg
                             continue
                         k = subidx[i, j]
                         if k >= 0:
@@ -424,11 +428,12 @@ def _drop_one(nets, cmax, margin, sub, subidx, z, x0, y0, dx, dy, bcell, bnode, 
                                 Up = b
                             continue
                         net = nets[i, j].ravel()
-                        b = _tangent_bound(net, xa, ya, dx, dy, qx, qy, code, R, rc, Rt, tv, tw) + margin[i, j]
+                        b = _tangent_bound(net, xa, ya, dx, dy, qx, qy, code, R, rc, Rt, tv, tw)
                         if b <= L + eps:
-                            if b > Up:
-                                Up = b
+                            if b + mg > Up:
+                                Up = b + mg
                             continue
+                        b += mg
                         if top == sn.shape[0]:
                             if b > U:
                                 U = b
@@ -466,7 +471,8 @@ def _drop_one(nets, cmax, margin, sub, subidx, z, x0, y0, dx, dy, bcell, bnode, 
     while top > 0:
         top -= 1
         b = sb[top]
-        if b <= L + eps:
+        mg = sm[top]
+        if b - mg <= L + eps:
             if b > Up:
                 Up = b
             continue
@@ -474,10 +480,7 @@ def _drop_one(nets, cmax, margin, sub, subidx, z, x0, y0, dx, dy, bcell, bnode, 
         ya = sr[top, 1]
         sx = sr[top, 2]
         sy = sr[top, 3]
-        mg = sm[top]
-        exact = mg == 0.0
-        small = sx < min_size if exact else sx < 0.126 * dx
-        if small or top + 4 > sn.shape[0]:
+        if sx < min_size or top + 4 > sn.shape[0]:
             if b > U:
                 U = b
                 ux = xa + 0.5 * sx
@@ -516,44 +519,43 @@ def _drop_one(nets, cmax, margin, sub, subidx, z, x0, y0, dx, dy, bcell, bnode, 
                 kb[c] = -np.inf
                 continue
             net = half[row]
-            if exact:
-                # the child's corners lie on the design
-                for kk in range(2):
-                    for mm in range(2):
-                        vx = cxa + kk * hx
-                        vy = cya + mm * hy
-                        ddx = vx - qx
-                        ddy = vy - qy
-                        d = math.sqrt(ddx * ddx + ddy * ddy)
-                        if d <= R:
-                            g = net[12 * kk + 3 * mm] - _env(code, R, rc, d)
-                            if g > L:
-                                L = g
-                                cx = vx
-                                cy = vy
-                # across the rim: the rim point toward the child's centre, exact too (a
-                # contact on the rim is between the corners at every size)
-                ox = cxa + 0.5 * hx - qx
-                oy = cya + 0.5 * hy - qy
-                d = math.sqrt(ox * ox + oy * oy)
-                if d > 0.0 and _dmin(qx, qy, cxa, cya, cxa + hx, cya + hy) < R < d + 0.7072 * (hx + hy):
-                    vx = qx + ox * R / d
-                    vy = qy + oy * R / d
-                    u = (vx - cxa) / hx
-                    w_ = (vy - cya) / hy
-                    if 0.0 <= u <= 1.0 and 0.0 <= w_ <= 1.0:
-                        g = _net_at(net, u, w_) - _env(code, R, rc, R)
+            # the child's corners lie on the patch
+            for kk in range(2):
+                for mm in range(2):
+                    vx = cxa + kk * hx
+                    vy = cya + mm * hy
+                    ddx = vx - qx
+                    ddy = vy - qy
+                    d = math.sqrt(ddx * ddx + ddy * ddy)
+                    if d <= R:
+                        g = net[12 * kk + 3 * mm] - _env(code, R, rc, d)
                         if g > L:
                             L = g
                             cx = vx
                             cy = vy
+            # across the rim: the rim point toward the child's centre, exact too (a
+            # contact on the rim is between the corners at every size)
+            ox = cxa + 0.5 * hx - qx
+            oy = cya + 0.5 * hy - qy
+            d = math.sqrt(ox * ox + oy * oy)
+            if d > 0.0 and _dmin(qx, qy, cxa, cya, cxa + hx, cya + hy) < R < d + 0.7072 * (hx + hy):
+                vx = qx + ox * R / d
+                vy = qy + oy * R / d
+                u = (vx - cxa) / hx
+                w_ = (vy - cya) / hy
+                if 0.0 <= u <= 1.0 and 0.0 <= w_ <= 1.0:
+                    g = _net_at(net, u, w_) - _env(code, R, rc, R)
+                    if g > L:
+                        L = g
+                        cx = vx
+                        cy = vy
             kb[c] = _tangent_bound(net, cxa, cya, hx, hy, qx, qy, code, R, rc, Rt, tv, tw) + mg
         # push the children that may beat L, worst first (the best ends on top)
         for _ in range(4):
             w = -1
             wv = np.inf
             for c in range(4):
-                if kb[c] > L + eps and kb[c] < wv:
+                if kb[c] - mg > L + eps and kb[c] < wv:
                     wv = kb[c]
                     w = c
             if w < 0:
