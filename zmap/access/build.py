@@ -13,17 +13,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ZMapError
+from ._common import AccessModelError, _ranges  # noqa: F401  (re-exported: the access modules raise it)
 from .directions import DirectionSet, direction_set
 
 EXTERIOR, BOUNDARY, INTERIOR, UNPAINTED = 0, 1, 2, 3
 #: Largest number of voxels a map may hold (about 1 GB of state and index arrays).
 MAX_VOXELS = 200_000_000
-
-
-class AccessModelError(ZMapError, ValueError):
-    """A part whose voxel model fails the paper's checks (open shell, pieces, faces with two
-    outward sides) or an access request that cannot be answered (bad d, d', q or tool)."""
-
 
 
 @dataclass
@@ -639,18 +634,6 @@ def vl_all(ds: DirectionSet) -> np.ndarray:
     return out
 
 
-def _ranges(ids) -> str:
-    ids = sorted(int(i) for i in ids)
-    out = []
-    start = prev = ids[0]
-    for i in ids[1:] + [None]:
-        if i is not None and i == prev + 1:
-            prev = i
-            continue
-        out.append(str(start) if start == prev else f"{start}-{prev}")
-        if i is not None:
-            start = prev = i
-    return ",".join(out[:8]) + (",..." if len(out) > 8 else "")
 
 
 def paint(state: np.ndarray) -> np.ndarray:

@@ -43,7 +43,7 @@ def check_solid(solid, floor) -> tuple[str, float | None]:
     >>> check_solid("below", -5)
     ('below', -5.0)
     """
-    from .build import AccessModelError
+    from ._common import AccessModelError
 
     if solid not in SOLID_RULES:
         raise AccessModelError(f"solid={solid!r} is not one of " + ", ".join(repr(s) for s in SOLID_RULES))
@@ -185,7 +185,7 @@ def _advice(u: dict) -> str:
 
 
 def _faces(ids) -> str:
-    from .build import _ranges
+    from ._common import _ranges
 
     return _ranges(ids) if len(ids) else "-"
 

@@ -262,10 +262,10 @@ def drop_bound(bs: BoundingSurface, cutter: Any, x: np.ndarray, y: np.ndarray, *
     the cells whose bound was kept without being resolved to ``eps`` (0 on exact cells but for
     a contact sharper than ``min_size``).
     """
+    from ..sim.tools import parse_tool_spec
     from . import _bound_kernels as BK
-    from .drop import as_cutter
 
-    cut = as_cutter(cutter)
+    cut = parse_tool_spec(cutter) if isinstance(cutter, str) else cutter
     qx = np.ascontiguousarray(np.ravel(x), dtype=np.float64)
     qy = np.ascontiguousarray(np.ravel(y), dtype=np.float64)
     n = qx.size
