@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ZMapError
 from ._common import AccessModelError, _ranges  # noqa: F401  (re-exported: the access modules raise it)
 from .directions import DirectionSet, direction_set
 
