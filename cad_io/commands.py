@@ -288,12 +288,11 @@ def refine_cmd(zmap_path, part_path, tol, method, output, strict=False, partial=
                    f"{ez.n_points:,} e-points at <= {ez.interval:g} mm; {ez.pruned:,} candidate edges dropped "
                    f"(the base holds them)")
         click.echo(f"check    {ez.n_patches:,} cells patched ({ez.n_lattices:,} by a lattice, "
-                   f"{ez.patch_nbytes / 1024:.1f} KB), "
+                   f"{size(ez.patch_nbytes)}), "
                    f"{ez.unresolved:,} still off the exact surface at a test point")
     else:
         click.echo(f"cz       {len(model.cz)} CZ-maps, {sum(c.z.size for c in model.cz):,} points")
-    click.echo(f"memory   base {nb['base'] / 1024:.1f} KB, {method} {nb[method] / 1024:.1f} KB, "
-               f"total {nb['total'] / 1024:.1f} KB")
+    click.echo(f"memory   base {size(nb['base'])}, {method} {size(nb[method])}, total {size(nb['total'])}")
     click.echo(f"sampled  {info['sampled']:,} points in {info['seconds']:.2f} s; "
                f"{info['facet']:,} from facet heights where the Jacobian inversion failed, "
                f"{info['empty']:,} without surface")
