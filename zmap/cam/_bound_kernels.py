@@ -35,25 +35,12 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..sim._tool_kernels import _envelope as _env  # the lower envelope, d <= R
+
 __all__ = ["cell_nets", "cell_max", "drop_bound", "patch_heights", "STACK"]
 
 #: entries of the per-thread split stack (each 22 floats)
 STACK = 4096
-
-
-@njit(cache=True)
-def _env(code, R, rc, d):
-    """The cutter's lower envelope at distance ``d <= R`` from the axis (0 flat, 1 ball, 2 bull)."""
-    if code == 0:
-        return 0.0
-    r0 = R - rc
-    if d <= r0:
-        return 0.0
-    t = d - r0
-    q = rc * rc - t * t
-    if q < 0.0:
-        q = 0.0
-    return rc - math.sqrt(q)
 
 
 @njit(cache=True)
