@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(PY) -m zmap.demo out
+	MPLBACKEND=Agg $(PY) -m zmap.demo out
 
 test: $(STAMP)
 	$(PY) -m pytest -n 2 --dist loadgroup -q --durations=20

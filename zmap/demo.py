@@ -89,8 +89,5 @@ def run(out_dir: str | Path) -> list[Path]:
     return written
 
 
-if __name__ == "__main__":
-    import matplotlib
-
-    matplotlib.use("Agg")  # the command draws off screen; a library caller keeps its backend
+if __name__ == "__main__":  # draws off screen on a machine without a display (matplotlib's own fallback)
     run(sys.argv[1] if len(sys.argv) > 1 else "out")
