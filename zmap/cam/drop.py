@@ -270,7 +270,6 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
     >>> round(float(drop_cutter(dome, "ball:6", 0.0, 0.0)), 4)   # a z-map: exact
     5.0
     """
-    from ..grid import ZMap
     from . import _drop_kernels as K
 
     cut = as_cutter(cutter)
@@ -306,9 +305,8 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
         if zm is not None and pitch is None:
             Z, x0, y0, dx, dy = np.ascontiguousarray(zm.z, dtype=np.float64), zm.x0, zm.y0, zm.dx, zm.dy
         else:
-            if zm is None and not isinstance(model, ZMap):
-                fast = _fast_heights(model)
-                hf = fast or hf
+            if zm is None:  # a precision model: sampled through its numba kernel
+                hf = _fast_heights(model) or hf
             p = pitch or min(natural or R / 8, R / 8)
             x0, y0 = qx.min() - R - p, qy.min() - R - p
             nx = int(math.ceil((qx.max() + R + p - x0) / p)) + 1
