@@ -24,7 +24,9 @@
 * ``finish_die_s``: ``zmap toolpath data/step/bug27693_cornetta-step.stp --tool ball:6
   --stepover 0.5 --tol 0.002`` (the whole die, 280 x 160 mm, from the STEP part itself), timed
   as a command; ``finish_die_max_gouge_mm``: the same OCC check on ``finish_die_checked_points``
-  of its CL points.
+  of its CL points (random ones and the steepest); ``finish_die_max_below_mm`` and
+  ``finish_die_above_p50/75/90_mm``: its CL heights less a brute force on the part's exact
+  heights (0.02 mm lattice on the disk, 0.002 mm around the best) on ``finish_die_truth_points``.
 * ``compare_s``: a full :func:`zmap.verify.compare` (deviation, classes, regions, first
   offending stage and line of every gouge ray) of ``flower_mold.nc``'s stock at the end
   (CAMotics stock and tool, 0.26 mm rays, treap history) against a design z-map at the same
@@ -153,10 +155,51 @@ def finish_die(args, res) -> None:
     res["finish_die_cl_points_kept"] = int(len(pts))
     rng = np.random.default_rng(1)
     pick = rng.choice(len(pts), min(args.die_check, len(pts)), replace=False)
+    # and as many of the steepest (the largest climb to the next point: walls and edges)
+    climb = np.abs(np.diff(pts[:, 2])) / np.maximum(np.hypot(*np.diff(pts[:, :2], axis=0).T), 1e-9)
+    pick = np.unique(np.r_[pick, np.argsort(climb)[-min(args.die_check, len(climb)):]])
     part = cad_io.read_step(DIE)
-    g = part_gouge(part, parse_tool_spec("ball:6"), pts[pick, 0], pts[pick, 1], pts[pick, 2])
+    ball = parse_tool_spec("ball:6")
+    g = part_gouge(part, ball, pts[pick, 0], pts[pick, 1], pts[pick, 2])
     res["finish_die_checked_points"] = int(pick.size)
     res["finish_die_max_gouge_mm"] = float(np.nanmax(g))
+    # signed error against a brute force on the part's exact heights (how high the program
+    # runs: the certified drop is never low, and high beside walls)
+    some = rng.choice(len(pts), min(args.die_truth, len(pts)), replace=False)
+    ref = brute_cl(part, ball.radius, pts[some, 0], pts[some, 1])
+    d = (pts[some, 2] - ref)[np.isfinite(ref)]
+    res["finish_die_truth_points"] = int(d.size)
+    res["finish_die_max_below_mm"] = float(max(0.0, -d.min()))
+    for q in (50, 75, 90):
+        res[f"finish_die_above_p{q}_mm"] = round(float(np.percentile(d, q)), 5)
+
+
+def brute_cl(part, R: float, x: np.ndarray, y: np.ndarray, h: float = 0.02) -> np.ndarray:
+    """A ball's CL height at each (x, y) by brute force on the part's exact top-most heights:
+    every point of an ``h`` lattice on the disk, then a 0.002 mm lattice around the best; NaN
+    where no part lies under the disk. Shares no code with zmap.cam."""
+    from cad_io.sampler import height_function
+
+    hf = height_function(part)
+    g = np.arange(-R, R + h / 2, h)
+    f = np.arange(-0.04, 0.0401, 0.002)
+    out = np.full(len(x), np.nan)
+    for k in range(len(x)):
+        best = -np.inf
+        for cx, cy, grid in ((x[k], y[k], g), (None, None, f)):
+            if cx is None:
+                if not np.isfinite(best):
+                    break
+                cx, cy = bx, by
+            U, V = np.meshgrid(cx + grid, cy + grid, indexing="ij")
+            d = np.hypot(U - x[k], V - y[k])
+            m = d <= R
+            cl = hf(U[m], V[m]) - (R - np.sqrt(R * R - d[m] ** 2))
+            if np.isfinite(cl).any() and np.nanmax(cl) > best:
+                i = int(np.nanargmax(cl))
+                best, bx, by = float(cl[i]), U[m][i], V[m][i]
+        out[k] = best if np.isfinite(best) else np.nan
+    return out
 
 
 def main() -> None:
@@ -169,7 +212,12 @@ def main() -> None:
                     help="grid side (n x n) of the discrete-phase figure cl_discrete_pps")
     ap.add_argument("--part-points", type=int, default=200,
                     help="CL points checked against the exact part (OCC distance), ours and OpenCAMLib's")
-    ap.add_argument("--die-check", type=int, default=300, help="CL points of the whole-die program checked")
+    ap.add_argument("--die-check", type=int, default=500,
+                    help="random CL points of the whole-die program checked against the part by OCC distance, "
+                         "and as many of the steepest")
+    ap.add_argument("--die-truth", type=int, default=100,
+                    help="random CL points of the whole-die program against a brute force on the part's exact heights")
+    ap.add_argument("--only-die", action="store_true", help="the whole-die program alone")
     ap.add_argument("--no-die", action="store_true", help="skip the whole-die program (finish_die_s)")
     args = ap.parse_args()
     from zmap.cam import drop_cutter
@@ -177,6 +225,10 @@ def main() -> None:
     from zmap.sim.tools import parse_tool_spec
 
     res: dict = {"machine_cpus": os.cpu_count()}
+    if args.only_die:
+        finish_die(args, res)
+        print(json.dumps(res, indent=1))
+        return
     log("building the die's precision model ...")
     t = time.perf_counter()
     part, model = die_model()

@@ -200,24 +200,16 @@ def from_samples(F: np.ndarray, x0: float, y0: float, pitch: float, check: int, 
                 np.fmax(rise, d, out=rise)
                 np.fmax(dev, np.abs(d), out=dev)
                 np.fmax(smax, f, out=smax)
-        # the steepest slope between neighbouring samples, a jump (a wall: steeper than
-        # WALL) left out: how far the design can rise between a sample and the next
-        slope = np.zeros((ncx, ncy))
-        for Dd, (ax, bx) in ((np.abs(np.diff(F, axis=0)), (check, check + 1)),
-                             (np.abs(np.diff(F, axis=1)), (check + 1, check))):
-            Dd = np.where(Dd <= WALL * h, Dd, 0.0)
-            for a in range(ax):
-                for b in range(bx):
-                    d = Dd[a:a + ncx * check:check, b:b + ncy * check:check][:ncx, :ncy]
-                    np.fmax(slope, d, out=slope)
     full = np.isfinite(cmax)
-    margin = np.where(full, np.maximum(np.nan_to_num(rise, neginf=0.0), 0.0) * MARGIN_FACTOR, 0.0)
+    # the design can rise above its patch between two samples where the samples lie below it
+    # too (a bend the cubic does not follow swings the error both ways): the margin takes
+    # the samples' largest distance from the patch either side
+    margin = np.where(full, np.maximum(np.nan_to_num(rise, neginf=0.0), dev) * MARGIN_FACTOR, 0.0)
     # a rise this small is rounding (the samples and the patch agree): the cell counts as exact
     margin[margin < TINY] = 0.0
     # a step or a wall between the nodes (a jump between two samples and the patch through the
     # nodes strays from them, or it strays far, or its control net is far above them), or a
-    # cell on the outline: flat, at its highest sample raised by its steepest rise from one
-    # sample to the next, the safe side of a step
+    # cell on the outline: bounded by flat sub-cells (below), the safe side of a step
     with np.errstate(invalid="ignore"):
         # a jump between two neighbouring samples steeper than WALL: a wall or a step inside
         jump = np.zeros((ncx, ncy), dtype=bool)
@@ -234,22 +226,68 @@ def from_samples(F: np.ndarray, x0: float, y0: float, pitch: float, check: int, 
         near[:, :-1] |= near[:, 1:].copy()
         flat = ((full & ((near & (dev > ROUGH)) | (dev > 100 * ROUGH) | (cmax - smax > 10 * ROUGH)))
                 | (~full & np.isfinite(smax)))
-    nets[flat] = (smax + slope)[flat][:, None, None]
-    margin[flat] = 1e-9
-    BK.cell_max(nets, cmax)
-    # and finer: each fine sub-cell of a flat cell flat at its highest corner plus the rise
+    # each fine sub-cell of a flat cell is flat at the highest of its corners raised by how far
+    # a ridge between them can rise (a ramp up to a wall's top edge, a crest between samples)
     fi, fj = np.nonzero(flat)
     subidx = np.full((ncx, ncy), -1, dtype=np.int64)
     subidx[fi, fj] = np.arange(fi.size)
-    sub = np.empty((fi.size, check, check))
-    with np.errstate(invalid="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # an empty sub-cell: NaN, no surface
-        for a in range(check):
-            for b in range(check):
-                c4 = np.stack([F[fi * check + a + s0, fj * check + b + s1] for s0 in (0, 1) for s1 in (0, 1)])
-                sub[:, a, b] = np.nanmax(c4, axis=0) + slope[fi, fj]
+    sub = _sub_cells(F, h, fi, fj, check)
+    margin[flat] = 1e-9
+    if fi.size:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            nets[flat] = np.nanmax(sub.reshape(fi.size, check * check), axis=1)[:, None, None]
+    BK.cell_max(nets, cmax)
     return BoundingSurface(np.ascontiguousarray(nets), cmax, np.ascontiguousarray(margin), z, x0, y0, float(pitch),
                            float(pitch), source, sub, subidx)
+
+
+def _ridge_excess(fa: np.ndarray, fb: np.ndarray, sa: np.ndarray, sb: np.ndarray, wall: float) -> np.ndarray:
+    """How far a design can rise between two neighbouring samples ``fa``, ``fb`` above the
+    higher of them, from the rises ``sa`` (into the segment at a, from the sample before a)
+    and ``sb`` (at b, from the sample after b): a ridge between them lies under both lines
+    extended from outside (a concave stretch lies under its secants), so its top is at most
+    where they cross. Where one side's line is missing (a wall, a steeper rise than ``wall``,
+    or no sample) the other line alone is extended across the whole segment; where the
+    segment itself is a wall, the line of its top side is."""
+    top = np.fmax(fa, fb)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        jump = np.abs(fb - fa) > wall
+        ok_a = np.isfinite(sa) & (np.abs(sa) <= wall) & ~(jump & (fa < fb))
+        ok_b = np.isfinite(sb) & (np.abs(sb) <= wall) & ~(jump & (fb < fa))
+        both = ok_a & ok_b & (sa > 0) & (sb > 0)
+        t = np.where(both, (fb + sb - fa) / (sa + sb), 0.0)
+        cross = np.where(both & (t > 0) & (t < 1), fa + sa * t, -np.inf)
+        lone_a = np.where(ok_a & ~ok_b & (sa > 0), fa + sa, -np.inf)
+        lone_b = np.where(ok_b & ~ok_a & (sb > 0), fb + sb, -np.inf)
+        peak = np.maximum(np.maximum(cross, lone_a), lone_b)
+        return np.where(np.isfinite(top) & np.isfinite(peak), np.maximum(peak - top, 0.0), 0.0)
+
+
+def _sub_cells(F: np.ndarray, h: float, fi: np.ndarray, fj: np.ndarray, check: int) -> np.ndarray:
+    """``(len(fi), check, check)`` heights bounding the design over the fine sub-cells of the
+    cells ``(fi, fj)``: per sub-cell the largest of its corner samples plus how far a ridge
+    can rise between them along x and along y (:func:`_ridge_excess` on its edges); NaN where
+    no corner has a sample."""
+    nfx, nfy = F.shape
+    P = np.full((nfx + 4, nfy + 4), np.nan)
+    P[2:-2, 2:-2] = F
+    a, b = np.meshgrid(np.arange(check), np.arange(check), indexing="ij")
+    I = (fi[:, None, None] * check + a[None]).ravel() + 2
+    J = (fj[:, None, None] * check + b[None]).ravel() + 2
+    wall = WALL * h
+    ex = np.zeros(I.size)
+    ey = np.zeros(I.size)
+    for d in (0, 1):
+        # the x-edge at row J + d: samples I, I + 1; beyond them I - 1 and I + 2
+        ex = np.maximum(ex, _ridge_excess(P[I, J + d], P[I + 1, J + d], P[I, J + d] - P[I - 1, J + d],
+                                          P[I + 1, J + d] - P[I + 2, J + d], wall))
+        ey = np.maximum(ey, _ridge_excess(P[I + d, J], P[I + d, J + 1], P[I + d, J] - P[I + d, J - 1],
+                                          P[I + d, J + 1] - P[I + d, J + 2], wall))
+    corners = np.stack([P[I, J], P[I + 1, J], P[I, J + 1], P[I + 1, J + 1]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an empty sub-cell: NaN, no surface
+        return (np.nanmax(corners, axis=0) + ex + ey).reshape(fi.size, check, check)
 
 
 def drop_bound(bs: BoundingSurface, cutter: Any, x: np.ndarray, y: np.ndarray, *, eps: float = EPS,

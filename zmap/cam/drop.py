@@ -42,7 +42,31 @@ _B = 8
 _MAX_SAMPLES = 200_000_000
 
 
-_PACKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+class _ModelCache:
+    """Values kept per design object while it lives, keyed by identity: a STEP part is a
+    dataclass (equal parts compare equal and are unhashable), so a WeakKeyDictionary cannot
+    hold it."""
+
+    def __init__(self) -> None:
+        self._items: dict[int, tuple] = {}
+
+    def get(self, obj: Any) -> Any:
+        hit = self._items.get(id(obj))
+        return hit[1] if hit is not None and hit[0]() is obj else None
+
+    def put(self, obj: Any, value: Any) -> None:
+        key = id(obj)
+        try:
+            ref = weakref.ref(obj, lambda _r, k=key, d=self._items: d.pop(k, None))
+        except TypeError:  # no weak reference to it: not kept
+            return
+        self._items[key] = (ref, value)
+
+    def clear(self) -> None:
+        self._items.clear()
+
+
+_PACKS = _ModelCache()
 
 
 def _packed(model: Any) -> tuple:
@@ -59,7 +83,7 @@ def _packed(model: Any) -> tuple:
     if hit is not None and hit[0] == tok:
         return hit[1]
     M = ME.pack_model(model)
-    _PACKS[model] = (tok, M)
+    _PACKS.put(model, (tok, M))
     return M
 
 
@@ -161,7 +185,7 @@ def _sampler(model: Any, hf: Callable) -> Callable:
     return grid
 
 
-_BOUNDS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_BOUNDS = _ModelCache()
 
 
 def bounding_surface(model: Any, region: tuple, *, pitch: float | None = None, check: int | None = None) -> Any:
@@ -179,19 +203,16 @@ def bounding_surface(model: Any, region: tuple, *, pitch: float | None = None, c
         if hit is not None and hit[0] == tok:
             return hit[1]
         bs = BD.from_zmap(model)
-        _BOUNDS[model] = (tok, bs)
+        _BOUNDS.put(model, (tok, bs))
         return bs
     hf, _zm, natural = model_heights(model)
     part = hasattr(model, "faces") and hasattr(model, "bbox")
     if pitch is None:
-        pitch = 0.5 if part else (natural or 0.1)
+        pitch = 0.25 if part else (natural or 0.1)
     if check is None:
         check = 2 if part else 4
     pitch = float(pitch)
-    try:
-        hit = _BOUNDS.get(model)
-    except TypeError:  # a model that cannot be weakly referenced
-        hit = None
+    hit = _BOUNDS.get(model)
     if hit is not None and hit[0] == (pitch, check) and hit[1].covers(*region):
         return hit[1]
     if not part:
@@ -206,10 +227,7 @@ def bounding_surface(model: Any, region: tuple, *, pitch: float | None = None, c
                         f"{pitch / check:g} mm (cap {_MAX_SAMPLES:.0e}): give a coarser pitch or a smaller region")
     F = _sampler(model, hf)(x0, y0, pitch / check, (nx - 1) * check + 1, (ny - 1) * check + 1)
     bs = BD.from_samples(F, x0, y0, pitch, check, source=type(model).__name__)
-    try:
-        _BOUNDS[model] = ((pitch, check), bs)
-    except TypeError:
-        pass
+    _BOUNDS.put(model, ((pitch, check), bs))
     return bs
 
 

@@ -369,16 +369,18 @@ def _refine_sag(model: Any, cut: Any, runs: list, ca: float, sa: float, vs: np.n
                 floor: float | None, sag: float, rounds: int = 8) -> int:
     """Add CL points in place where a feed between two would pass more than ``sag`` under the
     CL surface at a quarter, the middle or three quarters of the way (all runs' tests dropped
-    together, ``rounds`` times at most; the middle is added); the number added."""
+    together, ``rounds`` times at most; the middle is added); the number added.
+
+    A segment that passed is not tested again: only the two halves of a failed one are."""
     added = 0
     fr = np.array([0.25, 0.5, 0.75])
+    # per run, per segment: still to be tested (where the CL bends or climbs steeply)
+    todo = [_bent(u, z, sag) if len(u) >= 2 else np.zeros(0, dtype=bool) for _j, u, z in runs]
     for _ in range(rounds):
         segs = [(q, len(u) - 1) for q, (_j, u, _z) in enumerate(runs) if len(u) >= 2]
         if not segs:
             break
-        # where the CL is straight (second differences at both ends within sag) and not
-        # steep, a feed cannot leave it by more: only the other segments are tested
-        test = np.concatenate([_bent(runs[q][1], runs[q][2], sag) for q, _m in segs])
+        test = np.concatenate([todo[q] for q, _m in segs])
         if not test.any():
             break
         ua = np.concatenate([runs[q][1][:-1] for q, _m in segs])[test]
@@ -393,9 +395,6 @@ def _refine_sag(model: Any, cut: Any, runs: list, ca: float, sa: float, vs: np.n
             cl = np.fmax(cl, floor)
         chord = za[:, None] + fr[None, :] * (zb - za)[:, None]
         bad = (np.isfinite(cl) & (cl > chord + sag)).any(axis=1)
-        if not bad.any():
-            break
-        added += int(bad.sum())
         need = np.zeros(test.size, dtype=bool)
         need[test] = bad
         at = np.full(test.size, -1)
@@ -403,12 +402,17 @@ def _refine_sag(model: Any, cut: Any, runs: list, ca: float, sa: float, vs: np.n
         start = 0
         for q, m in segs:
             sel = need[start:start + m]
+            todo[q] = sel.copy()
             if sel.any():
                 k = np.flatnonzero(sel)
                 j, u, z = runs[q]
                 w = at[start + k]
                 runs[q] = (j, np.insert(u, k + 1, ut[w, 1]), np.insert(z, k + 1, cl[w, 1]))
+                todo[q] = np.insert(todo[q], k + 1, True)  # both halves of a failed segment
             start += m
+        added += int(bad.sum())
+        if not bad.any():
+            break
     return added
 
 
