@@ -191,7 +191,7 @@ _BOUNDS = _ModelCache()
 def bounding_surface(model: Any, region: tuple, *, pitch: float | None = None, check: int | None = None) -> Any:
     """The :class:`zmap.cam.bounds.BoundingSurface` the drop-cutter uses for ``model`` over
     ``region`` ``(xmin, ymin, xmax, ymax)``: a z-map's own (kept per z-map), else the design
-    sampled every ``pitch`` (default: a precision model's base grid / 4, a part's 0.5 mm) with
+    sampled every ``pitch`` (default: a precision model's base grid / 4, a part's 0.25 mm) with
     ``check`` (default 4; a part 2) fine samples per interval, kept per model while later
     regions fall inside it."""
     from ..grid import ZMap
@@ -260,7 +260,7 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
     x, y : array_like of float — axis positions in mm (broadcast together).
     pitch : float, optional — spacing of the design's samples, mm, for a design that is not a
         z-map (a z-map is dropped on its own surface and ignores it); default a precision
-        model's base grid / 4, a part's 0.5 mm, a callable's cutter radius / 8. With
+        model's base grid / 4, a part's 0.25 mm, a callable's cutter radius / 8. With
         ``refine=False``, the spacing of the discrete drop's samples for every design.
     return_contact : bool — also return the contact points ``(cx, cy, cz)``.
     refine : bool — True: the certified drop (:mod:`zmap.cam.bounds`); False: the discrete
