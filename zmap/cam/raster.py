@@ -8,10 +8,10 @@ above every dropped CL height it spans and never below one. Between two CL point
 still pass under the CL surface (by ``chord**2 / (8 r)`` over a convex edge for a cutter of
 corner radius ``r``): where it would by more than ``sag`` at a quarter, half or three
 quarters of the way (a steep stretch, a wall's top edge), the middle is dropped and added. Where no surface lies under the
-cutter a pass is broken, or the empty space is a floor (``outside``). Two pass ends are joined by a straight
-feed when that link stays above the CL surface along it (checked by dropping the cutter
-every ``step``); otherwise by a safe retract: G0 up to the clearance height, G0 across, and
-a feed down at the plunge rate.
+cutter a pass is broken, or the empty space is a floor (``outside``). Two pass ends within two
+stepovers are joined by a feed along the CL surface (the cutter dropped every ``step`` across,
+sag-tested and thinned like a pass) where design lies under all of the way; otherwise by a
+safe retract: G0 up to the clearance height, G0 across, and a feed down at the plunge rate.
 
 The program is plain RS274 that LinuxCNC and GRBL both take: G21 G90 G17, G0/G1 with X Y Z,
 F and S words, M3/M5/M2, comments in parentheses naming the tool, the parameters and the
@@ -263,24 +263,26 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
     safe = float(np.nanmax(Z)) + clearance
     # runs of finite CL along each pass, then points added where a feed would sag under the
     # CL surface, then thinned; zig-zag
-    runs = []
+    runs, line_of = [], []
     for j in range(nv):
         ok = np.isfinite(Z[:, j])
         edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
-        runs += [(j, us[a:e].copy(), Z[a:e, j].copy()) for a, e in zip(edges[::2], edges[1::2])]
-    added = _refine_sag(model, cut, runs, ca, sa, vs, pitch, floor, sag)
+        for a, e in zip(edges[::2], edges[1::2]):
+            runs.append((-vs[j] * sa, vs[j] * ca, ca, sa, us[a:e].copy(), Z[a:e, j].copy()))
+            line_of.append(j)
+    added = _refine_sag(model, cut, runs, pitch, floor, sag)
     passes = []
     by_line: dict = {}
-    for j, u, z in runs:
-        by_line.setdefault(j, []).append((u, z))
+    for j, run in zip(line_of, runs):
+        by_line.setdefault(j, []).append(run)
     for j in sorted(by_line):
         flip = len(passes) % 2 == 1  # zig-zag: every other pass runs back
-        for u, z in (by_line[j][::-1] if flip else by_line[j]):
+        for ox, oy, dx, dy, u, z in (by_line[j][::-1] if flip else by_line[j]):
             if flip:
                 u, z = u[::-1], z[::-1]
             keep = simplify_chords(u, z, tol, below=0.0)
             uu = u[keep]
-            passes.append(np.column_stack([uu * ca - vs[j] * sa, uu * sa + vs[j] * ca, z[keep]]))
+            passes.append(np.column_stack([ox + uu * dx, oy + uu * dy, z[keep]]))
     c = cut
     kind = {"flat": "flat end mill", "ball": "ball end mill", "bull": "bull nose"}[c.kind]
     head = [f"(zmap toolpath: raster finishing of {name})",
@@ -309,30 +311,10 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
             cur_f = f
         lines.append(w)
 
-    # links between consecutive passes: a straight feed where it stays above the CL surface
-    # (all candidate links dropped in one call)
-    link_ok = np.zeros(len(passes), dtype=bool)
-    lx_all, ly_all, lz_all, owner = [], [], [], []
-    for q in range(1, len(passes)):
-        a, e = passes[q - 1][-1], passes[q][0]
-        d = float(np.hypot(e[0] - a[0], e[1] - a[1]))
-        if d <= 2.0 * stepover + 1e-9:
-            m = max(2, int(math.ceil(d / step)) + 1)
-            t = np.linspace(0.0, 1.0, m)
-            lx_all.append(a[0] + t * (e[0] - a[0]))
-            ly_all.append(a[1] + t * (e[1] - a[1]))
-            lz_all.append(a[2] + t * (e[2] - a[2]))
-            owner.append(np.full(m, q))
-    if owner:
-        own = np.concatenate(owner)
-        need = drop_cutter(model, cut, np.concatenate(lx_all), np.concatenate(ly_all), pitch=pitch)
-        if floor is not None:
-            need = np.fmax(need, floor)
-        good = np.isfinite(need) & (np.concatenate(lz_all) >= need - 1e-9)
-        bad = np.zeros(len(passes), dtype=bool)
-        np.logical_or.at(bad, own, ~good)
-        link_ok[np.unique(own)] = True
-        link_ok &= ~bad
+    # links between consecutive passes: a feed along the CL surface (the cutter dropped every
+    # step across, sag-tested and thinned like a pass) where design lies under all of it
+    links_path, n_link = _links(model, cut, passes, stepover, step, tol, pitch, floor, sag)
+    added += n_link
     for q, pts in enumerate(passes):
         start = pts[0]
         if cur is None:
@@ -340,8 +322,10 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
             lines.append(f"G0 Z{_f(start[2] + min(clearance, 1.0))}")
             feed_to(start, plunge_feed)
         else:
-            if link_ok[q]:
+            if links_path[q] is not None:
                 links += 1
+                for p in links_path[q]:
+                    feed_to(p, feed)
                 feed_to(start, feed)
             else:
                 retracts += 1
@@ -365,32 +349,71 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
     return RasterProgram(text, passes, scallop, params, stats)
 
 
-def _refine_sag(model: Any, cut: Any, runs: list, ca: float, sa: float, vs: np.ndarray, pitch: Any,
-                floor: float | None, sag: float, rounds: int = 8) -> int:
+def _links(model: Any, cut: Any, passes: list, stepover: float, step: float, tol: float, pitch: Any,
+           floor: float | None, sag: float) -> tuple[list, int]:
+    """Per pass, the feed points (m, 3) from the end of the one before to its start, or None
+    where they must be joined by a retract (further apart than two stepovers, or no design
+    under some of the way); and the CL points added by the sag test."""
+    path: list = [None] * len(passes)
+    runs, owner = [], []
+    for q in range(1, len(passes)):
+        a, e = passes[q - 1][-1], passes[q][0]
+        d = float(np.hypot(e[0] - a[0], e[1] - a[1]))
+        if d <= 2.0 * stepover + 1e-9 and d > 0:
+            m = max(2, int(math.ceil(d / step)) + 1)
+            runs.append((a[0], a[1], (e[0] - a[0]) / d, (e[1] - a[1]) / d, np.linspace(0.0, d, m), np.full(m, np.nan)))
+            owner.append(q)
+    if not runs:
+        return path, 0
+    inner = [r[4][1:-1] for r in runs]
+    lx = np.concatenate([r[0] + u * r[2] for r, u in zip(runs, inner)])
+    ly = np.concatenate([r[1] + u * r[3] for r, u in zip(runs, inner)])
+    cl = drop_cutter(model, cut, lx, ly, pitch=pitch) if lx.size else np.zeros(0)
+    if floor is not None:
+        cl = np.fmax(cl, floor)
+    at = 0
+    good, good_q = [], []
+    for r, u, q in zip(runs, inner, owner):
+        z = r[5]
+        z[0], z[-1] = passes[q - 1][-1][2], passes[q][0][2]
+        z[1:-1] = cl[at:at + u.size]
+        at += u.size
+        if np.isfinite(z).all():
+            good.append(r)
+            good_q.append(q)
+    added = _refine_sag(model, cut, good, pitch, floor, sag)
+    for (ox, oy, dx, dy, u, z), q in zip(good, good_q):
+        keep = simplify_chords(u, z, tol, below=0.0)[1:-1]
+        path[q] = np.column_stack([ox + u[keep] * dx, oy + u[keep] * dy, z[keep]])
+    return path, added
+
+
+def _refine_sag(model: Any, cut: Any, runs: list, pitch: Any, floor: float | None, sag: float,
+                rounds: int = 8) -> int:
     """Add CL points in place where a feed between two would pass more than ``sag`` under the
     CL surface at a quarter, the middle or three quarters of the way (all runs' tests dropped
-    together, ``rounds`` times at most; the middle is added); the number added.
+    together, ``rounds`` times at most; the middle is added); the number added. A run is
+    ``(ox, oy, dx, dy, u, z)``: CL heights ``z`` at ``(ox + u dx, oy + u dy)``.
 
     A segment that passed is not tested again: only the two halves of a failed one are."""
     added = 0
     fr = np.array([0.25, 0.5, 0.75])
     # per run, per segment: still to be tested (where the CL bends or climbs steeply)
-    todo = [_bent(u, z, sag) if len(u) >= 2 else np.zeros(0, dtype=bool) for _j, u, z in runs]
+    todo = [_bent(r[4], r[5], sag) if len(r[4]) >= 2 else np.zeros(0, dtype=bool) for r in runs]
     for _ in range(rounds):
-        segs = [(q, len(u) - 1) for q, (_j, u, _z) in enumerate(runs) if len(u) >= 2]
+        segs = [(q, len(r[4]) - 1) for q, r in enumerate(runs) if len(r[4]) >= 2]
         if not segs:
             break
         test = np.concatenate([todo[q] for q, _m in segs])
         if not test.any():
             break
-        ua = np.concatenate([runs[q][1][:-1] for q, _m in segs])[test]
-        ub = np.concatenate([runs[q][1][1:] for q, _m in segs])[test]
-        za = np.concatenate([runs[q][2][:-1] for q, _m in segs])[test]
-        zb = np.concatenate([runs[q][2][1:] for q, _m in segs])[test]
-        v = np.concatenate([np.full(m, vs[runs[q][0]]) for q, m in segs])[test]
+        ua = np.concatenate([runs[q][4][:-1] for q, _m in segs])[test]
+        ub = np.concatenate([runs[q][4][1:] for q, _m in segs])[test]
+        za = np.concatenate([runs[q][5][:-1] for q, _m in segs])[test]
+        zb = np.concatenate([runs[q][5][1:] for q, _m in segs])[test]
+        geo = np.concatenate([np.broadcast_to(np.array(runs[q][:4], dtype=np.float64), (m, 4)) for q, m in segs])[test]
         ut = ua[:, None] + fr[None, :] * (ub - ua)[:, None]
-        vt = np.broadcast_to(v[:, None], ut.shape)
-        cl = drop_cutter(model, cut, ut * ca - vt * sa, ut * sa + vt * ca, pitch=pitch)
+        cl = drop_cutter(model, cut, geo[:, :1] + ut * geo[:, 2:3], geo[:, 1:2] + ut * geo[:, 3:4], pitch=pitch)
         if floor is not None:
             cl = np.fmax(cl, floor)
         chord = za[:, None] + fr[None, :] * (zb - za)[:, None]
@@ -405,9 +428,9 @@ def _refine_sag(model: Any, cut: Any, runs: list, ca: float, sa: float, vs: np.n
             todo[q] = sel.copy()
             if sel.any():
                 k = np.flatnonzero(sel)
-                j, u, z = runs[q]
+                ox, oy, dx, dy, u, z = runs[q]
                 w = at[start + k]
-                runs[q] = (j, np.insert(u, k + 1, ut[w, 1]), np.insert(z, k + 1, cl[w, 1]))
+                runs[q] = (ox, oy, dx, dy, np.insert(u, k + 1, ut[w, 1]), np.insert(z, k + 1, cl[w, 1]))
                 todo[q] = np.insert(todo[q], k + 1, True)  # both halves of a failed segment
             start += m
         added += int(bad.sum())

@@ -36,3 +36,30 @@ def brute_zmap(zm, c, x, y, h=0.01):
             best = max(best, np.nanmax(z - np.nan_to_num(_env(c, np.minimum(dd, R)), nan=np.inf)))
         out[k] = best if np.isfinite(best) else np.nan
     return out
+
+
+def brute_heights(hf, c, x, y, h=0.02, fine=0.002, around=0.04):
+    """Independent CL over any ``heights(x, y)`` (a STEP part's exact heights): the design on
+    an ``h`` lattice over the disk, then on a ``fine`` lattice within ``around`` of the best
+    point; NaN where no design lies under the cutter."""
+    R = c.radius
+    g = np.arange(-R, R + h / 2, h)
+    f = np.arange(-around, around + fine / 2, fine)
+    out = np.full(len(x), np.nan)
+    for k, (qx, qy) in enumerate(zip(x, y)):
+        best, at = -np.inf, None
+        for grid, centre in ((g, (qx, qy)), (f, None)):
+            if centre is None:
+                if at is None:
+                    break
+                centre = at
+            cx, cy = centre
+            U, V = np.meshgrid(cx + grid, cy + grid, indexing="ij")
+            d = np.hypot(U - qx, V - qy)
+            m = d <= R
+            cl = np.asarray(hf(U[m], V[m]), dtype=float) - _env(c, d[m])
+            if np.isfinite(cl).any() and np.nanmax(cl) > best:
+                i = int(np.nanargmax(cl))
+                best, at = float(cl[i]), (U[m][i], V[m][i])
+        out[k] = best if np.isfinite(best) else np.nan
+    return out

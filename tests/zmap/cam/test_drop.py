@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from tests.conftest import DATA
+from tests.conftest import DATA, STEP_DATA
 from zmap import ZMap
 from zmap.cam import drop_cutter
 from zmap.cam._reference import drop_cutter_reference
@@ -192,3 +192,30 @@ def test_zmap_drop_never_below_an_independent_brute_force(seed, spec):
     # and not far above: the brute force's lattice (0.01 mm) misses the top of a steep patch
     # beside a step by up to its slope times half the spacing
     assert (cl[ok] - ref[ok]).max(initial=0.0) < 0.05
+
+
+@pytest.fixture(scope="module")
+def cornetta():
+    cad_io = pytest.importorskip("cad_io")
+    return cad_io.read_step(STEP_DATA / "bug27693_cornetta-step.stp")
+
+
+def test_step_design_never_below_its_exact_heights_where_a_fillet_meets_a_plane(cornetta):
+    # on the cornetta die a fillet meets a plane at x = -55.34 (the curvature jumps): a cubic
+    # through samples 0.5 mm apart errs both ways between them there, and a margin from the
+    # samples' rise alone let the drop fall 7e-4 mm under the part at (-52.2, 11.5), on the
+    # grid the whole-die program sampled (its origin: the part's bounds less 5 mm)
+    from cad_io.sampler import height_function
+
+    from zmap.cam.drop import bounding_surface
+
+    from tests.zmap.cam.brute import brute_heights
+
+    c = parse_tool_spec("ball:6")
+    bounding_surface(cornetta, (-60.0000001, 4.9999999, -45.0000001, 17.9999999), pitch=0.5)
+    x = np.r_[-52.2, np.linspace(-54.6, -51.0, 9)]
+    y = np.r_[11.5, np.full(9, 10.8)]
+    got = drop_cutter(cornetta, c, x, y, pitch=0.5)
+    ref = brute_heights(height_function(cornetta), c, x, y)
+    assert (got >= ref - 1e-4).all(), (got - ref).min()
+    assert (got - ref).max() < 0.05

@@ -101,3 +101,21 @@ def test_toolpath_command(tmp_path, capsys):
     assert rc == 1 and "stepover" in capsys.readouterr().err
     rc = main(["toolpath", str(tmp_path / "none.zpm"), "--tool", "ball:6", "--stepover", "1", "-o", str(out)])
     assert rc == 1 and "no such file" in capsys.readouterr().err
+
+
+def test_passes_are_linked_along_the_cl_surface_without_retracts():
+    # a dome and a step: every pass end lies over design, so every link is a feed; no point
+    # of any feed (links included) passes under the CL surface by more than the sag test's 1e-3
+    zm = ZMap.from_function(lambda x, y: 5 - 0.02 * (x * x + y * y) + np.where(y > 1.3, 1.0, 0.0),
+                            (-10, -10, 10, 10), 0.25)
+    prog = raster_program(zm, "ball:6", stepover=0.7, tol=0.002, bounds=(-4, -4, 4, 4))
+    assert prog.stats["retracts"] == 0 and prog.stats["links"] == prog.stats["passes"] - 1
+    pr = parse(prog.text)
+    feeds = pr.moves[pr.moves["kind"] == LINEAR]
+    a, b = feeds["start"][1:], feeds["end"][1:]   # after the plunge
+    t = np.linspace(0, 1, 11)
+    pts = (a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]).reshape(-1, 3)
+    cl = drop_cutter(zm, "ball:6", pts[:, 0], pts[:, 1])
+    assert np.max(cl - pts[:, 2]) <= 1e-3 + 1e-6
+    # the step's edge is crossed by the links too (the first passes lie below it)
+    assert (b[:, 1] - a[:, 1] > 0).any()
