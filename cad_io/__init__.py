@@ -16,6 +16,7 @@ import importlib
 from typing import Any
 
 from cad_io.part import Edge, Face, FaceMesh, NurbsSurface, Part
+from cad_io import design as _design  # noqa: F401  (registers Part and .step files with zmap.design)
 
 __all__ = [
     "Edge",

@@ -107,8 +107,8 @@ cli.add_command(compare_cmd)  # verify command
 # cam command (zmap/cam/commands.py): raster finishing programs from a design
 from .cam.commands import toolpath_cmd  # noqa: E402  (cam command)
 cli.add_command(toolpath_cmd)  # cam command
-# access command (zmap/access/commands.py): tool access directions, paper 002; OCP loads when it runs
-from .access.commands import access_cmd  # noqa: E402  (access command)
+# access command (cad_io/access_commands.py): tool access directions, paper 002; OCP loads when it runs
+from cad_io.access_commands import access_cmd  # noqa: E402  (access command)
 cli.add_command(access_cmd)  # access command
 
 

@@ -95,3 +95,12 @@ def test_public_names_stay_where_they_were():
         assert getattr(ez, name) is getattr(_emap, name)
     for name in ("CellPatches", "sub_grid", "all_edges"):
         assert getattr(patch, name) is getattr(_emap, name)
+
+
+def test_zmap_never_imports_cad_io_but_for_the_command_line():
+    # zmap is the core; cad_io (OCP) is the layer above and registers its Part and .step files
+    # with zmap.design. Only the command line wires the two.
+    graph = import_graph()
+    up = sorted((m, t) for m, ts in graph.items() if m.startswith("zmap.") and m != "zmap.cli"
+                for t in ts if t.startswith("cad_io"))
+    assert up == []

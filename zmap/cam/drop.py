@@ -99,27 +99,15 @@ def as_cutter(cutter: Any) -> Any:
 
 
 def model_heights(model: Any) -> tuple[Callable, Any, float | None]:
-    """``(heights(x, y), zmap or None, natural pitch or None)`` of a design model."""
+    """``(heights(x, y), zmap or None, natural pitch or None)`` of a design model
+    (:func:`zmap.design.as_design`)."""
+    from ..design import as_design
     from ..grid import ZMap
-    from ..model import PrecisionModel
 
-    if isinstance(model, ZMap):
-        if model.has_frame:
-            raise ValueError("drop_cutter takes z-maps without a local frame")
-        from ..interpolate import bezier
-
-        return (lambda x, y: bezier(model, x, y)), model, min(model.dx, model.dy)
-    if isinstance(model, PrecisionModel):
-        return model.height, None, min(model.base.dx, model.base.dy) / 4
-    if hasattr(model, "faces") and hasattr(model, "bbox"):  # cad_io.Part
-        from cad_io.sampler import height_function
-
-        b = model.bbox
-        return height_function(model), None, max(b[3] - b[0], b[4] - b[1]) / 400
-    if callable(model):
-        return model, None, None
-    raise ValueError("model must be a ZMap, a PrecisionModel, a cad_io Part or a heights(x, y) callable, "
-                     f"got {type(model).__name__}")
+    if isinstance(model, ZMap) and model.has_frame:
+        raise ValueError("drop_cutter takes z-maps without a local frame")
+    d = as_design(model)
+    return d.heights, (model if d.kind == "zmap" else None), d.pitch
 
 
 def _tensor_grid(xb: np.ndarray) -> int | None:
@@ -164,25 +152,12 @@ def _grid_drop(Z, x0, y0, dx, dy, cut, xb, yb, kind):
 
 
 def _sampler(model: Any, hf: Callable) -> Callable:
-    """``sample(x0, y0, h, nx, ny) -> (nx, ny)`` heights of the design on a grid (a STEP part's
-    own grid sampler, the fast path of its exact heights; others through ``hf``)."""
-    if hasattr(model, "faces") and hasattr(model, "bbox"):  # cad_io.Part
-        import cad_io
+    """``sample(x0, y0, h, nx, ny) -> (nx, ny)`` heights of the design on a grid (the design's
+    own grid sampler where it has one, as a STEP part does; else ``hf`` at every node)."""
+    from ..design import Design, as_design
 
-        def part_grid(x0, y0, h, nx, ny):
-            zm = cad_io.sample(model, h, bounds=(x0, y0, x0 + (nx - 1) * h, y0 + (ny - 1) * h))
-            out = np.full((nx, ny), np.nan)
-            i0 = int(round((zm.x0 - x0) / h))
-            j0 = int(round((zm.y0 - y0) / h))
-            a = zm.z[max(0, -i0):, max(0, -j0):][:nx - max(i0, 0), :ny - max(j0, 0)]
-            out[max(i0, 0):max(i0, 0) + a.shape[0], max(j0, 0):max(j0, 0) + a.shape[1]] = a
-            return out
-        return part_grid
-
-    def grid(x0, y0, h, nx, ny):
-        X, Y = np.meshgrid(x0 + h * np.arange(nx), y0 + h * np.arange(ny), indexing="ij")
-        return np.asarray(hf(X.ravel(), Y.ravel()), dtype=np.float64).reshape(nx, ny)
-    return grid
+    grid = as_design(model).grid
+    return grid if grid is not None else Design(hf, None, None, "callable", False).sample_grid
 
 
 _BOUNDS = _ModelCache()
@@ -205,17 +180,19 @@ def bounding_surface(model: Any, region: tuple, *, pitch: float | None = None, c
         bs = BD.from_zmap(model)
         _BOUNDS.put(model, (tok, bs))
         return bs
-    hf, _zm, natural = model_heights(model)
-    part = hasattr(model, "faces") and hasattr(model, "bbox")
+    from ..design import as_design
+
+    design = as_design(model)
+    hf = design.heights
     if pitch is None:
-        pitch = 0.25 if part else (natural or 0.1)
+        pitch = design.drop_pitch or design.pitch or 0.1
     if check is None:
-        check = 2 if part else 4
+        check = design.drop_check
     pitch = float(pitch)
     hit = _BOUNDS.get(model)
     if hit is not None and hit[0] == (pitch, check) and hit[1].covers(*region):
         return hit[1]
-    if not part:
+    if design.grid is None:
         M = _fast_heights(model)
         if M is not None:
             hf = M

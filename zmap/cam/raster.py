@@ -129,17 +129,12 @@ class RasterProgram:
 
 
 def _bounds_of(model: Any) -> tuple:
-    from ..grid import ZMap
-    from ..model import PrecisionModel
+    from ..design import as_design
 
-    if isinstance(model, PrecisionModel):
-        return model.base.bounds
-    if isinstance(model, ZMap):
-        return model.bounds
-    if hasattr(model, "bbox"):
-        b = model.bbox
-        return (b[0], b[1], b[3], b[4])
-    raise ValueError("bounds must be given for a heights callable")
+    b = as_design(model).bounds
+    if b is None:
+        raise ValueError("bounds must be given for a heights callable")
+    return b
 
 
 def _f(v: float) -> str:

@@ -140,63 +140,27 @@ class Comparison:
 # ---- design --------------------------------------------------------------------------------
 
 def load_design(design: Any) -> Any:
-    """A design model from a path (``.zpm``, ``.zmap.npz``, ``.step``/``.stp``) or as given."""
+    """A design model from a path (``.zpm``, ``.zmap.npz``, ``.step``/``.stp``: see
+    :func:`zmap.design.read_design`) or as given."""
     if not isinstance(design, (str, os.PathLike)):
         return design
-    p = os.fspath(design)
-    low = p.lower()
-    if not os.path.exists(p):
-        from ..errors import ZMapFileError
+    from ..design import read_design
 
-        raise ZMapFileError(p, "no such file")
-    if low.endswith(".zpm"):
-        from ..model import PrecisionModel
-
-        return PrecisionModel.load(p)
-    if low.endswith((".step", ".stp")):
-        import cad_io
-
-        return cad_io.read_step(p)
-    if low.endswith(".npz"):
-        from ..grid import ZMap
-
-        return ZMap.load(p)
-    raise ValueError(f"design {p!r} is not a .zpm precision model, a .zmap.npz z-map or a .step/.stp part")
+    return read_design(design)
 
 
 def design_heights(design: Any) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    """``heights(x, y)`` of a design: PrecisionModel, ZMap (Bezier), cad_io Part (exact) or callable."""
-    from ..grid import ZMap
-    from ..model import PrecisionModel
+    """``heights(x, y)`` of a design: PrecisionModel, ZMap (Bezier), STEP part (exact) or callable
+    (:func:`zmap.design.as_design`)."""
+    from ..design import as_design
 
-    if isinstance(design, PrecisionModel):
-        return design.height
-    if isinstance(design, ZMap):
-        from ..interpolate import bezier
-
-        return lambda x, y: bezier(design, x, y)
-    if hasattr(design, "faces") and hasattr(design, "bbox"):  # a cad_io.Part: exact heights
-        from cad_io.sampler import height_function
-
-        return height_function(design)
-    if callable(design):
-        return design
-    raise ValueError("design must be a PrecisionModel, a ZMap, a cad_io Part, a heights(x, y) callable "
-                     f"or a path to one, got {type(design).__name__}")
+    return as_design(design).heights
 
 
 def _design_bounds(design: Any) -> tuple | None:
-    from ..grid import ZMap
-    from ..model import PrecisionModel
+    from ..design import as_design
 
-    if isinstance(design, PrecisionModel):
-        return design.base.bounds
-    if isinstance(design, ZMap):
-        return design.bounds
-    if hasattr(design, "bbox"):
-        b = design.bbox
-        return (b[0], b[1], b[3], b[4])
-    return None
+    return as_design(design).bounds
 
 
 def _overlap(a: tuple, b: tuple) -> float:

@@ -1,5 +1,8 @@
 """CLI command ``zmap access``: tool access directions of a STEP part (paper 002).
 
+It lives in cad_io because it reads the part with OCP (:func:`cad_io.access.analyse`); the
+voxel map itself is :mod:`zmap.access`.
+
 Registered on the ``zmap`` group in :mod:`zmap.cli`; OCP, numba and pyvista load only when
 the command runs.
 """
@@ -57,7 +60,7 @@ def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output,
     from cad_io.step import read_step
     from zmap.errors import StepImportError
 
-    from .voxelmap import AccessModelError, Tool, parse_holder, parse_tool
+    from zmap.access.voxelmap import AccessModelError, Tool, parse_holder, parse_tool
 
     t0 = time.perf_counter()
     if not os.path.exists(part_path):
@@ -95,7 +98,7 @@ def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output,
     if grid is not None:
         import numpy as np
 
-        from .voxelmap import node_directions
+        from zmap.access.voxelmap import node_directions
 
         b = part.bbox
         xs = np.arange(b[0], b[3] + grid / 2, grid)
@@ -107,7 +110,7 @@ def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output,
     result.save(output)
     click.echo(result.summary())
     if not no_png:
-        from .plot import sphere_3d, voxels_3d
+        from zmap.access.plot import sphere_3d, voxels_3d
 
         prefix = png or (output[:-len(".access.npz")] if output.endswith(".access.npz") else os.path.splitext(output)[0])
         say("pictures")
