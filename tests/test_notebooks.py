@@ -76,8 +76,14 @@ def _text(nb) -> str:
     return "\n".join(parts)
 
 
+# a notebook that runs the cam or access kernels goes to the worker of their tests, which
+# leaves their numba cache on disk for it (tests/conftest.py)
+_GROUP = {"verify.ipynb": "cam", "accessibility.ipynb": "access"}
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
+@pytest.mark.parametrize("path", [pytest.param(p, marks=[pytest.mark.xdist_group(_GROUP[p.name])] if p.name in _GROUP
+                                               else []) for p in NOTEBOOKS], ids=[p.name for p in NOTEBOOKS])
 def test_notebook_executes(path, tmp_path):
     stored = nbformat.read(path, as_version=4)
     nb = nbformat.read(path, as_version=4)

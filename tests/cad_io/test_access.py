@@ -9,6 +9,9 @@ from tests.conftest import STEP_DATA
 from zmap.access.directions import to_bool
 from zmap.access.voxelmap import AccessModelError, Tool, accessibility, global_visibility, three_axis
 
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("access")
+
 cq = pytest.importorskip("cadquery")
 
 W, D, LX, LY, H = 8.0, 6.0, 30.0, 20.0, 12.0  # slot width, depth; block x, y, height

@@ -17,6 +17,9 @@ from zmap.access.voxelmap import (Tool, VoxelMap, _disc_rows, _hide_masks, globa
 
 from .test_voxelmap import box_samples, sphere_samples
 
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("access")
+
 
 def _cells(widths):
     return {(p, q) for p in range(-len(widths) + 1, len(widths)) for q in range(-widths[abs(p)], widths[abs(p)] + 1)}

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -14,6 +15,9 @@ from zmap.access.directions import count, to_bool
 from zmap.access.voxelmap import VoxelMap, global_visibility
 
 from .test_voxelmap import bowl_samples, box_samples
+
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("access")
 
 corner = st.tuples(*[st.floats(-0.7, 0.7, allow_nan=False)] * 3)
 size = st.tuples(*[st.floats(2.0, 4.0, allow_nan=False)] * 3)

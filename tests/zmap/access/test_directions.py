@@ -9,6 +9,9 @@ from hypothesis import strategies as st
 
 from zmap.access.directions import DirectionSet, count, direction_set, from_bool, to_bool
 
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("access")
+
 
 @pytest.mark.parametrize("q", [1, 2, 3, 4, 7])
 def test_counts_and_solid_angles(q):

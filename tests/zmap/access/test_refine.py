@@ -16,6 +16,9 @@ from zmap.access.voxelmap import VoxelMap, global_visibility
 
 from .test_voxelmap import bowl_samples, box_samples
 
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("access")
+
 
 def bowl_hit(p, n, r):
     """Closed form for the cavity of :func:`bowl_samples` (radius r at the origin, top z = 0):

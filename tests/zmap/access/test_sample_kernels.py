@@ -12,6 +12,9 @@ from zmap.access._sample_kernels import _rim, sample_tool_kernel
 from zmap.access.directions import direction_set, to_bool
 from zmap.access.voxelmap import _covered_rows, _direction_pairs, _disc_rows
 
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("access")
+
 
 def brute_force(dirs, centre, pts, r_shank, stick, r_holder):
     """(k, m) bool: no sample within r of the axis above the start, for either cylinder."""

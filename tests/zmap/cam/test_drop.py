@@ -13,6 +13,9 @@ from zmap.cam._reference import drop_cutter_reference
 from tests.zmap.cam.brute import brute_zmap as _brute_zmap
 from zmap.sim.tools import Cutter, parse_tool_spec
 
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("cam")
+
 
 def _env(c, d):
     return c.lower_envelope(np.asarray(d, dtype=float))

@@ -13,6 +13,9 @@ from zmap.cam import drop_cutter
 from zmap.cam._grid_kernels import drop_grid
 from zmap.sim.tools import parse_tool_spec
 
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("cam")
+
 
 def _brute(Z, dx, dy, c, qx, qy):
     """max over the finite samples with |sample - axis| <= R of z - envelope (-inf: none)."""

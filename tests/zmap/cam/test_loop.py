@@ -20,6 +20,9 @@ from zmap.cam.raster import raster_program
 from zmap.sim import simulate
 from zmap.verify import compare
 
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("cam")
+
 WIN = (-20.0, 14.0, 20.0, 22.0)
 STEPOVER = 0.8
 PITCH = 0.1

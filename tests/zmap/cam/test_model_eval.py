@@ -22,6 +22,9 @@ from zmap.cam._reference import drop_cutter_reference
 from zmap.model import PrecisionModel
 from zmap.sim.tools import parse_tool_spec
 
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("cam")
+
 
 def _kernel_heights(model, x, y):
     M = ME.pack_model(model)

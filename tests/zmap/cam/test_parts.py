@@ -23,6 +23,9 @@ from zmap.cam.raster import raster_program
 from zmap.interpolate import bezier
 from zmap.sim.tools import parse_tool_spec
 
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("cam")
+
 MAPS = sorted((Path(__file__).resolve().parents[2] / "data" / "part_maps").glob("*.zmap.npz"))
 TOL = 0.01
 

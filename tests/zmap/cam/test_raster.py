@@ -13,6 +13,9 @@ from zmap.cam.raster import raster_program, scallop_height, simplify_chords
 from zmap.cli import main
 from zmap.sim.gcode import LINEAR, RAPID, parse
 
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("cam")
+
 
 def _dome():
     return ZMap.from_function(lambda x, y: 5 - 0.02 * (x * x + y * y) + np.where(x > 4, 2.0, 0.0),

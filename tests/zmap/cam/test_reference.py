@@ -11,6 +11,9 @@ from zmap.cam import drop_cutter
 from zmap.cam._reference import drop_cutter_reference, drop_cutter_reference_dense
 from zmap.sim.tools import parse_tool_spec
 
+# one xdist worker compiles this family's numba kernels once (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("cam")
+
 
 def _nearest_on_curve(qx, qy, e, y0, y1, n=2_000_001):
     """min distance from (qx, qy) to the curve x = e(y), y in [y0, y1], and the point."""
