@@ -10,10 +10,10 @@ from tests.zmap.access.test_voxelmap import box_samples
 from zmap.access.directions import count, to_bool
 from zmap.access.solid import describe, nice_voxel, open_walls
 from zmap.access.voxelmap import (EXTERIOR, INTERIOR, AccessModelError, AccessResult, Tool, VoxelMap,
+                                  accessibility, global_visibility, three_axis)
 
 # one xdist worker compiles this family's numba kernels once (tests/conftest.py)
 pytestmark = pytest.mark.xdist_group("access")
-                                  accessibility, global_visibility, three_axis)
 
 
 def dome_samples(step=0.1, half=6.0, h=2.0, flip=False):

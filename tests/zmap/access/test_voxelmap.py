@@ -7,10 +7,10 @@ import pytest
 
 from zmap.access.directions import count, to_bool
 from zmap.access.voxelmap import (AccessModelError, Tool, VoxelMap, _ball_inputs, accessibility, global_visibility,
+                                  node_directions, paint, parse_holder, parse_tool, set_cover, three_axis)
 
 # one xdist worker compiles this family's numba kernels once (tests/conftest.py)
 pytestmark = pytest.mark.xdist_group("access")
-                                  node_directions, paint, parse_holder, parse_tool, set_cover, three_axis)
 
 
 def box_samples(lo, hi, step, *, flip=(), fid0=0):
