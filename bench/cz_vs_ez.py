@@ -64,7 +64,7 @@ def curve_length(curves) -> float:
 
 def one_part(path: Path, grid: float, tol: float, with_ez: bool) -> dict:
     """CZ plan, CZ floor and (optionally) EZ bytes of one part."""
-    from cad_io.commands import CZ_DELTA_Y_SHARE, cz_curves
+    from cad_io.refine import CZ_DELTA_Y_SHARE, cz_curves
     from cad_io.sampler import sample
     from cad_io.step import read_step
     from zmap.features import default_eps_r, sharp_edge_curves
@@ -89,7 +89,7 @@ def one_part(path: Path, grid: float, tol: float, with_ez: bool) -> dict:
            "least_kb": round(least_bytes / 1024, 1), "least_over_base": round(least_bytes / base_bytes, 1),
            "paper_dx_kb": round(paper_dx_bytes / 1024, 1)}
     if with_ez:
-        from cad_io.commands import refine_models
+        from cad_io.refine import refine_models
 
         model, info = refine_models(part, base, tol, ("ez",))["ez"]
         ez_bytes = model.ez.nbytes

@@ -21,7 +21,7 @@ DATA = Path(__file__).resolve().parents[1] / "data"
 
 
 def run(path: Path, grid: float, tol: float, points: int) -> dict:
-    from cad_io.commands import refine_models, report_rows
+    from cad_io.refine import refine_models, report_rows
     from cad_io.sampler import sample
     from cad_io.step import read_step
 

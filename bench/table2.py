@@ -2,7 +2,7 @@
 
 For data/pocket.step, data/boss.step and every STEP file in data/step, builds the
 base z-map, the EZ model and (where practical) the CZ model at ``--tol`` and a base grid
-chosen per part, and measures them with :func:`cad_io.commands.report_rows`. Each part runs
+chosen per part, and measures them with :func:`cad_io.refine.report_rows`. Each part runs
 in a child process under a time limit, so one slow or failing part is recorded (with its
 error message) and the run goes on. Progress goes to stderr; stdout gets one JSON object.
 
@@ -63,7 +63,7 @@ def _default_plan(path: Path) -> dict:
 def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods: tuple,
             deflection: float | None = None) -> dict:
     """Report of one part (called in the child process); ``deflection`` None: tol/2 (report_rows')."""
-    from cad_io.commands import refine_models, report_rows
+    from cad_io.refine import refine_models, report_rows
     from cad_io.sampler import sample
     from cad_io.step import read_step
     from cad_io.view import view_part
@@ -181,7 +181,7 @@ def _cz_plan(part, base, tol: float) -> dict:
     domain layout (:func:`zmap.refine.cz.cz_layout`), without sampling: points, KB, domains."""
     import math
 
-    from cad_io.commands import CZ_DELTA_Y_SHARE, cz_curves
+    from cad_io.refine import CZ_DELTA_Y_SHARE, cz_curves
     from zmap.features import default_eps_r, sharp_edge_curves
     from zmap.refine.cz import cz_layout
 

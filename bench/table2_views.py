@@ -3,7 +3,7 @@
 For each STEP file in data/step with an exact B-rep (nist_ftc_08 has tessellated faces only),
 from +z and from ``--side`` (default +y), builds the base z-map and its EZ model at ``--grid``
 and ``--tol`` and measures them at ``--points`` random points with
-:func:`cad_io.commands.report_rows` (each view in a child process of ``bench/table2.py``, under
+:func:`cad_io.refine.report_rows` (each view in a child process of ``bench/table2.py``, under
 ``--timeout``). Prints one JSON object; ``--markdown FILE`` also writes the table.
 
 The distances are in mm: ``max_dist_topmost`` (to the top-most surface seen along the view

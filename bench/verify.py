@@ -64,7 +64,7 @@ def log(msg: str) -> None:
 
 def die_model():
     import cad_io
-    from cad_io.commands import refine_models
+    from cad_io.refine import refine_models
 
     part = cad_io.read_step(DIE)
     w = WINDOW

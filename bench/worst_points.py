@@ -26,7 +26,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--top", type=int, default=5)
     a = ap.parse_args()
-    from cad_io.commands import refine_models
+    from cad_io.refine import refine_models
     from cad_io.distance import distance_to_part
     from cad_io.sampler import sample, sample_points
     from cad_io.step import read_step

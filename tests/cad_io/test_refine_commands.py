@@ -107,7 +107,7 @@ def test_report_bad_deflection(capsys):
 
 
 def test_report_rows_deflection_and_reference_facet_count():
-    from cad_io.commands import report_rows
+    from cad_io.refine import report_rows
     from cad_io.step import read_step
 
     part = read_step(DATA / "boss.step")
@@ -132,7 +132,7 @@ def test_skirt_bound_under_an_overhang(tmp_path):
     cq = pytest.importorskip("cadquery")
     import numpy as np
 
-    from cad_io.commands import _skirt_bound
+    from cad_io.refine import _skirt_bound
     from cad_io.distance import distance_to_part
     from cad_io.sampler import sample_points
     from cad_io.step import read_step

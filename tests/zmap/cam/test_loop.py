@@ -31,7 +31,7 @@ PITCH = 0.1
 @pytest.fixture(scope="module")
 def loop(tmp_path_factory):
     import cad_io
-    from cad_io.commands import refine_models
+    from cad_io.refine import refine_models
 
     part = cad_io.read_step(STEP_DATA / "bug27693_cornetta-step.stp")
     base = cad_io.sample(part, 0.5, bounds=(WIN[0] - 8, WIN[1] - 8, WIN[2] + 8, WIN[3] + 8))

@@ -38,7 +38,7 @@ def _kernel_heights(model, x, y):
 @pytest.fixture(scope="module")
 def boss_ez():
     import cad_io
-    from cad_io.commands import refine_models
+    from cad_io.refine import refine_models
 
     part = cad_io.read_step(DATA / "boss.step")
     b = part.bbox
@@ -161,7 +161,7 @@ _GRID_POINTS = [(30, 41), (66, 39), (17, 72), (50, 54), (20, 42), (100, 42), (60
 @pytest.mark.slow
 def test_cornetta_wall_tops_against_the_brute_force():
     import cad_io
-    from cad_io.commands import refine_models
+    from cad_io.refine import refine_models
 
     W = (-45.0, -25.0, 5.0, 25.0)
     part = cad_io.read_step(STEP_DATA / "bug27693_cornetta-step.stp")

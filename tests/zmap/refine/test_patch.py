@@ -212,7 +212,7 @@ def test_real_part_ez_holds_tol_in_3d(sample_data):
     checked EZ model stays within tol of the B-rep at random points where the paper's EZ
     alone (verify=False) does not, and within 3x the base's memory."""
     cad_io = pytest.importorskip("cad_io")
-    from cad_io.commands import refine_models
+    from cad_io.refine import refine_models
     from cad_io.distance import confirm_with_occ, distance_to_part
     from cad_io.sampler import height_function
     from zmap.features import sharp_edge_curves
