@@ -15,14 +15,15 @@ Where the surface comes from:
   every cell's net is the patch, margin 0. The answer is certified.
 * any other design (a :class:`~zmap.model.PrecisionModel`, a STEP part's exact heights, a
   callable): :func:`from_heights` samples it on a grid (the nodes are exact design heights)
-  and on a grid ``check`` times finer; the margin of a cell is how far the design's samples
-  inside it rise above the patch through its nodes, times :data:`MARGIN_FACTOR`. A cell with a
-  wall or a step inside or beside it (two neighbouring samples differ by more than :data:`WALL`
-  times their spacing) where the samples stray from the patch by more than :data:`ROUGH`, or one whose
-  samples stray far, is bounded by flat sub-cells, one per fine spacing, each at its highest
-  corner sample plus the cell's steepest rise between two samples (walls left out): the safe
-  side of a step, high by what moving the wall one fine spacing (diagonally) toward the cutter
-  gives.
+  and on a grid ``check`` times finer; the margin of a cell is the largest distance of the
+  design's samples inside it from the patch through its nodes, either side, times
+  :data:`MARGIN_FACTOR` (a bend the cubic does not follow errs both ways between samples). A
+  cell with a wall or a step inside or beside it (two neighbouring samples differ by more than
+  :data:`WALL` times their spacing) where the samples stray from the patch by more than
+  :data:`ROUGH`, or one whose samples stray far, is bounded by flat sub-cells, one per fine
+  spacing, each at its highest corner sample plus how far a crest between its samples can rise
+  (the secants beyond each side, extended inward, cross no higher): the safe side of a step,
+  high by what moving the wall one fine spacing toward the cutter gives.
   Cells with part of the design missing (the outline) are bounded the same way by the samples
   they have. The answer is then as sure as the samples: a feature narrower than the fine
   grid's spacing between two samples can still be under-rated.
@@ -39,7 +40,7 @@ import numpy as np
 
 __all__ = ["BoundingSurface", "from_zmap", "from_heights", "from_samples", "drop_bound", "MARGIN_FACTOR", "ROUGH"]
 
-#: a sampled cell's margin is its samples' largest rise above the patch times this
+#: a sampled cell's margin is its samples' largest distance from the patch (either side) times this
 MARGIN_FACTOR = 1.5
 #: mm: a sampled cell whose samples stray further from its patch is a flat patch (a step, a wall)
 ROUGH = 5e-4

@@ -28,6 +28,7 @@ to the surface's rise between samples.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import weakref
 from typing import Any, Callable
@@ -151,13 +152,10 @@ def _grid_drop(Z, x0, y0, dx, dy, cut, xb, yb, kind):
     return (np.ascontiguousarray(out).ravel(), np.ascontiguousarray(oi).ravel(), np.ascontiguousarray(oj).ravel())
 
 
-def _sampler(model: Any, hf: Callable) -> Callable:
-    """``sample(x0, y0, h, nx, ny) -> (nx, ny)`` heights of the design on a grid (the design's
-    own grid sampler where it has one, as a STEP part does; else ``hf`` at every node)."""
-    from ..design import Design, as_design
-
-    grid = as_design(model).grid
-    return grid if grid is not None else Design(hf, None, None, "callable", False).sample_grid
+def _sampler(design: Any, hf: Callable) -> Callable:
+    """``sample(x0, y0, h, nx, ny) -> (nx, ny)`` heights of a :class:`zmap.design.Design` on a
+    grid: its own grid sampler where it has one (a STEP part), else ``hf`` at every node."""
+    return design.grid if design.grid is not None else dataclasses.replace(design, heights=hf).sample_grid
 
 
 _BOUNDS = _ModelCache()
@@ -202,7 +200,7 @@ def bounding_surface(model: Any, region: tuple, *, pitch: float | None = None, c
     if nx * ny * check * check > _MAX_SAMPLES:
         raise ZMapError(f"the drop-cutter would sample {nx * check} x {ny * check} heights at "
                         f"{pitch / check:g} mm (cap {_MAX_SAMPLES:.0e}): give a coarser pitch or a smaller region")
-    F = _sampler(model, hf)(x0, y0, pitch / check, (nx - 1) * check + 1, (ny - 1) * check + 1)
+    F = _sampler(design, hf)(x0, y0, pitch / check, (nx - 1) * check + 1, (ny - 1) * check + 1)
     bs = BD.from_samples(F, x0, y0, pitch, check, source=type(model).__name__)
     _BOUNDS.put(model, ((pitch, check), bs))
     return bs
@@ -310,7 +308,9 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
                 raise ZMapError(f"drop_cutter would sample {nx} x {ny} heights at pitch {p:g} mm "
                                 f"(cap {_MAX_SAMPLES:.0e}): give a coarser pitch or fewer points")
             dx = dy = p
-            Z = np.ascontiguousarray(_sampler(model, hf)(x0, y0, p, nx, ny))
+            from ..design import as_design
+
+            Z = np.ascontiguousarray(_sampler(as_design(model), hf)(x0, y0, p, nx, ny))
         cl, ux, uy = _discrete(Z, float(x0), float(y0), float(dx), float(dy), cut, xb, yb, qx, qy)
         ok = np.isfinite(cl)
     cl = np.where(ok, cl, np.nan).reshape(shape)

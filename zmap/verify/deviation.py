@@ -157,12 +157,6 @@ def design_heights(design: Any) -> Callable[[np.ndarray, np.ndarray], np.ndarray
     return as_design(design).heights
 
 
-def _design_bounds(design: Any) -> tuple | None:
-    from ..design import as_design
-
-    return as_design(design).bounds
-
-
 def _overlap(a: tuple, b: tuple) -> float:
     """Fraction of box ``a`` (xmin, ymin, xmax, ymax) that box ``b`` covers."""
     w = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
@@ -363,13 +357,15 @@ def compare(run: Any, design: Any, *, stage: Any = "end", tol: float = 0.01, off
     if isinstance(run, (str, os.PathLike)):
         run = Run.load(run)
     where = str(design) if isinstance(design, (str, os.PathLike)) else type(design).__name__
-    design = load_design(design)
-    heights = design_heights(design)
+    from ..design import as_design
+
+    design_of = as_design(load_design(design))
+    heights = design_of.heights
     k = run.stage(stage)
     s = run.stock
     nx, ny, p = s.nx, s.ny, float(s.pitch)
     stock_box = (s.x0, s.y0, s.x0 + (nx - 1) * p, s.y0 + (ny - 1) * p)
-    _check_units(stock_box, _design_bounds(design), where)
+    _check_units(stock_box, design_of.bounds, where)
 
     t1 = time.perf_counter()
     top = np.asarray(run.display(k), dtype=np.float64).reshape(nx, ny)
@@ -390,7 +386,7 @@ def compare(run: Any, design: Any, *, stage: Any = "end", tol: float = 0.01, off
 
     covered = np.isfinite(dz) & np.isfinite(top)
     dev = np.where(covered, top - (dz + offset), np.nan)
-    box = _design_bounds(design)
+    box = design_of.bounds
     inside = None
     if box is not None:
         eps = 1e-9 * max(1.0, *map(abs, box))
