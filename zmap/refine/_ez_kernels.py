@@ -948,7 +948,9 @@ def _split(z, i, j, u, v, c, slots, edge_ids, offsets, hq, brk_kind, brk_t, bk, 
     s1 = _perimeter(k1, t1)
     s2 = _perimeter(k2, t2)
     P = pts[c]
-    if _region_a(X, Y, P, arc[c], s1, s2, dx, dy):
+    # the region test counts crossings of edges above and to the right of the point, so a
+    # point on the cell's top or right side would lie outside both regions: test it a hair inside
+    if _region_a(min(X, dx * (1.0 - 1e-12)), min(Y, dy * (1.0 - 1e-12)), P, arc[c], s1, s2, dx, dy):
         sa, ka, ta, sb, kb, tb_ = s1, k1, t1, s2, k2, t2
     else:
         sa, ka, ta, sb, kb, tb_ = s2, k2, t2, s1, k1, t1

@@ -344,3 +344,66 @@ def test_patches_pass_nan_points_by_without_a_cast_warning():
         warnings.simplefilter("error")
         ez.patches.evaluate(base, ez.interval, ez.tol, x, y, out)
     assert out.tolist() == [7.0, 8.0, 9.0]
+
+
+def crest(x_c=2.5, half_width=0.3, height=0.03):
+    """z = a tent of ``height`` over ``|x - x_c| < half_width``: a crest narrower than a cell."""
+    return lambda x, y: height * np.clip(1.0 - np.abs(np.asarray(x) - x_c) / half_width, 0.0, None)
+
+
+def test_a_crest_between_two_test_points_is_found_where_the_error_bends():
+    """Grid 2 mm, tol 0.02: the 8 x 8 test lattice's points are 0.25 mm apart, and a crest
+    0.03 mm high between two of them leaves 0.0175 mm at both (within the check's 0.018);
+    the error's turn there sends the cell to a 4x finer lattice, which finds the crest."""
+    exact = crest()
+    flat = lambda x, y: np.zeros_like(np.asarray(x, dtype=np.float64))  # noqa: E731
+    base = ZMap.from_function(flat, (0, 0, 8, 8), 2.0)
+    cells = np.arange((base.nx - 1) * (base.ny - 1), dtype=np.int64)
+    crest_cell = 1 * (base.ny - 1) + 0  # x in [2, 4], y in [0, 2]
+    # the premise: the plain lattice steps over the crest
+    assert failing_cells(flat, base, exact, 0.9 * 0.02, cells).size == 0
+    found = failing_cells(flat, base, exact, 0.9 * 0.02, cells, bend=True)
+    assert crest_cell in found.tolist()
+    assert set(found.tolist()) == {i * (base.ny - 1) + j for i in (1,) for j in range(base.ny - 1)}
+
+
+def angled_ridge(angle=0.15, crest_height=0.03):
+    """A ridge 3 mm high and 2.6 mm wide at its foot, across the grid at ``angle``, with a
+    narrow crest on top: two concave kinks at its feet and a crest the grid's cells cross."""
+    c, s = math.cos(angle), math.sin(angle)
+
+    def f(x, y):
+        d = c * np.asarray(x, dtype=np.float64) + s * np.asarray(y, dtype=np.float64) - 4.55
+        return 3.0 * np.clip(1 - np.abs(d) / 1.3, 0, None) + crest_height * np.clip(1 - np.abs(d) / 0.25, 0, None)
+
+    return f
+
+
+def test_ez_holds_tol_where_a_kink_bends_its_error_between_test_points():
+    """Grid 2, tol 0.02: the model rounds the ridge's concave foot, 0.04 mm above the floor
+    in a band 0.016 mm wide, which the patch's 32 x 32 re-test lattice steps over; the
+    error's turn sends the cell to a 4x finer lattice and a finer patch."""
+    tol = 0.02
+    ridge = angled_ridge()
+    base = ZMap.from_function(ridge, (0, 0, 10, 8), 2.0)
+    ez = build_ez(base, ridge, tol=tol)
+    assert ez.unresolved == 0
+    x, y = np.meshgrid(np.linspace(0, 10, 801), np.linspace(0, 8, 641), indexing="ij")
+    x, y = x.ravel(), y.ravel()
+    h = ez.height(base, x, y)
+    assert not misfit(h, x, y, ridge(x, y), ridge, tol).any()
+
+
+def test_ez_heights_on_the_maps_far_sides_are_the_heights_beside_them():
+    """A split cell (a kink runs through it) on the map's top or right side: a point on that
+    side lies on the cell's boundary, where the side-of-the-trace test once counted no
+    crossing and took the other side's data (0 instead of 0.58 mm)."""
+    ridge = angled_ridge(angle=0.0)
+    along_y = lambda x, y: ridge(y, x)  # noqa: E731
+    for f, domain, swap in ((ridge, (0, 0, 10, 8), False), (along_y, (0, 0, 8, 10), True)):
+        base = ZMap.from_function(f, domain, 2.0)
+        ez = build_ez(base, f, tol=0.02, verify=False)
+        s = np.array([3.5, 4.5, 5.5, 7.0])
+        for edge in (8.0, 8.0 - 1e-9):
+            xy = (np.full(4, edge), s) if swap else (s, np.full(4, edge))
+            np.testing.assert_allclose(ez.height(base, *xy), f(*xy), atol=0.01)
