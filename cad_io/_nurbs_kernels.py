@@ -53,7 +53,7 @@ def _stack_f64(typingctx, n):
 
 
 # _nrt=False: no reference counting on the calls from the Newton loops
-# (cad_io._sample_kernels)
+# (cad_io._newton_kernels)
 @njit(cache=True, error_model="numpy", _nrt=False)
 def find_span(knots, off, n, p, u):
     """Knot span index of ``u`` (A2.1); ``n`` = number of control points - 1.

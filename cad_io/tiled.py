@@ -1,7 +1,7 @@
 """Tiled conversion of a STEP part to a z-map in a zarr store, tile by tile as Dask tasks.
 
 The client reads the part once, meshes it, fixes the grid exactly as :func:`cad_io.sample`
-would (same bounds, same deflection), packs the faces (:class:`cad_io.sampler._FaceSet`:
+would (same bounds, same deflection), packs the faces (:class:`cad_io._sample_faces._FaceSet`:
 plain arrays, no CAD kernel) and ships that to every worker once. Each task samples one
 tile of ``tile`` x ``tile`` nodes with the sampler's own kernels (the pair scan restricted to
 the tile, :mod:`cad_io._tiled_kernels`; the nodes' coordinates computed as the whole-map

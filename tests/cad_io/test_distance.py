@@ -181,7 +181,7 @@ def test_mesh_distance_on_degenerate_triangles():
     """Zero-length edges, coincident and collinear vertices (BRepMesh leaves such triangles on
     some real parts) give the distance to what is left of the triangle, never a division by zero
     (a ZeroDivisionError inside the numba kernel, reported as a SystemError, stopped a report)."""
-    from cad_io import _sample_kernels as K
+    from cad_io import _distance_kernels as K
 
     nodes = np.array([[0, 0, 0], [0, 0, 0], [1, 0, 0], [2, 0, 0], [1, 1, 0], [1, 1, 1e-300],
                       [1 + 1e-13, 0, 0], [0.5, 0.5, 0.5]], float)
@@ -241,7 +241,8 @@ def test_kernels_never_raise_for_a_division_by_zero():
 
     from numba.core.registry import CPUDispatcher
 
-    for name in ("cad_io._sample_kernels", "cad_io._nurbs_kernels", "cad_io._tiled_kernels",
+    for name in ("cad_io._sample_kernels", "cad_io._trim_kernels", "cad_io._newton_kernels",
+                 "cad_io._distance_kernels", "cad_io._nurbs_kernels", "cad_io._tiled_kernels",
                  "zmap.refine._ez_kernels"):
         mod = importlib.import_module(name)
         kernels = [v for v in vars(mod).values() if isinstance(v, CPUDispatcher) and v.__module__ == name]

@@ -144,8 +144,8 @@ def test_in_tolerance_kernel():
     """The band test alone on the unit square's loop, 10 mm per unit of u along its edge
     v = 0 in space: near a loop edge in uv and near an edge curve in space, inside the
     face's uv bounds; a face without a tolerance (0) has no band."""
-    from cad_io._sample_kernels import in_tolerance
-    from cad_io.sampler import _trim_bands, _with_band
+    from cad_io._sample_trim import _trim_bands, _with_band
+    from cad_io._trim_kernels import in_tolerance
 
     loop = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     trim = _trim_bands({0: [loop]}, np.array([[-1.0, 2.0, -1.0, 2.0]]), 1, reach_uv={0: 0.02})

@@ -193,7 +193,7 @@ def test_trimmed_grid_covers_the_face_and_its_tolerance_band(sample_data):
     10 um asked): the grid's nodes are on the surface, its triangles within the deflection,
     every point of the trimmed face lies in a kept cell, and the kept cells' own outline is
     at least ``reach`` (3D) beyond the trim loop wherever it is not the surface's edge."""
-    from cad_io import _sample_kernels as K
+    from cad_io import _trim_kernels as K
     from cad_io.mesh import trimmed_grid_mesh
 
     _part, f = _trj8_face(sample_data, 22)
@@ -242,15 +242,16 @@ def test_trimmed_grid_pairs_few_triangles_a_point(sample_data):
     22 pairs with about one triangle, where BRepMesh's triangles, 0.55 mm off and widened by
     twice that, paired 28 (Newton then ran 55 us a pair: trj8's EZ build over 42 minutes)."""
     from cad_io import _sample_kernels as K
-    from cad_io import sampler as S
+    from cad_io._sample_faces import _cached_face_set
+    from cad_io._sample_points import POINTS_DEFLECTION, _bins
 
     part, f = _trj8_face(sample_data, 22)
-    fs = S._cached_face_set(part, S.POINTS_DEFLECTION, "+z")
+    fs = _cached_face_set(part, POINTS_DEFLECTION, "+z")
     rng = np.random.default_rng(1)
     x0, y0, _, x1, y1, _ = f.bbox
     x, y = rng.uniform(x0, x1, 5000), rng.uniform(y0, y1, 5000)
     counts = np.zeros(len(fs.tris), dtype=np.int64)
-    K.count_pairs_xy(fs.nodes, fs.tris, fs.tri_margin, x, y, *S._bins(x, y, fs), counts)
+    K.count_pairs_xy(fs.nodes, fs.tris, fs.tri_margin, x, y, *_bins(x, y, fs), counts)
     on_face = fs.tri_face == 22
     per_point = counts[on_face].sum() / 5000
     assert 0.3 < per_point < 2.0, per_point

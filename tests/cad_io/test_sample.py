@@ -266,8 +266,8 @@ def test_real_parts_convert_and_agree(sample_data):
 
 
 def test_banded_point_in_polygon_matches_plain_reference():
-    from cad_io import _sample_kernels as K
-    from cad_io.sampler import _trim_bands
+    from cad_io import _trim_kernels as K
+    from cad_io._sample_trim import _trim_bands
 
     rng = np.random.default_rng(3)
     t = np.linspace(0, 2 * np.pi, 301)[:-1]
@@ -422,7 +422,7 @@ def test_newton_evaluator_agrees_with_the_general_one(name):
     """``eval_d1`` (the Newton loop's point and first derivatives) against
     ``_nurbs_kernels.eval_point`` on every face of real parts: rational and polynomial,
     degrees 1 to 3 in u and v, points inside, on and outside the domain (clamped)."""
-    from cad_io import _sample_kernels as K
+    from cad_io import _newton_kernels as K
     from cad_io._nurbs_kernels import eval_point
     from cad_io.nurbs import pack
 
@@ -466,7 +466,7 @@ def test_silhouette_margin_only_near_folds(sample_data):
     changes sign or a triangle is edge-on): all of the torus's fold band seen from the
     side, not all of cornetta's steep wall triangles seen from above (3,075 of 5,612 at
     0.05 mm: its 84-86 degree walls wiggle through vertical in the mesh)."""
-    from cad_io.sampler import _silhouette_triangles, _steep_triangles
+    from cad_io._sample_faces import _silhouette_triangles, _steep_triangles
     from cad_io.view import transform_part
 
     torus = transform_part(read_step(DATA / "torus.step", mesh_deflection=0.05), "-y")
@@ -547,13 +547,14 @@ def test_fine_pass_ray_casts_a_face_too_large_to_mesh(sample_data, monkeypatch):
     within the ray cast's tolerance, facet ones within the fine deflection), and the answer
     at a point does not depend on which other points a call holds (tiles of a tiled
     conversion meet the whole map bit for bit)."""
+    import cad_io._sample_fine as SF
     import cad_io.sampler as S
     from cad_io.view import transform_part
 
     part = read_step(sample_data / "step" / "bug27693_cornetta-step.stp", mesh_deflection=2.0)
     before = [f.mesh for f in part.faces]
     vpart = transform_part(part, "+z")
-    monkeypatch.setattr(S, "FINE_FACE_TRIANGLES", 50)
+    monkeypatch.setattr(SF, "FINE_FACE_TRIANGLES", 50)
     cast = S.fine_cast(part, 0.2)
     assert 3 <= cast.sum() < len(cast)
     rng = np.random.default_rng(11)
@@ -583,6 +584,7 @@ def test_fine_pass_keeps_a_part_meshed_finely_enough(sample_data, monkeypatch):
     is: no face is meshed again or ray-cast, whatever its size (the die's 1000 x 1000 facet
     map took 111 CPU-s with every point ray-cast, 0.67 s this way), and the answers are those
     of its own meshes."""
+    import cad_io._sample_fine as SF
     import cad_io.mesh as CM
     import cad_io.sampler as S
     from cad_io.mesh import triangulate
@@ -590,14 +592,14 @@ def test_fine_pass_keeps_a_part_meshed_finely_enough(sample_data, monkeypatch):
 
     part = read_step(sample_data / "step" / "bug27693_cornetta-step.stp", mesh_deflection=2.0)
     triangulate(part, 0.2)
-    monkeypatch.setattr(S, "FINE_FACE_TRIANGLES", 50)  # every face "too large" to mesh at 0.2
+    monkeypatch.setattr(SF, "FINE_FACE_TRIANGLES", 50)  # every face "too large" to mesh at 0.2
     assert not S.fine_cast(part, 0.2).any() and S.fine_cast(part, 0.1).any()
 
     def refuse(*a, **k):
         raise AssertionError("meshed again")
 
     monkeypatch.setattr(CM, "mesh_faces_alone", refuse)
-    monkeypatch.setattr(S, "_face_caster", refuse)
+    monkeypatch.setattr(SF, "_face_caster", refuse)
     vpart = transform_part(part, "+z")
     rng = np.random.default_rng(3)
     gx, gy = rng.uniform(-60.0, 60.0, 300), rng.uniform(-60.0, 60.0, 300)

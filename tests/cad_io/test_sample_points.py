@@ -67,6 +67,7 @@ def test_points_inside_a_curved_wall_get_the_fillet_not_the_top():
 
 def test_chunks_give_the_same_answer(monkeypatch):
     # sample_points solves the points POINTS_CHUNK at a time (bounded working memory)
+    import cad_io._sample_points as SP
     import cad_io.sampler as S
 
     part = read_step(Path(__file__).resolve().parents[2] / "data" / "boss.step")
@@ -74,7 +75,7 @@ def test_chunks_give_the_same_answer(monkeypatch):
     x, y = rng.uniform(-45, 45, 300), rng.uniform(-35, 35, 300)
     x[5] = np.nan
     whole = S.sample_points(part, x, y)
-    monkeypatch.setattr(S, "POINTS_CHUNK", 7)
+    monkeypatch.setattr(SP, "POINTS_CHUNK", 7)
     chunked = S.sample_points(part, x, y)
     for a, b in zip(whole, chunked):
         np.testing.assert_array_equal(a, b)

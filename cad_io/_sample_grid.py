@@ -1,0 +1,144 @@
+"""Grid planning of the z-map sampler (:mod:`cad_io.sampler`): the grid intervals, the domain
+seen from the view axis and the grid lines that cover it, the default mesh deflections as
+shares of the interval, and the memory a grid needs.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import Any, Sequence
+
+import numpy as np
+
+from zmap.errors import GridTooLargeError
+from zmap.fmt import count, size
+
+from ._sample_pairs import CHUNK_PAIRS
+from .part import Part
+from .view import view_matrix
+
+__all__ = ["FACET_SHARE", "START_SHARE", "_available_bytes", "_centred", "_check_memory", "_spacing", "_view_bounds",
+           "estimate_bytes", "grid_shape"]
+
+#: default mesh deflections as shares of the grid interval: the Newton starts need only a
+#: coarse mesh (grid / START_SHARE); points answered by facets on exact faces are solved
+#: again on a fine one (grid / FACET_SHARE)
+START_SHARE = 1.0
+FACET_SHARE = 20.0
+#: bytes per pair in the working arrays (gidx 8, tri 8, w 16, z 8, status 1)
+_PAIR_BYTES = 41
+#: bytes per grid point kept to the end (z 8, face 4, method 1) and the map's own copy
+_POINT_BYTES = 13 + 13
+
+
+def _spacing(grid: Any) -> tuple[float, float]:
+    """``(dx, dy)`` of a grid interval or pair of intervals; ValueError unless positive and finite."""
+    if np.ndim(grid) == 0:
+        dx = dy = grid
+    else:
+        if np.shape(grid) != (2,):
+            raise ValueError(f"grid must be an interval or a pair (dx, dy), got {np.asarray(grid).tolist()!r}")
+        dx, dy = grid
+    try:
+        dx, dy = float(dx), float(dy)
+    except (TypeError, ValueError):
+        raise ValueError(f"grid must be a positive number of mm, got {grid!r}") from None
+    if not (math.isfinite(dx) and math.isfinite(dy) and dx > 0 and dy > 0):
+        raise ValueError(f"grid intervals must be positive and finite, got dx={dx!r}, dy={dy!r}")
+    return dx, dy
+
+
+def _view_bounds(part: Part, axis: str) -> tuple[float, float, float, float]:
+    """``(x0, y0, x1, y1)`` of the faces' bounding boxes seen from ``axis`` (view frame)."""
+    b = np.array([f.bbox for f in part.faces], dtype=np.float64).reshape(-1, 6)
+    R = view_matrix(axis)
+    lo = b[:, :3] @ R.T
+    hi = b[:, 3:] @ R.T
+    both = np.concatenate([lo, hi])
+    if not np.isfinite(both[:, :2]).any():
+        raise ValueError(f"part {part.source!r} has no face with a bounding box; pass bounds=")
+    return (float(np.nanmin(both[:, 0])), float(np.nanmin(both[:, 1])),
+            float(np.nanmax(both[:, 0])), float(np.nanmax(both[:, 1])))
+
+
+def grid_shape(bounds: Sequence[float], dx: float, dy: float) -> tuple[int, int]:
+    """Grid points ``(nx, ny)`` that cover ``bounds = (x0, y0, x1, y1)``, at least 2 along each axis.
+
+    The last grid line is the first one at or beyond ``x1`` (``y1``), within 1e-9 of an
+    interval: ``x0 + (nx - 1) * dx >= x1``, so no part of the domain is left off the map
+    (a domain that is a whole number of intervals keeps its last line on ``x1``).
+
+    Parameters
+    ----------
+    bounds : (x0, y0, x1, y1)
+        The domain, mm.
+    dx, dy : float
+        Grid intervals, mm.
+
+    Returns
+    -------
+    (int, int)
+        ``nx``, ``ny``.
+
+    Raises
+    ------
+    ValueError
+        Bounds not finite, or ``x1 < x0`` or ``y1 < y0``.
+
+    Examples
+    --------
+    >>> grid_shape((0.0, 0.0, 10.0, 5.0), 1.0, 1.0), grid_shape((0.0, 0.0, 10.2, 5.0), 1.0, 1.0)
+    ((11, 6), (12, 6))
+    """
+    x0, y0, x1, y1 = (float(v) for v in bounds)
+    if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x1 < x0 or y1 < y0:
+        raise ValueError(f"bounds must be finite (x0, y0, x1, y1) with x1 >= x0 and y1 >= y0, got {tuple(bounds)}")
+    nx = max(2, int(math.ceil((x1 - x0) / dx - 1e-9)) + 1)
+    ny = max(2, int(math.ceil((y1 - y0) / dy - 1e-9)) + 1)
+    return nx, ny
+
+
+def _centred(lo: float, hi: float, step: float, n: int) -> float:
+    """First grid line of ``n`` lines ``step`` apart centred on ``[lo, hi]`` (they cover it)."""
+    return 0.5 * (lo + hi) - 0.5 * (n - 1) * step
+
+
+def estimate_bytes(nx: int, ny: int) -> int:
+    """Working memory of :func:`cad_io.sampler.sample` on an ``nx`` x ``ny`` grid.
+
+    Returns
+    -------
+    int
+        Bytes, meshes excluded.
+    """
+    n = int(nx) * int(ny)
+    return n * _POINT_BYTES + min(2 * n, CHUNK_PAIRS) * _PAIR_BYTES
+
+
+def _available_bytes() -> int:
+    """Memory available to this process, bytes (8 GiB where the system does not say)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return 8 * 1024**3
+
+
+def _check_memory(nx: int, ny: int) -> int:
+    """:func:`estimate_bytes` of an ``nx`` x ``ny`` grid; raises ``GridTooLargeError`` above
+    80% of the available memory."""
+    need = estimate_bytes(nx, ny)
+    avail = _available_bytes()
+    if need > 0.8 * avail:
+        raise GridTooLargeError(
+            f"grid of {count(nx)} x {count(ny)} = {count(nx * ny)} points needs about {size(need)}, "
+            f"more than 80% of the {size(avail)} of memory available; "
+            f"use a coarser grid or smaller bounds")
+    return need
