@@ -7,7 +7,7 @@ page is the same as ``zmap view``'s.
 Examples
 --------
 >>> handle = serve("RUN.zsim")          # doctest: +SKIP
->>> handle                              # doctest: +SKIP  (a notebook shows the viewer here)
+>>> handle  # a notebook shows the viewer here  # doctest: +SKIP
 >>> handle.stop()                       # doctest: +SKIP
 """
 
