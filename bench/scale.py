@@ -75,7 +75,8 @@ def _convert(part, grid: float, tile: int, workers: int, folder: Path, name: str
 
 def bench_convert(part_path: Path, grid: float, tile: int, check: bool | None, deflection: float | None) -> dict:
     import cad_io
-    from cad_io.sampler import _available_bytes, estimate_bytes
+    from cad_io.sampler import estimate_bytes
+    from zmap.memory import available_bytes
 
     part = str(part_path)  # each run reads the file (the client, and every worker once)
     folder = Path(tempfile.mkdtemp(prefix="zmap-scale-"))
@@ -97,7 +98,7 @@ def bench_convert(part_path: Path, grid: float, tile: int, check: bool | None, d
                if r2["cpu_seconds_busiest_worker"] else None,
                "prepare_seconds": r2["prepare_seconds"], "store_mb_on_disk": round(s2.disk_bytes() / 1e6, 1),
                "map_mb_in_memory": round(s2.nbytes / 1e6, 1)}
-        fits = estimate_bytes(s2.nx, s2.ny) < 0.25 * _available_bytes()
+        fits = estimate_bytes(s2.nx, s2.ny) < 0.25 * available_bytes()
         if check is None:
             check = fits
         if check:

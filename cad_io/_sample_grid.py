@@ -6,19 +6,20 @@ shares of the interval, and the memory a grid needs.
 from __future__ import annotations
 
 import math
-import os
 from typing import Any, Sequence
 
 import numpy as np
 
 from zmap.errors import GridTooLargeError
 from zmap.fmt import count, size
+from zmap.gridspec import GridSpec
+from zmap.memory import available_bytes
 
 from ._sample_pairs import CHUNK_PAIRS
 from .part import Part
 from .view import view_matrix
 
-__all__ = ["FACET_SHARE", "START_SHARE", "_available_bytes", "_centred", "_check_memory", "_spacing", "_view_bounds",
+__all__ = ["FACET_SHARE", "START_SHARE", "_check_memory", "_spacing", "_view_bounds",
            "estimate_bytes", "grid_shape"]
 
 #: default mesh deflections as shares of the grid interval: the Newton starts need only a
@@ -91,17 +92,7 @@ def grid_shape(bounds: Sequence[float], dx: float, dy: float) -> tuple[int, int]
     >>> grid_shape((0.0, 0.0, 10.0, 5.0), 1.0, 1.0), grid_shape((0.0, 0.0, 10.2, 5.0), 1.0, 1.0)
     ((11, 6), (12, 6))
     """
-    x0, y0, x1, y1 = (float(v) for v in bounds)
-    if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x1 < x0 or y1 < y0:
-        raise ValueError(f"bounds must be finite (x0, y0, x1, y1) with x1 >= x0 and y1 >= y0, got {tuple(bounds)}")
-    nx = max(2, int(math.ceil((x1 - x0) / dx - 1e-9)) + 1)
-    ny = max(2, int(math.ceil((y1 - y0) / dy - 1e-9)) + 1)
-    return nx, ny
-
-
-def _centred(lo: float, hi: float, step: float, n: int) -> float:
-    """First grid line of ``n`` lines ``step`` apart centred on ``[lo, hi]`` (they cover it)."""
-    return 0.5 * (lo + hi) - 0.5 * (n - 1) * step
+    return GridSpec.covering(bounds, dx, dy).shape
 
 
 def estimate_bytes(nx: int, ny: int) -> int:
@@ -116,26 +107,11 @@ def estimate_bytes(nx: int, ny: int) -> int:
     return n * _POINT_BYTES + min(2 * n, CHUNK_PAIRS) * _PAIR_BYTES
 
 
-def _available_bytes() -> int:
-    """Memory available to this process, bytes (8 GiB where the system does not say)."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return 8 * 1024**3
-
-
 def _check_memory(nx: int, ny: int) -> int:
     """:func:`estimate_bytes` of an ``nx`` x ``ny`` grid; raises ``GridTooLargeError`` above
     80% of the available memory."""
     need = estimate_bytes(nx, ny)
-    avail = _available_bytes()
+    avail = available_bytes()
     if need > 0.8 * avail:
         raise GridTooLargeError(
             f"grid of {count(nx)} x {count(ny)} = {count(nx * ny)} points needs about {size(need)}, "

@@ -25,7 +25,6 @@ it lives (``cad_io._sample_points.POINTS_CHUNK``, not ``cad_io.sampler.POINTS_CH
 
 from __future__ import annotations
 
-import math
 import time
 import warnings
 from typing import Any, Sequence
@@ -34,19 +33,19 @@ import numpy as np
 
 from zmap.grid import ZMap
 
-from ._sample_faces import _face_set, _needs_mesh
+from ._sample_faces import _face_set
 from ._sample_fine import _fine_facets, fine_cast
-from ._sample_grid import FACET_SHARE, START_SHARE, _centred, _check_memory, _spacing, _view_bounds, grid_shape
+from ._sample_grid import _check_memory, grid_shape
 from ._sample_pairs import _MODE, EMPTY, FACET, JACOBIAN, METHODS, NEWTON_MAX_ITER, NEWTON_TOL, _run_pairs
+from ._sample_plan import mesh_and_place, plan_inputs
 from .part import Part
-from .view import check_axis, transform_part
 
 # importable from here as before: the stages' settings, the scattered-point sampler, and the
-# private names cad_io.distance (_cached_face_set) and bench/scale.py (_available_bytes) take
+# private name cad_io.distance takes (_cached_face_set)
 from ._sample_faces import (BOUNDARY_MARGIN, ERROR_SAMPLES, LATTICE, MESH_ERROR_SHARE, SILHOUETTE_RINGS, STEEP_NZ,
                             TIGHT_MESH_ERROR_SHARE, _cached_face_set)
 from ._sample_fine import FINE_FACE_TRIANGLES
-from ._sample_grid import _available_bytes, estimate_bytes
+from ._sample_grid import FACET_SHARE, START_SHARE, estimate_bytes
 from ._sample_pairs import CHUNK_PAIRS
 from ._sample_points import POINTS_CHUNK, POINTS_DEFLECTION, height_function, sample_points
 from ._sample_trim import TRIM_SLACK_MM
@@ -141,52 +140,20 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
     from . import _sample_kernels as K
 
     t_start = time.perf_counter()
-    if method not in _MODE:
-        raise ValueError(f"method={method!r} is not one of {', '.join(repr(m) for m in METHODS)}")
-    check_axis(axis)
-    dx, dy = _spacing(grid)
-    if not part.faces:
-        raise ValueError(f"part {part.source!r} has no faces")
-    default_bounds = bounds is None
-    if default_bounds:
-        bounds = _view_bounds(part, axis)
-    elif np.shape(bounds) != (4,):
-        raise ValueError(f"bounds must be (x0, y0, x1, y1), got {np.asarray(bounds).tolist()!r}")
-    x0, y0 = float(bounds[0]), float(bounds[1])
-    nx, ny = grid_shape(bounds, dx, dy)
-    need = _check_memory(nx, ny)
-    fine = None
-    if deflection is None:
-        deflection = min(dx, dy) / START_SHARE
-        fine = min(dx, dy) / FACET_SHARE
-    deflection = float(deflection)
-    if not (math.isfinite(deflection) and deflection > 0):
-        raise ValueError(f"deflection must be positive, got {deflection!r}")
+    plan = plan_inputs(part, grid, bounds=bounds, axis=axis, method=method, deflection=deflection)
+    need = _check_memory(*plan.spec.shape)
     bar, own_bar = _stage_bar(progress)
 
     t_mesh = time.perf_counter()
     _stage(bar, "meshing", 0.0)
-    if _needs_mesh(part, deflection):
-        from .mesh import triangulate
-
-        triangulate(part, deflection)
+    vpart, placed = mesh_and_place(part, plan, axis)
     t_mesh = time.perf_counter() - t_mesh
     _stage(bar, "sampling", _MESH_SHARE)
-    vpart = transform_part(part, axis)
-    if default_bounds:
-        # the triangulation's extents: on the surface, unlike the tolerance-padded bboxes
-        ext = [(m.nodes[:, 0].min(), m.nodes[:, 1].min(), m.nodes[:, 0].max(), m.nodes[:, 1].max())
-               for m in (f.mesh for f in vpart.faces) if m is not None and len(m.nodes)]
-        if ext:
-            e = np.array(ext)
-            bounds = (float(e[:, 0].min()), float(e[:, 1].min()), float(e[:, 2].max()), float(e[:, 3].max()))
-            nx, ny = grid_shape(bounds, dx, dy)
-            need = _check_memory(nx, ny)
-        # the lines cover the part's extents, centred on them: a symmetric part gives a
-        # symmetric map (a whole number of intervals keeps the lines on the extents)
-        x0 = _centred(bounds[0], bounds[2], dx, nx)
-        y0 = _centred(bounds[1], bounds[3], dy, ny)
-    window = (x0 - dx, y0 - dy, x0 + (nx - 1) * dx + dx, y0 + (ny - 1) * dy + dy)
+    if placed.spec.shape != plan.spec.shape:
+        need = _check_memory(*placed.spec.shape)
+    plan = placed
+    x0, y0, dx, dy, nx, ny = (plan.spec.x0, plan.spec.y0, plan.spec.dx, plan.spec.dy, plan.spec.nx, plan.spec.ny)
+    deflection, fine, window = plan.deflection, plan.fine, plan.spec.window
     fs = _face_set(vpart, deflection, window)
     for msg in fs.msgs:
         warnings.warn(msg, stacklevel=2)
@@ -223,7 +190,7 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
                 bar.close()
             raise
     n_refined = n_fine = 0
-    if fine is not None and fine < deflection and fs.tris is not None:
+    if fine is not None and fs.tris is not None:
         # facet answers on exact faces (Newton failed there) come from a fine mesh, as
         # they did when every face was meshed at grid / FACET_SHARE: a fine mesh of the
         # faces that may cover them only (Ventilator: 36 of 305 faces for 3 points)

@@ -18,7 +18,6 @@ workers need zmap installed and the store's folder on a shared file system).
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import time
 import warnings
@@ -28,7 +27,13 @@ from typing import Any, Sequence
 import numpy as np
 
 from zmap.fmt import count, size
-from zmap.tiled.cluster import CONNECT_TIMEOUT, cpu_figures, dask_client, peak_rss_mb, share
+from zmap.tiled.cluster import (
+    CONNECT_TIMEOUT,
+    cpu_figures,
+    dask_client,
+    peak_rss_mb,
+    share,
+)
 
 from .part import Part
 
@@ -62,8 +67,8 @@ def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, a
               method: str = "auto", deflection: float | None = None) -> TiledGrid:
     """The grid :func:`cad_io.sample` would use for these arguments, without sampling.
 
-    The same steps as ``sample`` (bounds from the mesh extents, lines centred on them); the
-    tests check the two agree on real parts. Meshes ``part`` at the deflection (as ``sample``
+    The same steps as ``sample``, by the same code (:mod:`cad_io._sample_plan`: bounds from
+    the mesh extents, lines centred on them). Meshes ``part`` at the deflection (as ``sample``
     does) when its meshes are coarser.
     No memory check: the map is never held whole.
 
@@ -76,53 +81,18 @@ def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, a
     >>> (g.nx, g.ny) == cad_io.sample(part, 1.0).shape
     True
     """
-    from .sampler import (_MODE, FACET_SHARE, METHODS, START_SHARE, _centred, _needs_mesh, _spacing, _view_bounds,
-                          grid_shape)
-    from .view import check_axis, transform_part
+    from ._sample_plan import mesh_and_place, plan_inputs
 
-    if method not in _MODE:
-        raise ValueError(f"method={method!r} is not one of {', '.join(repr(m) for m in METHODS)}")
-    check_axis(axis)
-    dx, dy = _spacing(grid)
-    if not part.faces:
-        raise ValueError(f"part {part.source!r} has no faces")
-    default_bounds = bounds is None
-    if default_bounds:
-        bounds = _view_bounds(part, axis)
-    elif np.shape(bounds) != (4,):
-        raise ValueError(f"bounds must be (x0, y0, x1, y1), got {np.asarray(bounds).tolist()!r}")
-    x0, y0 = float(bounds[0]), float(bounds[1])
-    nx, ny = grid_shape(bounds, dx, dy)
-    fine = None
-    if deflection is None:  # as sample(): a coarse start mesh, facet answers solved again on a fine one
-        deflection = min(dx, dy) / START_SHARE
-        fine = min(dx, dy) / FACET_SHARE
-    deflection = float(deflection)
-    if not (math.isfinite(deflection) and deflection > 0):
-        raise ValueError(f"deflection must be positive, got {deflection!r}")
-    if _needs_mesh(part, deflection):
-        from .mesh import triangulate
-
-        triangulate(part, deflection)
-    if default_bounds:
-        vpart = transform_part(part, axis)
-        ext = [(m.nodes[:, 0].min(), m.nodes[:, 1].min(), m.nodes[:, 0].max(), m.nodes[:, 1].max())
-               for m in (f.mesh for f in vpart.faces) if m is not None and len(m.nodes)]
-        if ext:
-            e = np.array(ext)
-            bounds = (float(e[:, 0].min()), float(e[:, 1].min()), float(e[:, 2].max()), float(e[:, 3].max()))
-            nx, ny = grid_shape(bounds, dx, dy)
-        # as sample(): the lines cover the part's extents, centred on them
-        x0 = _centred(bounds[0], bounds[2], dx, nx)
-        y0 = _centred(bounds[1], bounds[3], dy, ny)
-    window = (x0 - dx, y0 - dy, x0 + (nx - 1) * dx + dx, y0 + (ny - 1) * dy + dy)
-    fine = fine if fine is not None and fine < deflection else None
+    plan = plan_inputs(part, grid, bounds=bounds, axis=axis, method=method, deflection=deflection)
+    _vpart, plan = mesh_and_place(part, plan, axis)
+    g = plan.spec
+    fine = plan.fine
     cast = ()
     if fine is not None:
         from .sampler import fine_cast
 
         cast = tuple(fine_cast(part, fine).tolist())
-    return TiledGrid(x0, y0, dx, dy, nx, ny, deflection, axis, method, window, fine, cast)
+    return TiledGrid(g.x0, g.y0, g.dx, g.dy, g.nx, g.ny, plan.deflection, axis, method, g.window, fine, cast)
 
 
 def _face_set(part: Part, g: TiledGrid):

@@ -19,6 +19,7 @@ import numpy as np
 
 from ._npzfile import atomic_write, read_npz, write_npz
 from .errors import ZMapFileError
+from .gridspec import GridSpec
 
 __all__ = ["ZMap", "FORMAT_NAME", "FORMAT_VERSION", "atomic_write"]
 
@@ -125,28 +126,30 @@ class ZMap:
     ) -> "ZMap":
         """Sample ``z = f(x, y)`` on the grid covering ``bounds = (x0, y0, x1, y1)``.
 
-        The last grid line is the last one at or before ``x1`` (``y1``), within 1e-9 of an
-        interval.
+        The lines start on ``x0``, ``y0``; the last is the first one at or beyond ``x1``
+        (``y1``), within 1e-9 of an interval (:meth:`zmap.gridspec.GridSpec.covering`, the
+        rule every map made over a domain follows).
 
         Examples
         --------
-        >>> zm = ZMap.from_function(lambda x, y: x + 2 * y, (0, 0, 10, 5), 1.0)
-        >>> zm.shape
+        >>> ZMap.from_function(lambda x, y: x + 2 * y, (0, 0, 10, 5), 1.0).shape
         (11, 6)
+        >>> ZMap.from_function(lambda x, y: x + 2 * y, (0, 0, 10.2, 5), 1.0).shape
+        (12, 6)
         """
         dy = dx if dy is None else dy
         x0, y0, x1, y1 = (_finite_float(n, v) for n, v in zip(("x0", "y0", "x1", "y1"), bounds))
-        dx = _positive_float("dx", dx)
-        dy = _positive_float("dy", dy)
-        nx = int(math.floor((x1 - x0) / dx + 1e-9)) + 1
-        ny = int(math.floor((y1 - y0) / dy + 1e-9)) + 1
-        xs = x0 + dx * np.arange(nx)
-        ys = y0 + dy * np.arange(ny)
-        X, Y = np.meshgrid(xs, ys, indexing="ij")
+        spec = GridSpec.covering((x0, y0, x1, y1), _positive_float("dx", dx), _positive_float("dy", dy))
+        X, Y = np.meshgrid(spec.x, spec.y, indexing="ij")
         z = np.asarray(f(X, Y), dtype=np.float64)
-        return cls(x0, y0, dx, dy, z, **kwargs)
+        return cls(spec.x0, spec.y0, spec.dx, spec.dy, z, **kwargs)
 
     # ---- geometry -----------------------------------------------------------------------
+
+    @property
+    def spec(self) -> GridSpec:
+        """The grid's lines (local frame) as a :class:`zmap.gridspec.GridSpec`."""
+        return GridSpec(self.x0, self.y0, self.dx, self.dy, self.nx, self.ny)
 
     @property
     def nx(self) -> int:

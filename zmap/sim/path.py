@@ -31,7 +31,6 @@ Examples
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -39,6 +38,7 @@ import numpy as np
 
 from ..errors import PathError, PathTooLargeError
 from ..fmt import count, size
+from ..memory import available_bytes
 from .gcode import ARC_CW, KNOWN_ALL, MOVE_DTYPE, Program, _PLANE_AXES, arc_sweep
 
 __all__ = ["DEFAULT_MAX_POSITIONS", "STAGE_MODES", "Positions", "arc_chords", "dda", "positions"]
@@ -565,31 +565,6 @@ def _check_moves(moves: np.ndarray, start: np.ndarray, end: np.ndarray, arcs: np
                         f"{int(tool[i])} (negative; {n} such moves): tool numbers are >= 0")
 
 
-def _available_bytes() -> float:
-    """Memory this process may still allocate: MemAvailable, and the room left under
-    RLIMIT_AS when one is set."""
-    avail = math.inf
-    try:
-        with open("/proc/meminfo") as fh:
-            for row in fh:
-                if row.startswith("MemAvailable:"):
-                    avail = int(row.split()[1]) * 1024.0
-                    break
-    except OSError:
-        pass
-    try:
-        import resource
-
-        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
-        if soft != resource.RLIM_INFINITY:
-            with open("/proc/self/statm") as fh:
-                used = int(fh.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
-            avail = min(avail, float(soft - used))
-    except (ImportError, OSError, ValueError):
-        pass
-    return avail
-
-
 def _check_size(per_move: np.ndarray, line: np.ndarray, fname: str, pitch: float,
                 cap: float) -> None:
     """PathTooLargeError when the positions estimated per move (float64) exceed the cap or
@@ -605,7 +580,7 @@ def _check_size(per_move: np.ndarray, line: np.ndarray, fname: str, pitch: float
         return
     limit, why = cap, f"more than the cap of {cap:.3g} (max_positions)"
     if total <= cap:
-        avail = _available_bytes()
+        avail = available_bytes()
         if need <= 0.8 * avail:
             return
         limit = 0.8 * avail / _POSITION_BYTES

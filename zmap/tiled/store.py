@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import GridTooLargeError, ZMapFileError
 from ..fmt import count, size
+from ..memory import available_bytes
 
 __all__ = ["TiledZMap", "FORMAT_NAME", "FORMAT_VERSION", "HALO", "bezier", "bilinear", "is_tiled_store",
            "remove_store", "tile_grid"]
@@ -491,7 +492,7 @@ class TiledZMap:
         i0, i1, j0, j1 = self.index_window(window)
         n = (i1 - i0) * (j1 - j0)
         need = n * (8 + sum(np.dtype(d).itemsize for d in self.layers.values()))
-        avail = _available_bytes()
+        avail = available_bytes()
         if need > 0.8 * avail:
             raise GridTooLargeError(f"window of {count(i1 - i0)} x {count(j1 - j0)} = {count(n)} nodes needs about {size(need)}, "
                                     f"more than 80% of the {size(avail)} available; read a smaller window "
@@ -521,17 +522,6 @@ class TiledZMap:
         state = "complete" if self.is_complete else f"unfinished {len(self.done_tiles())}/{self.n_tiles} tiles"
         return (f"TiledZMap({str(self.path)!r}, nx={self.nx}, ny={self.ny}, x0={self.x0:g}, y0={self.y0:g}, "
                 f"dx={self.dx:g}, dy={self.dy:g}, tile={self.tile}, {state}, layers={list(self.layers)})")
-
-
-def _available_bytes() -> int:
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return 8 * 1024**3
 
 
 def remove_store(path: str | os.PathLike) -> None:

@@ -1,0 +1,127 @@
+"""One rule for the grid lines over a domain: :class:`GridSpec`.
+
+A z-map's nodes lie on lines ``x0 + i * dx`` (``i < nx``) and ``y0 + j * dy``. Every map made
+over a domain (a function sampled by :meth:`zmap.ZMap.from_function`, a STEP part sampled by
+``cad_io.sample``, the tiled planner ``cad_io.tiled.plan_grid``) takes its lines from
+:meth:`GridSpec.covering`: the last line is the first one at or beyond the domain's end, so
+no part of the domain is left off the map. A domain that is a whole number of intervals
+(within 1e-9 of one) keeps its last line on its end.
+
+Examples
+--------
+>>> GridSpec.covering((0.0, 0.0, 10.2, 5.0), 1.0).shape
+(12, 6)
+>>> g = GridSpec.covering((0.0, 0.0, 10.0, 5.0), 1.0, centred=True)
+>>> g.shape, g.bounds
+((11, 6), (0.0, 0.0, 10.0, 5.0))
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+__all__ = ["GridSpec", "lines_covering"]
+
+#: a domain within this share of an interval of a whole number of intervals ends on a line
+_SLACK = 1e-9
+
+
+def lines_covering(lo: float, hi: float, step: float) -> int:
+    """Grid lines ``step`` apart from ``lo`` up to the first at or beyond ``hi``; at least 2.
+
+    The one covering rule of :class:`GridSpec`.
+
+    Examples
+    --------
+    >>> lines_covering(0.0, 10.0, 1.0), lines_covering(0.0, 10.0 + 1e-12, 1.0), lines_covering(0.0, 10.2, 1.0)
+    (11, 11, 12)
+    """
+    return max(2, int(math.ceil((hi - lo) / step - _SLACK)) + 1)
+
+
+@dataclass(frozen=True)
+class GridSpec:
+    """A regular grid: lines ``x0 + i * dx`` for ``i < nx`` and ``y0 + j * dy`` for ``j < ny`` (mm).
+
+    Parameters
+    ----------
+    x0, y0 : float
+        First grid line along x and y.
+    dx, dy : float
+        Intervals, positive.
+    nx, ny : int
+        Lines along x and y, at least 2.
+    """
+
+    x0: float
+    y0: float
+    dx: float
+    dy: float
+    nx: int
+    ny: int
+
+    def __post_init__(self) -> None:
+        for name in ("x0", "y0", "dx", "dy"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, float, np.floating, np.integer)) or not math.isfinite(v):
+                raise ValueError(f"GridSpec {name} must be a finite number, got {v!r}")
+        if not (self.dx > 0 and self.dy > 0):
+            raise ValueError(f"GridSpec intervals must be positive, got dx={self.dx!r}, dy={self.dy!r}")
+        if int(self.nx) < 2 or int(self.ny) < 2:
+            raise ValueError(f"GridSpec needs at least 2 lines along each axis, got {self.nx} x {self.ny}")
+
+    @classmethod
+    def covering(cls, bounds: Sequence[float], dx: float, dy: float | None = None, *,
+                 centred: bool = False) -> GridSpec:
+        """The grid whose lines cover ``bounds = (x0, y0, x1, y1)`` (:func:`lines_covering`).
+
+        The lines start on ``x0`` and ``y0``; with ``centred`` they are centred on the domain
+        instead (a symmetric part gives a symmetric map), overhanging it equally on both sides.
+
+        Raises
+        ------
+        ValueError
+            Bounds not finite or reversed; intervals not positive.
+        """
+        dy = dx if dy is None else dy
+        x0, y0, x1, y1 = (float(v) for v in bounds)
+        if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x1 < x0 or y1 < y0:
+            raise ValueError(f"bounds must be finite (x0, y0, x1, y1) with x1 >= x0 and y1 >= y0, got {tuple(bounds)}")
+        dx, dy = float(dx), float(dy)
+        if not (math.isfinite(dx) and math.isfinite(dy) and dx > 0 and dy > 0):
+            raise ValueError(f"grid intervals must be positive and finite, got dx={dx!r}, dy={dy!r}")
+        nx, ny = lines_covering(x0, x1, dx), lines_covering(y0, y1, dy)
+        if centred:
+            x0 = 0.5 * (x0 + x1) - 0.5 * (nx - 1) * dx
+            y0 = 0.5 * (y0 + y1) - 0.5 * (ny - 1) * dy
+        return cls(x0, y0, dx, dy, nx, ny)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(nx, ny)``."""
+        return (int(self.nx), int(self.ny))
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """``(x0, y0, x1, y1)`` of the first and last lines."""
+        return (self.x0, self.y0, self.x0 + (self.nx - 1) * self.dx, self.y0 + (self.ny - 1) * self.dy)
+
+    @property
+    def window(self) -> tuple[float, float, float, float]:
+        """:attr:`bounds` padded by one interval on every side (the faces a node's cell may touch)."""
+        x0, y0, x1, y1 = self.bounds
+        return (x0 - self.dx, y0 - self.dy, x1 + self.dx, y1 + self.dy)
+
+    @property
+    def x(self) -> np.ndarray:
+        """The x lines, shape (nx,)."""
+        return self.x0 + self.dx * np.arange(self.nx)
+
+    @property
+    def y(self) -> np.ndarray:
+        """The y lines, shape (ny,)."""
+        return self.y0 + self.dy * np.arange(self.ny)
