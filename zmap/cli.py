@@ -96,20 +96,39 @@ cli.add_command(replay_cmd)  # sim commands
 # view command (zmap/view/commands.py): pyvista and trame load only when it runs
 from .view.commands import view_cmd  # noqa: E402  (view command)
 cli.add_command(view_cmd)  # view command
-# cad commands (cad_io/commands.py): convert, refine, report; they import OCP and the sampler only when run
-from cad_io.commands import convert_cmd, refine_cmd, report_cmd  # noqa: E402  (cad commands)
-cli.add_command(convert_cmd)  # cad commands
-cli.add_command(refine_cmd)  # cad commands
-cli.add_command(report_cmd)  # cad commands
 # verify command (zmap/verify/commands.py): compare a run's stock with its design
 from .verify.commands import compare_cmd  # noqa: E402  (verify command)
 cli.add_command(compare_cmd)  # verify command
 # cam command (zmap/cam/commands.py): raster finishing programs from a design
 from .cam.commands import toolpath_cmd  # noqa: E402  (cam command)
 cli.add_command(toolpath_cmd)  # cam command
-# access command (cad_io/access_commands.py): tool access directions, paper 002; OCP loads when it runs
-from cad_io.access_commands import access_cmd  # noqa: E402  (access command)
-cli.add_command(access_cmd)  # access command
+
+
+def add_plugin_commands(group: click.Group = cli) -> list[str]:
+    """Add the commands other packages declare under the ``zmap.commands`` entry point (a
+    sequence of click commands each); returns their names.
+
+    cad_io declares convert, refine, report and access this way (they import OCP only when
+    run), so zmap never imports the layer above it. A package whose commands fail to load
+    is named in one warning line on stderr and the other commands still run.
+    """
+    from importlib.metadata import entry_points
+
+    names = []
+    for ep in entry_points(group="zmap.commands"):
+        try:
+            commands = list(ep.load())
+        except Exception as exc:  # a broken extra must not take the core's commands down with it
+            click.echo(f"zmap: warning: the commands of {ep.value} did not load ({type(exc).__name__}: "
+                       f"{' '.join(str(exc).split())})", err=True)
+            continue
+        for command in commands:
+            group.add_command(command)
+            names.append(command.name)
+    return names
+
+
+add_plugin_commands()
 
 
 def _one_line(exc: BaseException) -> str:

@@ -97,10 +97,30 @@ def test_public_names_stay_where_they_were():
         assert getattr(patch, name) is getattr(_emap, name)
 
 
-def test_zmap_never_imports_cad_io_but_for_the_command_line():
-    # zmap is the core; cad_io (OCP) is the layer above and registers its Part and .step files
-    # with zmap.design. Only the command line wires the two.
+def test_zmap_never_imports_cad_io():
+    # zmap is the core; cad_io (OCP) is the layer above: it registers its Part and .step files
+    # with zmap.design and its commands with zmap.cli through entry points
     graph = import_graph()
-    up = sorted((m, t) for m, ts in graph.items() if m.startswith("zmap.") and m != "zmap.cli"
-                for t in ts if t.startswith("cad_io"))
+    up = sorted((m, t) for m, ts in graph.items() if m.startswith("zmap") for t in ts if t.startswith("cad_io"))
     assert up == []
+
+
+def test_cad_io_commands_plug_into_zmap_and_a_broken_plugin_leaves_the_rest(monkeypatch, capsys):
+    import click
+
+    import zmap.cli as cli
+
+    assert {"convert", "refine", "report", "access"} <= set(cli.cli.commands)
+
+    class Broken:
+        value = "broken_pkg.commands:COMMANDS"
+
+        def load(self):
+            raise ImportError("no module named 'broken_pkg'")
+
+    import importlib.metadata as md
+
+    monkeypatch.setattr(md, "entry_points", lambda group: [Broken()])
+    group = click.Group()
+    assert cli.add_plugin_commands(group) == [] and not group.commands
+    assert "the commands of broken_pkg.commands:COMMANDS did not load (ImportError" in capsys.readouterr().err
