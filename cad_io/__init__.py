@@ -12,8 +12,7 @@ True
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from zmap._lazy import attach
 
 from cad_io.part import Edge, Face, FaceMesh, NurbsSurface, Part
 from cad_io import design as _design  # noqa: F401  (registers Part and .step files with zmap.design)
@@ -30,21 +29,6 @@ __all__ = [
     "triangulate",
 ]
 
-_LAZY = {
-    "read_step": "cad_io.step",
-    "from_geomdl": "cad_io.geomdl_io",
-    "sample": "cad_io.sampler",
-    "triangulate": "cad_io.mesh",
-}
+_LAZY = {"read_step": "step", "from_geomdl": "geomdl_io", "sample": "sampler", "triangulate": "mesh"}
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        value = getattr(importlib.import_module(_LAZY[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'cad_io' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = attach(__name__, _LAZY)

@@ -6,9 +6,8 @@ JIT compiler starts until a function needs it.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
 
+from ._lazy import attach
 from .errors import ZMapError
 from .grid import ZMap
 
@@ -18,7 +17,4 @@ __all__ = ["ZMap", "ZMapError", "interpolate", "surfaces", "accuracy", "errors",
 _LAZY_SUBMODULES = {"interpolate", "surfaces", "accuracy", "errors", "sim", "cli", "grid"}
 
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY_SUBMODULES:
-        return importlib.import_module(f".{name}", __name__)
-    raise AttributeError(f"module 'zmap' has no attribute {name!r}")
+__getattr__, __dir__ = attach(__name__, submodules=_LAZY_SUBMODULES)

@@ -9,8 +9,8 @@ accessibility map with shank and holder, the 3-axis verdict and set-up selection
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from .._lazy import attach
+
 
 _WHERE = {
     "DirectionSet": "directions", "direction_set": "directions", "to_bool": "directions",
@@ -25,13 +25,4 @@ _WHERE = {
 __all__ = list(_WHERE)
 
 
-def __getattr__(name: str) -> Any:
-    if name in _WHERE:
-        value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'zmap.access' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = attach(__name__, _WHERE)

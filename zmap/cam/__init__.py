@@ -5,8 +5,8 @@
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from .._lazy import attach
+
 
 __all__ = ["drop_cutter", "raster_program", "RasterProgram", "scallop_height"]
 
@@ -14,11 +14,4 @@ _WHERE = {"drop_cutter": "drop", "raster_program": "raster", "RasterProgram": "r
           "scallop_height": "raster"}
 
 
-def __getattr__(name: str) -> Any:
-    if name in _WHERE:
-        return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-    raise AttributeError(f"module 'zmap.cam' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = attach(__name__, _WHERE)

@@ -6,17 +6,12 @@ Submodules load on first use: ``zmap.refine.ez`` (:class:`EZMap`, :func:`build_e
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from .._lazy import attach
+
 
 __all__ = ["EZMap", "build_ez", "cz", "ez"]
 
 _LAZY = {"EZMap": "ez", "build_ez": "ez"}
 
 
-def __getattr__(name: str) -> Any:
-    if name in ("ez", "cz"):
-        return importlib.import_module(f".{name}", __name__)
-    if name in _LAZY:
-        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-    raise AttributeError(f"module 'zmap.refine' has no attribute {name!r}")
+__getattr__, __dir__ = attach(__name__, _LAZY, submodules=("ez", "cz"))

@@ -6,8 +6,8 @@
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from .._lazy import attach
+
 
 __all__ = ["simulate", "Run", "parse", "Program", "Cutter", "parse_tool_spec", "load_tool_table",
            "positions", "Positions", "DexelWorkpiece", "HeightField"]
@@ -21,7 +21,4 @@ _WHERE = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    if name in _WHERE:
-        return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-    raise AttributeError(f"module 'zmap.sim' has no attribute {name!r}")
+__getattr__, __dir__ = attach(__name__, _WHERE)

@@ -6,8 +6,8 @@ zmap.verify`` compiles nothing.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from .._lazy import attach
+
 
 __all__ = ["compare", "Comparison", "Region", "first_offending", "design_heights", "load_design",
            "collisions", "Collision", "Holder", "load_holders",
@@ -22,11 +22,4 @@ _WHERE = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    if name in _WHERE:
-        return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-    raise AttributeError(f"module 'zmap.verify' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = attach(__name__, _WHERE)

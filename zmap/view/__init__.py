@@ -8,7 +8,8 @@ made.
 
 from __future__ import annotations
 
-from typing import Any
+from .._lazy import attach
+
 
 __all__ = ["Viewer", "make_viewer", "stage_caption", "serve", "ViewerProcess"]
 
@@ -16,9 +17,4 @@ _LAZY = {"Viewer": "app", "make_viewer": "app", "stage_caption": "app", "serve":
          "ViewerProcess": "process"}
 
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        import importlib
-
-        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = attach(__name__, _LAZY)
