@@ -8,54 +8,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..sim.history._kernels import treap_top_at
+
 __all__ = ["treap_top_at", "treap_first_below", "holder_hits", "treap_disk_above"]
-
-
-@njit(cache=True)
-def treap_top_at(node_off, root_off, root_hi, tz, ts, tk, r, k, stack_n, stack_lo, stack_hi):
-    """Zmax of the right-most non-empty leaf of ray ``r``'s treap cut at stage ``k`` (NaN: empty).
-
-    The one-ray form of ``zmap.sim.history._kernels.treap_display`` (same traversal).
-    """
-    base = node_off[r]
-    r0 = root_off[r]
-    for t in range(root_off[r + 1] - r0 - 1, -1, -1):
-        node = base + t
-        lo = tz[node]
-        hi = root_hi[r0 + t]
-        sp = 0
-        while True:
-            kids = tk[node]
-            mask = kids & 3
-            first = kids >> 2
-            if mask == 0 or ts[first] > k:
-                if lo < hi:
-                    return np.float64(hi)
-            elif mask == 3:
-                stack_n[sp] = first
-                stack_lo[sp] = lo
-                stack_hi[sp] = tz[first]
-                sp += 1
-                node = first + 1
-                lo = tz[first + 1]
-                continue
-            elif mask == 1:
-                zl = tz[first]
-                if zl == zl:
-                    node = first
-                    hi = zl
-                    continue
-            else:
-                node = first
-                lo = tz[first]
-                continue
-            if sp == 0:
-                break
-            sp -= 1
-            node = stack_n[sp]
-            lo = stack_lo[sp]
-            hi = stack_hi[sp]
-    return np.nan
 
 
 @njit(cache=True)

@@ -65,7 +65,7 @@ def test_within_band_edges():
 
 def test_uncovered_area_reported_without_nan():
     run = simulate(np.array([[1.0, 1.0, -0.5]]), (0, 0, -3, 10, 10, 0), tool="flat:1", pitch=0.5)
-    half = ZMap.from_function(lambda x, y: 0 * x - 0.2, (-1, -1, 4.9, 11), 0.5)  # covers x <= 4.9 only
+    half = ZMap.from_function(lambda x, y: 0 * x - 0.2, (-1, -1, 4.5, 11), 0.5)  # covers x <= 4.5 only
     with pytest.warns(UserWarning, match="does not cover"):
         c = compare(run, half, tol=0.01)
     t = c.totals

@@ -149,59 +149,59 @@ def treap_remap_kids(newidx, tk, nk):
 
 
 @njit(cache=True)
-def treap_display(node_off, root_off, root_hi, tz, ts, tk, k, out, stack_n, stack_lo, stack_hi):
-    """Right-most non-empty leaf of each ray's treap as cut at stage k (its Zmax), or NaN.
+def treap_top_at(node_off, root_off, root_hi, tz, ts, tk, r, k, stack_n, stack_lo, stack_hi):
+    """Zmax of the right-most non-empty leaf of ray ``r``'s treap cut at stage ``k`` (NaN: empty).
 
     Reverse in-order traversal (right child first); a node whose children were created
     after stage k is a leaf at stage k. A node with one child is descended without the
     stack; the stacks (length >= nodes of the biggest ray + 1) hold pending left children.
     """
-    n_rays = node_off.shape[0] - 1
-    for r in range(n_rays):
-        out[r] = np.nan
-        base = node_off[r]
-        r0 = root_off[r]
-        found = False
-        for t in range(root_off[r + 1] - r0 - 1, -1, -1):
-            node = base + t
-            lo = tz[node]
-            hi = root_hi[r0 + t]
-            sp = 0
-            while True:
-                kids = tk[node]
-                mask = kids & 3
-                first = kids >> 2
-                if mask == 0 or ts[first] > k:
-                    if lo < hi:
-                        out[r] = hi
-                        found = True
-                        break
-                elif mask == 3:  # split: visit the right piece first, keep the left one
-                    stack_n[sp] = first
-                    stack_lo[sp] = lo
-                    stack_hi[sp] = tz[first]
-                    sp += 1
-                    node = first + 1
-                    lo = tz[first + 1]
-                    continue
-                elif mask == 1:
-                    zl = tz[first]
-                    if zl == zl:  # Zmax modified; NaN marks the empty leaf of a deletion
-                        node = first
-                        hi = zl
-                        continue
-                else:
+    base = node_off[r]
+    r0 = root_off[r]
+    for t in range(root_off[r + 1] - r0 - 1, -1, -1):
+        node = base + t
+        lo = tz[node]
+        hi = root_hi[r0 + t]
+        sp = 0
+        while True:
+            kids = tk[node]
+            mask = kids & 3
+            first = kids >> 2
+            if mask == 0 or ts[first] > k:
+                if lo < hi:
+                    return np.float64(hi)
+            elif mask == 3:  # split: visit the right piece first, keep the left one
+                stack_n[sp] = first
+                stack_lo[sp] = lo
+                stack_hi[sp] = tz[first]
+                sp += 1
+                node = first + 1
+                lo = tz[first + 1]
+                continue
+            elif mask == 1:
+                zl = tz[first]
+                if zl == zl:  # Zmax modified; NaN marks the empty leaf of a deletion
                     node = first
-                    lo = tz[first]
+                    hi = zl
                     continue
-                if sp == 0:
-                    break
-                sp -= 1
-                node = stack_n[sp]
-                lo = stack_lo[sp]
-                hi = stack_hi[sp]
-            if found:
+            else:
+                node = first
+                lo = tz[first]
+                continue
+            if sp == 0:
                 break
+            sp -= 1
+            node = stack_n[sp]
+            lo = stack_lo[sp]
+            hi = stack_hi[sp]
+    return np.nan
+
+
+@njit(cache=True)
+def treap_display(node_off, root_off, root_hi, tz, ts, tk, k, out, stack_n, stack_lo, stack_hi):
+    """:func:`treap_top_at` of every ray: the stock's top at stage k (NaN where empty)."""
+    for r in range(node_off.shape[0] - 1):
+        out[r] = treap_top_at(node_off, root_off, root_hi, tz, ts, tk, r, k, stack_n, stack_lo, stack_hi)
 
 
 # a plain call (inlining it made the cold compile slow); _nrt=False: no reference counting
