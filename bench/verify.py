@@ -8,7 +8,7 @@
   (``refine=False``) on the same grid;
   ``cl_max_err``: largest |ours - reference| on random points of the grid and on points whose
   contact is off-axis by more than 1 mm (walls and edges), the reference being
-  ``zmap.cam._reference.drop_cutter_reference_dense`` (a 0.02 mm lattice on the whole disk and
+  ``tests.reference.cam.drop_cutter_reference_dense`` (a 0.02 mm lattice on the whole disk and
   the rim as a curve at 0.005 mm, refinement around every candidate within its bound) on the same
   model's ``PrecisionModel.height``; signed: ``cl_max_below_ref`` (ours low: the tool would
   gouge; the certified drop is never low) and ``cl_max_above_ref`` (ours high: beside a wall,
@@ -221,7 +221,7 @@ def main() -> None:
     ap.add_argument("--no-die", action="store_true", help="skip the whole-die program (finish_die_s)")
     args = ap.parse_args()
     from zmap.cam import drop_cutter
-    from zmap.cam._reference import drop_cutter_reference_dense
+    from tests.reference.cam import drop_cutter_reference_dense
     from zmap.sim.tools import parse_tool_spec
 
     res: dict = {"machine_cpus": os.cpu_count()}

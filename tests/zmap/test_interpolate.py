@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from zmap import ZMap
-from zmap._reference import bezier_reference, bilinear_reference
+from tests.reference.interpolate import bezier_reference, bilinear_reference
 from zmap.errors import OutOfDomainError
 from zmap.interpolate import SCHEMES, bezier, bilinear, evaluate
 

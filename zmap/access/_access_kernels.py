@@ -18,7 +18,6 @@ from ._bit_kernels import bit_lists, dilate_bits, greedy_cover, pack_columns
 from ._blocker_kernels import merge_runs, row_hash, run_members, self_blocking, skin_masks
 from ._cast_kernels import cast_directions
 from ._line_kernels import _basis  # noqa: F401  (zmap.access._sample_kernels imports it from here)
-from ._tool_kernels import _linear_max_in  # noqa: F401  (zmap.access._reference imports it from here)
 from ._tool_kernels import disc_max, tool_kernel
 from ._voxel_kernels import (BOUNDARY, EXTERIOR, INTERIOR, UNPAINTED, accumulate,  # noqa: F401
                              orientation_votes, paint_exterior, patch_slab, piece_accumulate)

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from zmap.access._access_kernels import disc_max
-from zmap.access._reference import tool_clearance_reference
+from tests.reference.access import tool_clearance_reference
 from zmap.access.directions import count, to_bool
 from zmap.access.voxelmap import (Tool, VoxelMap, _disc_rows, _hide_masks, global_visibility,
                                   tool_clearance)

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import zmap.access.casting as V
-from zmap.access._reference import global_visibility_reference
+from tests.reference.access import global_visibility_reference
 from zmap.access.directions import count, to_bool
 from zmap.access.voxelmap import VoxelMap, global_visibility
 

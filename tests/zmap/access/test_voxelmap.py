@@ -359,7 +359,7 @@ def test_parse_holder():
 
 def test_cylinder_casting_kernel_matches_the_plain_reference():
     """The depth-buffer kernel gives the same V'_g bits as the pair-by-pair reference."""
-    from zmap.access._reference import global_visibility_reference
+    from tests.reference.access import global_visibility_reference
 
     # an L-shaped part (a box with a step): concave edges make the casting delete directions
     a = box_samples(np.zeros(3), np.array([4.0, 3.0, 2.0]), 0.25)

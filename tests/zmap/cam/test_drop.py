@@ -9,7 +9,7 @@ from hypothesis import given, settings, strategies as st
 from tests.conftest import DATA, STEP_DATA
 from zmap import ZMap
 from zmap.cam import drop_cutter
-from zmap.cam._reference import drop_cutter_reference
+from tests.reference.cam import drop_cutter_reference
 from tests.zmap.cam.brute import brute_zmap as _brute_zmap
 from zmap.sim.tools import Cutter, parse_tool_spec
 

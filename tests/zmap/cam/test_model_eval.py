@@ -18,7 +18,7 @@ from tests.conftest import DATA, STEP_DATA
 from zmap import ZMap
 from zmap.cam import drop_cutter
 from zmap.cam import _model_eval as ME
-from zmap.cam._reference import drop_cutter_reference
+from tests.reference.cam import drop_cutter_reference
 from zmap.model import PrecisionModel
 from zmap.sim.tools import parse_tool_spec
 

@@ -1,4 +1,4 @@
-"""The dense drop-cutter reference (zmap.cam._reference.drop_cutter_reference_dense) against
+"""The dense drop-cutter reference (tests.reference.cam.drop_cutter_reference_dense) against
 analytic contacts where a lattice alone misses them: a sliver of wall at the rim, a wiggly
 crest; and drop_cutter against it."""
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from zmap.cam import drop_cutter
-from zmap.cam._reference import drop_cutter_reference, drop_cutter_reference_dense
+from tests.reference.cam import drop_cutter_reference, drop_cutter_reference_dense
 from zmap.sim.tools import parse_tool_spec
 
 # one xdist worker compiles this family's numba kernels once (tests/conftest.py)

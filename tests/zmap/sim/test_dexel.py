@@ -8,7 +8,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from zmap.grid import ZMap
-from zmap.sim._reference import cut_reference, dexel_lists, heightfield_reference
+from tests.reference.sim import cut_reference, dexel_lists, heightfield_reference
 from zmap.sim.dexel import DexelWorkpiece
 from zmap.sim.heightfield import HeightField, cut_heightfield
 from zmap.sim.tools import Cutter

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from .grid import ZMap
+from zmap.grid import ZMap
 
 __all__ = ["bezier_reference", "bilinear_reference"]
 

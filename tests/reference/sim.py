@@ -13,7 +13,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ._tool_kernels import _envelope
+from zmap.sim._tool_kernels import _envelope
 
 __all__ = ["dexel_lists", "cut_reference", "heightfield_reference"]
 

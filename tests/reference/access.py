@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .directions import from_bool, to_bool
+from zmap.access.directions import from_bool, to_bool
 
 __all__ = ["global_visibility_reference", "tool_clearance_reference"]
 
@@ -57,7 +57,7 @@ def global_visibility_reference(vm, *, rays: int = 2, pieces: bool = False, fine
     ``fine``: those of the half-voxel pieces of ``vm.fine`` cast on their own, every direction
     of their V'_l (what the refinement of ``global_visibility`` casts at ``rays`` = twice its
     own, for the directions it needs)."""
-    from .voxelmap import _query_boxes
+    from zmap.access.voxelmap import _query_boxes
 
     ds = vm.directions
     bc, bh, bvox, blight, bplane = vm.blockers()
@@ -195,7 +195,7 @@ def _disc_blocked(buf, other, u0, cell, pu, pv, rr, h0, lin) -> bool:
     """Whether a cell meeting the disc holds an exit above h0: ``buf`` all blockers', or, for a
     query on a plane face, ``other`` (the other faces') and of ``buf`` only as much as the
     face's plane ``lin`` = (k0, ku, kv) rises over the cell's part within the disc."""
-    from ._access_kernels import _linear_max_in
+    from zmap.access._tool_kernels import _linear_max_in
 
     ia, ja, meets = _disc_cells(buf.shape[0], u0, cell, pu, pv, rr)
     ps, qs = np.nonzero(meets)
@@ -219,7 +219,7 @@ def tool_clearance_reference(vm, local, tool, *, cell=None, cell_holder=None, sk
     blocking when above the cylinder's start plus ``slack`` (mm; a tuple: one map each). The
     exits are those of the kernel but for rounding (other operations in another order, the
     merged boxes' last bits), so the kernel's bits lie between those of slack -1e-9 and +1e-9."""
-    from .voxelmap import _blocker_faces, _plane_faces, _plane_queries
+    from zmap.access.voxelmap import _blocker_faces, _plane_faces, _plane_queries
 
     ds = vm.directions
     a = tool.radius
