@@ -237,6 +237,51 @@ def parse_tool_spec(spec: str) -> Cutter:
 _TABLE_KEYS = {"kind", "diameter", "corner_radius", "length", "units", "description"}
 
 
+def numbered_tables(path: str, section: str, keys: set[str], what: str,
+                    hint: str = "") -> list[tuple[int, dict, str, float]]:
+    """The ``[section.N]`` tables of a TOML file, checked: ``(N, table, where, mm per unit)``.
+
+    The one reader of zmap's numbered TOML tables (the tool table, the holder table): ``N``
+    an integer >= 0, each a table of ``keys`` only, ``units`` ``"mm"`` (default) or
+    ``"inch"``; ``where`` names the file and table for the caller's own errors.
+
+    Raises
+    ------
+    ToolError
+        The file unreadable or not TOML, no such tables, or one of them malformed; the
+        message names the file and the table.
+    """
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except OSError as e:
+        raise ToolError(f"{path}: cannot read {what}: {e.strerror or e}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ToolError(f"{path}: not a valid TOML {what}: {e}") from None
+    tables = data.get(section)
+    if not isinstance(tables, dict) or not tables:
+        raise ToolError(f"{path}: no [{section}.N] tables{hint} found")
+    out = []
+    for key, entry in tables.items():
+        where = f"{path}: {section}.{key}"
+        try:
+            num = int(key)
+        except ValueError:
+            raise ToolError(f"{where}: tool number must be an integer, got {key!r}") from None
+        if num < 0:
+            raise ToolError(f"{where}: tool number must be >= 0, got {num}")
+        if not isinstance(entry, dict):
+            raise ToolError(f"{where}: must be a table, got {entry!r}")
+        extra = set(entry) - keys
+        if extra:
+            raise ToolError(f"{where}: unknown keys {sorted(extra)}; valid keys are {sorted(keys)}")
+        units = entry.get("units", "mm")
+        if units not in ("mm", "inch"):
+            raise ToolError(f"{where}: units={units!r} is not one of 'mm', 'inch'")
+        out.append((num, entry, where, _MM_PER_INCH if units == "inch" else 1.0))
+    return out
+
+
 def load_tool_table(path: str | os.PathLike) -> dict[int, Cutter]:
     """Read a TOML tool table (a ``.tbl`` file goes to :func:`load_linuxcnc_tool_table`).
 
@@ -276,35 +321,8 @@ def load_tool_table(path: str | os.PathLike) -> dict[int, Cutter]:
     path = os.fspath(path)
     if str(path).lower().endswith(".tbl"):
         return load_linuxcnc_tool_table(path)  # type: ignore[return-value]
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except OSError as e:
-        raise ToolError(f"{path}: cannot read tool table: {e.strerror or e}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ToolError(f"{path}: not a valid TOML tool table: {e}") from None
-    tools = data.get("tool")
-    if not isinstance(tools, dict) or not tools:
-        raise ToolError(f"{path}: no [tool.N] tables found")
     out: dict[int, Cutter] = {}
-    for key, entry in tools.items():
-        where = f"{path}: tool.{key}"
-        try:
-            num = int(key)
-        except ValueError:
-            raise ToolError(f"{where}: tool number must be an integer, got {key!r}") from None
-        if num < 0:
-            raise ToolError(f"{where}: tool number must be >= 0, got {num}")
-        if not isinstance(entry, dict):
-            raise ToolError(f"{where}: must be a table, got {entry!r}")
-        extra = set(entry) - _TABLE_KEYS
-        if extra:
-            raise ToolError(f"{where}: unknown keys {sorted(extra)}; valid keys are "
-                            f"{sorted(_TABLE_KEYS)}")
-        units = entry.get("units", "mm")
-        if units not in ("mm", "inch"):
-            raise ToolError(f"{where}: units={units!r} is not one of 'mm', 'inch'")
-        scale = _MM_PER_INCH if units == "inch" else 1.0
+    for num, entry, where, scale in numbered_tables(path, "tool", _TABLE_KEYS, "tool table"):
         if "kind" not in entry or "diameter" not in entry:
             raise ToolError(f"{where}: needs 'kind' and 'diameter'")
         try:

@@ -21,13 +21,13 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ..errors import ToolError, ZMapError
+from ..sim.tools import numbered_tables
 
 __all__ = ["Collision", "Holder", "collisions", "load_holders", "COLLISION_KINDS"]
 
@@ -92,35 +92,11 @@ def load_holders(path: str | os.PathLike) -> dict[int, Holder]:
     >>> load_holders(p)[1].diameter
     20.0
     """
-    path = os.fspath(path)
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except OSError as e:
-        raise ToolError(f"{path}: cannot read holder table: {e.strerror or e}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ToolError(f"{path}: not a valid TOML file: {e}") from None
-    tables = data.get("holder")
-    if not isinstance(tables, dict) or not tables:
-        raise ToolError(f"{path}: no [holder.N] tables (stickout, diameter, length) found")
     out: dict[int, Holder] = {}
-    for key, e in tables.items():
-        where = f"{path}: holder.{key}"
-        try:
-            num = int(key)
-        except ValueError:
-            raise ToolError(f"{where}: tool number must be an integer, got {key!r}") from None
-        if not isinstance(e, dict):
-            raise ToolError(f"{where}: must be a table, got {e!r}")
-        extra = set(e) - _HOLDER_KEYS
-        if extra:
-            raise ToolError(f"{where}: unknown keys {sorted(extra)}; valid keys are {sorted(_HOLDER_KEYS)}")
+    for num, e, where, f in numbered_tables(os.fspath(path), "holder", _HOLDER_KEYS, "holder table",
+                                            " (stickout, diameter, length)"):
         if "stickout" not in e or "diameter" not in e:
             raise ToolError(f"{where}: needs 'stickout' and 'diameter'")
-        units = e.get("units", "mm")
-        if units not in ("mm", "inch"):
-            raise ToolError(f"{where}: units={units!r} is not one of 'mm', 'inch'")
-        f = 25.4 if units == "inch" else 1.0
         try:
             vals = {k: float(e[k]) * f for k in ("stickout", "diameter", "length", "shank_diameter") if k in e}
         except (TypeError, ValueError):
