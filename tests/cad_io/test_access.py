@@ -63,6 +63,7 @@ def slot_tool_clearance(c, n):
     return out
 
 
+@pytest.mark.slow
 def test_slot_thin_rays_closed_form(slot):
     part, vm, vg = slot
     ds = vm.directions
@@ -82,6 +83,7 @@ def test_slot_thin_rays_closed_form(slot):
         assert got[slack].all()
 
 
+@pytest.mark.slow
 def test_slot_ball_closed_form_and_occ(slot):
     part, vm, vg = slot
     ds = vm.directions
@@ -129,6 +131,7 @@ def undercut(tmp_path_factory):
     return part, vm, global_visibility(vm)
 
 
+@pytest.mark.slow
 def test_undercut_hidden_from_above_seen_from_the_side(undercut):
     part, vm, vg = undercut
     ds = vm.directions
@@ -188,6 +191,7 @@ def test_points_on_edges_take_their_faces_piece(slot):
     assert ag["voxel_only_far"] == 0 and ag["agree_share"] >= plain_ag["agree_share"]
 
 
+@pytest.mark.slow
 def test_edge_points_take_their_faces_access_and_stay_conservative(slot):
     """A' of the pieces: a point on the slot's edges is answered for its own face's ball, never
     freer than OCC's tool there (BRepExtrema on the tool's axis), and the voxel's answer is the
@@ -237,6 +241,7 @@ def test_bad_input(slot, tmp_path):
         voxelize(tess, 1.0)
 
 
+@pytest.mark.slow
 def test_analyse_without_refinement_is_the_voxels_cast(slot):
     """``analyse(refine=False)`` runs the paper's casting alone (no half-voxel maps), and the
     refined map holds every direction it keeps (the refinement only frees)."""
@@ -313,6 +318,7 @@ def test_command_end_to_end(slot, tmp_path):
     assert not list(tmp_path.glob(".tmp-*"))
 
 
+@pytest.mark.slow
 def test_tool_map_against_occ_tool(slot):
     """The pipeline's A' (the tool tested on surface samples) against OCC's ball, shank and
     holder on random points of the slot: nothing freed that OCC blocks beyond one voxel, and
@@ -326,6 +332,7 @@ def test_tool_map_against_occ_tool(slot):
     assert ag["voxel_only_far"] == 0 and ag["agree_share"] >= 0.97  # measured 0.981 (720 pairs; 3 freed within a voxel)
 
 
+@pytest.mark.slow
 def test_refined_map_against_occ_rays(slot):
     """The refined map (half-voxel pieces cast again where the voxel's cylinder is blocked):
     a surface point gets its half-voxel piece's bits, which hold its piece's and its voxel's;

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from zmap import ZMap
 from zmap.cli import main
@@ -91,6 +92,7 @@ def test_bad_options(tmp_path, capsys):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_convert_does_not_load_ocp_for_other_commands():
     import subprocess
 
@@ -100,6 +102,7 @@ def test_convert_does_not_load_ocp_for_other_commands():
     assert p.stdout.strip().endswith("False"), p.stdout + p.stderr
 
 
+@pytest.mark.slow
 def test_demo_writes_maps_and_pictures(tmp_path):
     from cad_io.demo import run_demo
 

@@ -58,6 +58,7 @@ def test_reader_crash_is_one_line_naming_the_file(tmp_path, capfd):
     assert r.stdout == "" and not out.exists()
 
 
+@pytest.mark.slow
 def test_lost_faces_are_counted_warned_and_refused_under_strict(tmp_path, capfd):
     from cad_io.step import read_step
 

@@ -86,6 +86,7 @@ def test_no_surface_and_bad_points_left_as_they_are():
     assert n == 1 and np.isnan(z[:2]).all() and abs(z[2] - 1.12) < 1e-9
 
 
+@pytest.mark.slow
 def test_trj8_seam_crack_spanned():
     """trj8's faces 351 and 42 (edges 0.30 mm) leave a crack about 0.015 mm wide on their seam,
     through which the sampler and OCC see face 49, 46 mm below: the EZ heights span it."""

@@ -77,6 +77,7 @@ def unbounded(tmp_path_factory):
     return corrupt.flip_bytes(DATA / "step" / "bug27693_cornetta-step.stp", tmp_path_factory.mktemp("flip"), 20, 4)
 
 
+@pytest.mark.slow
 def test_damage_is_told_first_and_unbounded_faces_are_refused(unbounded, tmp_path, capfd):
     """Before: a segfault of the whole process; then a grid-size refusal of 10^100-digit numbers."""
     out = tmp_path / "c.zmap.npz"
@@ -95,6 +96,7 @@ def test_damage_is_told_first_and_unbounded_faces_are_refused(unbounded, tmp_pat
     assert np.isfinite(zm.z).mean() > 0.5
 
 
+@pytest.mark.slow
 def test_warnings_are_told_as_soon_as_the_file_is_read(unbounded, monkeypatch):
     """The damage line reaches the caller before any face is converted (a damaged face can
     take long; the user must know why first)."""
@@ -149,6 +151,7 @@ def test_a_file_that_lost_most_of_its_faces_is_refused(tmp_path, capfd):
 
 # ---- report and refine read STEP as convert does ------------------------------------------------
 
+@pytest.mark.slow
 def test_report_and_refine_warn_and_refuse_as_convert(tmp_path, capfd, faults, unbounded):
     from zmap.cli import main
 
@@ -219,6 +222,7 @@ def test_the_bar_ticks_while_the_file_is_read(tmp_path, monkeypatch):
 
 # ---- no runaway on a damaged control point ------------------------------------------------------
 
+@pytest.mark.slow
 def test_a_spiked_face_is_refused_not_sampled_for_minutes(tmp_path, capfd):
     """cornetta with one control point's coordinate scaled by 100 (``E2`` appended, seed 0) and
     three CARTESIAN_POINT keywords broken: face 99's edges stay put (OCC boxes it 3 mm wide) while

@@ -89,6 +89,7 @@ BAND_POINTS = [(126.9939, -32.0), (76.7439, -16.5), (67.7439, 16.0), (123.2439, 
                (-9.2561, 15.5), (-13.7561, -12.0)]
 
 
+@pytest.mark.slow
 def test_trj8_heights_within_edge_tolerance_are_occs():
     """Where trj8's faces overlap within their edges' tolerance, the top-most face is the
     one OCC's ray cast counts on its face (hits outside the trim curves within the uv
@@ -112,6 +113,7 @@ TIGHT_FACE_POINTS = [(133.99063, -27.52550), (133.97269, -27.54371), (182.46046,
                      (182.88922, 23.62616), (183.61004, -23.79480)]
 
 
+@pytest.mark.slow
 def test_trj8_faces_brepmesh_misses_with_tight_edges_are_exact():
     """The mesh error is measured on every face, not only on those whose edges carry more
     than the deflection: a face BRepMesh misses by over 3x gets the exact (u, v) grid."""
@@ -124,6 +126,7 @@ def test_trj8_faces_brepmesh_misses_with_tight_edges_are_exact():
     np.testing.assert_allclose(z, zr, rtol=0, atol=1e-6)
 
 
+@pytest.mark.slow
 def test_trj8_converted_plane_band_seen_from_the_side():
     """Seen along -y, trj8's planes 135 and 52 (edges 0.17 and 0.11 mm) hold points 0.14 and
     0.11 mm outside their loops, as OCC's ray cast has them: OCC classifies on the plane,

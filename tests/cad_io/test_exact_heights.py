@@ -104,6 +104,7 @@ def _check(stats: dict, name: str, axis: str) -> None:
 
 
 @pytest.mark.parametrize("name", FAST)
+@pytest.mark.slow
 def test_real_part_heights_agree_with_occ(name):
     _check(_compare(name, "+z"), name, "+z")
 

@@ -188,6 +188,7 @@ def _trj8_face(sample_data, index: int):
     return part, part.faces[index]
 
 
+@pytest.mark.slow
 def test_trimmed_grid_covers_the_face_and_its_tolerance_band(sample_data):
     """trj8's face 22 (a degree 8 x 11 patch, edges of 0.22 mm, BRepMesh 0.55 mm off at
     10 um asked): the grid's nodes are on the surface, its triangles within the deflection,
@@ -237,6 +238,7 @@ def test_trimmed_grid_covers_the_face_and_its_tolerance_band(sample_data):
     assert d.min() >= reach, d.min()
 
 
+@pytest.mark.slow
 def test_trimmed_grid_pairs_few_triangles_a_point(sample_data):
     """The sampler meshes trj8's badly meshed faces with the trimmed grid: a point over face
     22 pairs with about one triangle, where BRepMesh's triangles, 0.55 mm off and widened by

@@ -111,6 +111,7 @@ def test_pack_layout_and_missing_faces():
     np.testing.assert_array_equal(out[2], evaluate(s2, 0.3, 0.4, derivs=1))
 
 
+@pytest.mark.slow
 def test_eval_point_inside_njit_matches_evaluate():
     rng = np.random.default_rng(5)
     s, _ = _random_surface(rng, 3, 3, 6, 6, True)
@@ -192,6 +193,7 @@ def _occ_deviation(part, n_per_face: int, seed: int) -> float:
 
 
 @pytest.mark.parametrize("name", FAST_PARTS)
+@pytest.mark.slow
 def test_agrees_with_occ_on_real_parts(sample_data, name):
     part = _part(str(sample_data / "step" / name))
     assert _occ_deviation(part, 4, seed=7) < 1e-9

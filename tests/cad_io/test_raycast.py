@@ -49,6 +49,7 @@ def test_axes_on_the_half_cylinder(axis, expect):
     assert z[0] == pytest.approx(expect, abs=1e-9)
 
 
+@pytest.mark.slow
 def test_the_rays_do_not_depend_on_the_shape_being_meshed():
     """The rays start above the shape's geometric box, not its mesh's: a caster of the same
     faces gives the same heights to the last bit in a process that meshed the part and in one

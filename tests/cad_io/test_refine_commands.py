@@ -59,6 +59,7 @@ def boss_zmap_y(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_refine_a_zmap_seen_from_plus_y(boss_zmap_y, tmp_path, capsys):
     out = tmp_path / "boss_y.zpm"
     assert main(["refine", str(boss_zmap_y), "--part", str(DATA / "boss.step"), "--tol", "0.05",
@@ -89,6 +90,7 @@ def test_refine_rejects_an_unknown_axis_in_the_zmap(boss_zmap, tmp_path, capsys)
     assert "axis 'up' is not one of" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_report_seen_from_plus_y(capsys):
     # the part and its OCP shape are rotated together: were OCC measuring in the world frame,
     # the base's distances would be tens of mm, not within a grid interval
@@ -106,6 +108,7 @@ def test_report_bad_deflection(capsys):
     assert "--deflection" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_report_rows_deflection_and_reference_facet_count():
     from cad_io.refine import report_rows
     from cad_io.step import read_step

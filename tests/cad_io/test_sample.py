@@ -56,6 +56,7 @@ def _offset_bounds(part, d):
 
 
 @pytest.mark.parametrize("name,grid", [("sphere_cap", 1.0), ("cylinder", 0.7), ("torus", 0.8)])
+@pytest.mark.slow
 def test_jacobian_heights_exact(parts, name, grid):
     part = parts[name]
     zm = sample(part, grid, bounds=_offset_bounds(part, grid))
@@ -286,6 +287,7 @@ def test_banded_point_in_polygon_matches_plain_reference():
 
 
 @pytest.mark.parametrize("name", ["freeform_die", "pocket"])
+@pytest.mark.slow
 def test_uv_lattice_start_for_faces_without_uv_mesh(name):
     from cad_io.part import FaceMesh
 
@@ -315,6 +317,7 @@ def test_geomdl_part():
     assert np.abs(zm.z - X * Y / 20).max() < 1e-12  # the hyperbolic paraboloid z = xy/20
 
 
+@pytest.mark.slow
 def test_no_facet_heights_from_a_vertical_b_spline_wall(sample_data):
     """featuretype.STEP face 78 is an extruded (vertical) B-spline wall: Newton is singular
     on it and its mesh has 1.2 mm chord triangles with |n_z| = 0.06. Their facet heights
@@ -331,6 +334,7 @@ def test_no_facet_heights_from_a_vertical_b_spline_wall(sample_data):
     assert (method == 1).all()
 
 
+@pytest.mark.slow
 def test_steep_face_keeps_its_exact_heights(sample_data):
     """bug27693_cornetta face 32 is 86 degrees steep: the facet height there is off by the
     mesh's xy error times the slope (0.1-0.2 mm), so the exact Newton height must not be
@@ -375,6 +379,7 @@ def test_grid_covers_the_domain_and_is_symmetric_on_a_symmetric_part(tmp_path):
 
 # ---- end-to-end speed: coarse start mesh, stages, Ctrl-C (issue 14) -----------------------------
 
+@pytest.mark.slow
 def test_default_start_mesh_is_coarse_and_facets_come_from_a_fine_one(parts, capsys):
     """By default the Newton starts come from a mesh at the grid interval (not grid / 20), and
     points answered by facets on exact faces are solved again on a mesh at grid / 20: the
@@ -418,6 +423,7 @@ def test_ctrl_c_is_answered_within_a_second(tmp_path):
 
 
 @pytest.mark.parametrize("name", ["torus.step", "step/bug27693_cornetta-step.stp", "step/featuretype.STEP"])
+@pytest.mark.slow
 def test_newton_evaluator_agrees_with_the_general_one(name):
     """``eval_d1`` (the Newton loop's point and first derivatives) against
     ``_nurbs_kernels.eval_point`` on every face of real parts: rational and polynomial,
@@ -445,6 +451,7 @@ def test_newton_evaluator_agrees_with_the_general_one(name):
     assert len(degrees) >= 2, degrees
 
 
+@pytest.mark.slow
 def test_margins_follow_the_mesh_not_the_request(sample_data):
     """A part meshed finer than the call asks for (grid / 20 for a grid-sized request, as
     bench/convert.py's jacobian_pps does) pairs with the margins of its own mesh: before,
@@ -461,6 +468,7 @@ def test_margins_follow_the_mesh_not_the_request(sample_data):
     np.testing.assert_allclose(coarse_call.z, own.z, atol=1e-9, rtol=0)
 
 
+@pytest.mark.slow
 def test_silhouette_margin_only_near_folds(sample_data):
     """Steep triangles get the silhouette margin only within two rings of a fold edge (n_z
     changes sign or a triangle is edge-on): all of the torus's fold band seen from the
@@ -488,6 +496,7 @@ def test_silhouette_margin_only_near_folds(sample_data):
     assert steep > 1000 and sil_n < 0.75 * steep, (steep, sil_n)
 
 
+@pytest.mark.slow
 def test_fine_facet_pass_meshes_only_the_faces_that_cover_its_points(sample_data):
     """The fine pass of ``sample`` (points answered by facets on exact faces, solved again at
     grid / 20) meshes only the faces whose box holds such a point, each alone on a copy:
@@ -541,6 +550,7 @@ def _assert_occ_triangulations_are(part, meshes):
     assert all(t.NbTriangles() == len(b.triangles) for t, b in zip(tris, meshes) if b is not None)
 
 
+@pytest.mark.slow
 def test_fine_pass_ray_casts_a_face_too_large_to_mesh(sample_data, monkeypatch):
     """A face whose fine mesh would be too large is not meshed: its points get OCC's exact
     ray cast on that face. The heights are those of the whole part meshed fine (exact ones
@@ -579,6 +589,7 @@ def test_fine_pass_ray_casts_a_face_too_large_to_mesh(sample_data, monkeypatch):
     np.testing.assert_allclose(z, zw, atol=0.2, rtol=0)
 
 
+@pytest.mark.slow
 def test_fine_pass_keeps_a_part_meshed_finely_enough(sample_data, monkeypatch):
     """A part already triangulated at the fine deflection (or finer) by its user is used as it
     is: no face is meshed again or ray-cast, whatever its size (the die's 1000 x 1000 facet

@@ -172,6 +172,7 @@ def test_open_faces_have_boundary_edges(tmp_path):
 
 
 @pytest.mark.parametrize("name", FAST_PARTS)
+@pytest.mark.slow
 def test_real_parts_load(sample_data, name):
     _check_real_part(sample_data, name)
 

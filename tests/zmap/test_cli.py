@@ -2,6 +2,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from zmap import ZMap
 from zmap.cli import main
@@ -26,6 +27,7 @@ def test_accuracy_default_is_table1(capsys):
     assert "x^2+y^2+z^2=100^2, z>70" in out and "z=100*sin" in out and "z=1000*sin" in out
 
 
+@pytest.mark.slow
 def test_errors_are_one_line_and_non_zero(tmp_path):
     code, out, err = run("accuracy", "--surface", "cone")
     assert code != 0 and err.strip().count("\n") == 0 and "cone" in err

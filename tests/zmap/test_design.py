@@ -42,6 +42,7 @@ def test_a_step_part_is_a_design_with_its_own_grid_sampler():
     assert np.allclose(g, d.heights(X.ravel(), Y.ravel()).reshape(9, 7), atol=1e-9, equal_nan=True)
 
 
+@pytest.mark.slow
 def test_read_design_finds_step_files_without_importing_cad_io_first():
     # zmap never imports cad_io; cad_io's entry point registers .step files on demand
     code = ("import sys; from zmap.design import read_design; assert 'cad_io' not in sys.modules; "

@@ -58,6 +58,7 @@ def reachable(graph: dict[str, set[str]], start: str) -> set[str]:
     return seen
 
 
+@pytest.mark.slow
 def test_graph_sees_imports_inside_functions():
     g = import_graph()
     assert "zmap.refine._ez_kernels" in g["zmap.refine.ez"]      # from . import _ez_kernels as _k (in a function)
@@ -66,17 +67,20 @@ def test_graph_sees_imports_inside_functions():
 
 @pytest.mark.parametrize("module", ["zmap._npzfile", "zmap.grid", "zmap.refine.ez", "zmap.refine.patch",
                                     "zmap.refine._emap"])
+@pytest.mark.slow
 def test_no_cycle_through(module):
     g = import_graph()
     back = sorted(m for m in reachable(g, module) if module in reachable(g, m) or m == module)
     assert not back, f"{module} is on an import cycle with {back}"
 
 
+@pytest.mark.slow
 def test_no_cycle_anywhere():
     g = import_graph()
     assert sorted(m for m in g if m in reachable(g, m)) == []
 
 
+@pytest.mark.slow
 def test_layers():
     g = import_graph()
     assert g["zmap._npzfile"] <= {"zmap.errors"}

@@ -22,6 +22,7 @@ def _check_png(path):
     return a
 
 
+@pytest.mark.slow
 def test_zmap_3d_writes_png_with_nan_nodes_left_out(tmp_path):
     zm = ZMap.from_function(lambda x, y: 3 * np.exp(-(x * x + y * y) / 20), (-8, -8, 8, 8), 1.0)
     zm.z[:4, :4] = np.nan
@@ -42,6 +43,7 @@ def test_zmap_3d_scalars_are_checked(tmp_path):
     assert not (tmp_path / "x.png").exists()
 
 
+@pytest.mark.slow
 def test_stock_3d_at_a_stage_and_against_a_design(tmp_path):
     from zmap.sim import simulate
 

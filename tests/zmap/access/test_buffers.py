@@ -87,6 +87,7 @@ def step_block():
 @pytest.mark.parametrize("tool", [Tool(1.0), Tool(0.8, stickout=1.2, holder_diameter=2.4, holder_length=5.0),
                                   Tool(1.6, stickout=1.0, holder_diameter=3.0, holder_length=5.0)],
                          ids=["ball", "holder", "wide"])
+@pytest.mark.slow
 def test_tool_clearance_kernel_matches_the_plain_reference(step_block, tool):
     vm = step_block
     fast = tool_clearance(vm, vm.vl, tool, cell=0.3, cell_holder=0.5)
@@ -109,6 +110,7 @@ def _between_the_references(vm, fast, tool, **kw):
 
 
 @pytest.mark.parametrize("cells", [(0.2, 0.4), (0.1, 0.8)], ids=["x2", "x8"])
+@pytest.mark.slow
 def test_holder_buffer_from_block_maxima_matches_the_reference(step_block, cells):
     """A holder cell a power of two times the shank's: its buffer is the shank's block maxima,
     with the bits of the reference's box-by-box drawing (and of the drawn path)."""
@@ -152,6 +154,7 @@ def test_casting_without_hidden_skin_cubes_gives_the_same_bits():
     assert (vm.state[tuple(ijk.T)] == INTERIOR).all()
 
 
+@pytest.mark.slow
 def test_a_ball_on_a_plane_keeps_every_tilt_its_holder_allows():
     """A ball touching a 30 x 30 mm plate's top at its middle: its shank, tilted by t < 90
     degrees, stays above the plane (a (1 - sin t) clear of it), so every upper direction

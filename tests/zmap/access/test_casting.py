@@ -92,6 +92,7 @@ def test_pieces_only_lift_blocks_on_a_convex_box():
     assert count(a).sum() > count(b).sum()
 
 
+@pytest.mark.slow
 def test_casting_kernel_matches_the_reference_on_a_bowl():
     """Curved faces, edges where the cavity meets the top, slabs that are not flat: the kernel
     gives the reference's bits."""
@@ -105,6 +106,7 @@ def test_casting_kernel_matches_the_reference_on_a_bowl():
 @settings(max_examples=40, deadline=None)
 @given(shape=st.tuples(*[st.integers(1, 6)] * 3), codes=st.integers(1, 3), seed=st.integers(0, 2**31 - 1),
        fill=st.floats(0.0, 1.0))
+@pytest.mark.slow
 def test_merged_runs_cover_every_coded_voxel_once_with_its_code(shape, codes, seed, fill):
     from zmap.access._access_kernels import merge_runs
 
@@ -120,6 +122,7 @@ def test_merged_runs_cover_every_coded_voxel_once_with_its_code(shape, codes, se
     assert ((seen == 1) == (code > 0)).all() and seen.max(initial=0) <= 1
 
 
+@pytest.mark.slow
 def test_merged_skin_boxes_give_the_bits_of_the_cubes(monkeypatch):
     """The casting draws the skin as boxes of cubes with one neighbour mask, with the chord
     cut on long boxes; the bits are those of the single cubes (and of the reference)."""
@@ -139,6 +142,7 @@ def test_merged_skin_boxes_give_the_bits_of_the_cubes(monkeypatch):
     assert (global_visibility_reference(vm) == merged).all()
 
 
+@pytest.mark.slow
 def test_merged_flat_blockers_give_the_bits_of_the_voxels(monkeypatch):
     """The flat boxes of a box's faces merge into a few blockers per face, with the bits of
     one blocker per voxel (and of the reference); voxels that query and block one direction

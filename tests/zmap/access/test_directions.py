@@ -86,6 +86,7 @@ def test_hemisphere_bitsets_are_the_paper_sets():
 
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.lists(st.booleans(), min_size=130, max_size=130), min_size=1, max_size=5))
+@pytest.mark.slow
 def test_bitset_round_trip(rows):
     mask = np.array(rows, dtype=bool)
     bits = from_bool(mask)

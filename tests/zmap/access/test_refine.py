@@ -79,6 +79,7 @@ def test_fine_pieces_partition_the_samples(bowl3):
     assert not (to_bool(f.vl[j], ds.k) & ~hemi).any()
 
 
+@pytest.mark.slow
 def test_fine_cast_matches_the_reference_on_a_bowl(small_bowl, monkeypatch):
     """The refinement's cast (half the pitch, only the lost directions, tiles) gives the bits
     of the plain reference casting each half-voxel piece on its own; voxels and pieces keep
@@ -234,6 +235,7 @@ def test_strict_refinement_far_miss_on_a_bowl_on_voxel_boundaries():
 # derandomized: a fresh random draw found the case above, and CI must not fail at random
 @settings(max_examples=8, deadline=None, derandomize=True)
 @given(shift=st.tuples(*[st.floats(-0.3, 0.3, allow_nan=False)] * 3), r=st.floats(1.6, 2.4))
+@pytest.mark.slow
 def test_strict_refinement_adds_no_far_miss_on_shifted_bowls(shift, r):
     _check_strict_refinement(shift, r)
 

@@ -111,6 +111,7 @@ def test_box_access_verdict_and_setups(box):
     assert vox[0] == vm.voxel_of([[6.0, 5.0, 6.0]])[0] and vox[1] == -1 and n[1] == 0 and n[0] > 0
 
 
+@pytest.mark.slow
 def test_capsule_map_holds_the_papers_and_answers_edges_by_their_faces(box):
     """The capsule test (the default) keeps every direction of the paper's conditions, and
     more; with the pieces, a top-edge voxel gets the directions both its faces share (the
@@ -202,6 +203,7 @@ def test_bowl_bottom_sees_a_cone_of_45_degrees(bowl):
     assert got[tilt < 45 - 12].all()
 
 
+@pytest.mark.slow
 def test_bowl_access_shrinks_as_the_ball_grows(bowl):
     vm, vg = bowl
     cav = vm.surface == 6
@@ -214,6 +216,7 @@ def test_bowl_access_shrinks_as_the_ball_grows(bowl):
     assert (vm.curvature[cav] == pytest.approx(1 / 6.0))
 
 
+@pytest.mark.slow
 def test_bowl_access_on_samples_shrinks_pair_by_pair_and_finds_the_cone(bowl):
     """On the samples the capsule of a larger ball holds the smaller one's (its centre moves
     along the normal by the difference of the radii), so A' shrinks pair by pair as the ball
@@ -265,6 +268,7 @@ def _ball_conditions_brute(vm, vg, a, voxels):
     return out
 
 
+@pytest.mark.slow
 def test_ball_conditions_match_a_plain_search(bowl):
     """The shell scan (columns cut to the sphere, in parallel, no neighbour lists) gives the
     bits of a plain search over every voxel centre."""
@@ -357,6 +361,7 @@ def test_parse_holder():
         Tool(6.0, holder_diameter=4.0, holder_length=10.0)
 
 
+@pytest.mark.slow
 def test_cylinder_casting_kernel_matches_the_plain_reference():
     """The depth-buffer kernel gives the same V'_g bits as the pair-by-pair reference."""
     from tests.reference.access import global_visibility_reference

@@ -22,6 +22,7 @@ def _env(c, d):
 
 
 @pytest.mark.parametrize("spec", ["ball:6", "flat:6", "bull:6:1"])
+@pytest.mark.slow
 def test_tilted_plane_exact(spec):
     c = parse_tool_spec(spec)
     a = 0.3
@@ -48,6 +49,7 @@ def _wall_cl(c, x, xw):
 
 
 @pytest.mark.parametrize("spec", ["ball:6", "flat:4", "bull:6:1.5"])
+@pytest.mark.slow
 def test_step_wall_never_below_and_within_a_sample(spec):
     # a design known only by its heights is sampled: never below the true CL; above it by at
     # most what the wall moved toward the tool by one pitch gives
@@ -61,6 +63,7 @@ def test_step_wall_never_below_and_within_a_sample(spec):
 
 
 @pytest.mark.parametrize("spec", ["ball:6", "flat:4", "bull:6:1.5"])
+@pytest.mark.slow
 def test_step_wall_on_a_zmap_exact(spec):
     # the same wall as a z-map: its own Bezier surface is the design, dropped on exactly
     c = parse_tool_spec(spec)
@@ -173,6 +176,7 @@ def test_brep_walls_edges_and_corners(boss):
 
 @settings(max_examples=8, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 10_000), spec=st.sampled_from(["ball:6", "flat:4", "bull:5:1"]))
+@pytest.mark.slow
 def test_zmap_drop_never_below_an_independent_brute_force(seed, spec):
     # random z-maps with steps, bumps and holes (missing heights): every node under the cutter
     # and the surface between them, sampled by the brute force, stays below the CL
@@ -203,6 +207,7 @@ def cornetta():
     return cad_io.read_step(STEP_DATA / "bug27693_cornetta-step.stp")
 
 
+@pytest.mark.slow
 def test_step_design_never_below_its_exact_heights_where_a_fillet_meets_a_plane(cornetta):
     # on the cornetta die a fillet meets a plane at x = -55.34 (the curvature jumps): a cubic
     # through samples 0.5 mm apart errs both ways between them there, and a margin from the

@@ -35,6 +35,7 @@ def _brute(Z, dx, dy, c, qx, qy):
 @settings(max_examples=40, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 10_000), kind=st.sampled_from(["ball", "flat", "bull"]),
        holes=st.booleans(), ties=st.booleans())
+@pytest.mark.slow
 def test_grid_drop_is_the_max_over_the_samples(seed, kind, holes, ties):
     rng = np.random.default_rng(seed)
     R = rng.uniform(0.3, 2.5)
@@ -72,6 +73,7 @@ def test_grid_drop_is_the_max_over_the_samples(seed, kind, holes, ties):
 
 @pytest.mark.parametrize("spec", ["ball:6", "flat:4", "bull:6:1"])
 @pytest.mark.parametrize("indexing", ["ij", "xy"])
+@pytest.mark.slow
 def test_drop_cutter_grid_equals_scattered(spec, indexing):
     """A meshgrid of axes (either indexing, y descending) gives the heights and contacts the
     scattered path gives, discrete and refined."""

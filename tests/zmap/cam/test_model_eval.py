@@ -46,6 +46,7 @@ def boss_ez():
     return refine_models(part, base, 0.01, methods=("ez",))["ez"][0]
 
 
+@pytest.mark.slow
 def test_kernel_heights_are_the_models_on_a_real_ez_model(boss_ez):
     m = boss_ez
     assert m.ez is not None and m.ez.n_patches > 0  # the patch path is exercised too
@@ -119,6 +120,7 @@ def _wall_model(seed):
 
 @settings(max_examples=5, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 10_000), spec=st.sampled_from(["ball:6", "ball:4", "bull:6:1", "flat:4"]))
+@pytest.mark.slow
 def test_never_below_the_brute_force_on_walls(seed, spec):
     model, (cx, cy, rr) = _wall_model(seed)
     c = parse_tool_spec(spec)

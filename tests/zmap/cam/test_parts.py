@@ -50,6 +50,7 @@ def test_the_nine_parts_are_there():
 
 
 @pytest.mark.parametrize("path", MAPS, ids=lambda p: p.name.split(".")[0])
+@pytest.mark.slow
 def test_program_never_below_the_brute_force(path):
     zm, cut, win, step = _setup(path)
     prog = raster_program(zm, cut, stepover=2 * zm.dx, step=step, bounds=win, tol=0.002)

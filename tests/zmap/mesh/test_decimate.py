@@ -61,6 +61,7 @@ def crack_rays(mesh, lo, hi, n: int = 4000, seed: int = 0) -> int:
     return bad
 
 
+@pytest.mark.slow
 def test_walls_within_allowance_and_fewer_triangles():
     z = walls()
     zm = ZMap(10.0, -5.0, 0.1, 0.2, z)
@@ -72,6 +73,7 @@ def test_walls_within_allowance_and_fewer_triangles():
     assert crack_rays(m, (10.0, -5.0), (10.0 + 12.8, -5.0 + 25.6)) == 0
 
 
+@pytest.mark.slow
 def test_faces_are_counter_clockwise():
     m = decimate(walls(65), 0.05, region=16)
     v = m.vertices
@@ -129,6 +131,7 @@ def test_random_smooth_maps_property(seed, allowance, region, nx, ny):
     assert crack_rays(m, (0, 0), (nx - 1, ny - 1), n=500, seed=seed) == 0
 
 
+@pytest.mark.slow
 def test_nan_regions_no_face_over_nan_and_no_cracks_elsewhere():
     z = walls(65)
     z[40:44, 10:12] = np.nan
@@ -200,6 +203,7 @@ def test_decimate_pro_the_papers_method_is_crack_free_but_not_bounded():
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.slow
 def test_part_outline_regions_are_decimated_around_the_hole(seed):
     """A part's map: NaN outside its outline. Regions on the outline are meshed in full only
     in their 8 x 8 tiles that hold a NaN node; every valid node within the allowance, no face

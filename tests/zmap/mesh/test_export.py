@@ -191,6 +191,7 @@ def test_failures_name_the_file_and_leave_nothing_behind(mesh, tmp_path, monkeyp
         write_stl(np.zeros((3, 3)), tmp_path / "x.stl")
 
 
+@pytest.mark.slow
 def test_simulated_stock_exports_as_a_closed_solid(tmp_path):
     from zmap.sim import simulate
 

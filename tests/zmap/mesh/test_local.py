@@ -52,6 +52,7 @@ def test_goto_forwards_and_backwards_matches_a_fresh_mesh(run):
     assert len(lm.updates) == 7
 
 
+@pytest.mark.slow
 def test_only_touched_regions_are_remeshed(run):
     lm = LocalMesh(run, allowance=0.01, region=8)
     nreg = lm._reg.nrx * lm._reg.nry
@@ -61,6 +62,7 @@ def test_only_touched_regions_are_remeshed(run):
 
 
 @pytest.mark.parametrize("history", ["none", "ztrace", "ttrace"])
+@pytest.mark.slow
 def test_every_history_kind_gives_the_same_meshes(history):
     r = small_run(history)
     lm = LocalMesh(r, allowance=0.02, region=10, period=1)

@@ -58,6 +58,7 @@ def test_bubbles_cost_less_than_the_patches_they_replace(egg):
     assert a["bub_codes"].size + a["bub_cells"].nbytes + a["bub_q"].nbytes <= 6 * ez.bub_cells.size + 16
 
 
+@pytest.mark.slow
 def test_bubbles_round_trip_and_the_kernels_agree_with_the_reference(egg, tmp_path):
     base, ez = egg
     back = EZMap.from_arrays(ez.to_arrays())

@@ -182,6 +182,7 @@ def test_step_wall_3d_distance_within_tol(angle):
 
 @settings(max_examples=30, deadline=None)
 @given(angle=st.floats(0.0, 2 * math.pi), offset=st.floats(-0.5, 0.5), height=st.floats(0.05, 20.0))
+@pytest.mark.slow
 def test_random_walls_crossings_within_interval_and_distance_within_tol(angle, offset, height):
     f = Step(angle, math.cos(angle) * 2 + math.sin(angle) * 2 + offset, H=height)
     bounds = (0, 0, 4, 4)
@@ -323,6 +324,7 @@ def test_kernel_matches_reference(seed):
     assert np.nanmax(np.abs(a - b)) <= 1e-12
 
 
+@pytest.mark.slow
 def test_kernel_matches_reference_on_curved_walls():
     f = Boss(2.1, 1.9, 1.3, H=2.0)
     base = ZMap.from_function(f, (0, 0, 4, 4), 0.5)
@@ -521,6 +523,7 @@ def test_bundled_parts_exact_heights(name):
 
 
 @pytest.mark.parametrize("name", ["pocket", "boss"])
+@pytest.mark.slow
 def test_bundled_parts_sample_points(name):
     """E-point heights from the converter's own sampler, as `zmap refine` takes them.
 

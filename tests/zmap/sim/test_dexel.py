@@ -128,6 +128,7 @@ def test_bad_stock_inputs():
 
 @SETTINGS
 @given(cut_cases(n_max=15))
+@pytest.mark.slow
 def test_heightfield_matches_reference_and_dexel_top(case):
     bounds, pitch, cs, xyz, slot = case
     c = cs[0]

@@ -102,6 +102,7 @@ def test_stages_per_move_give_the_same_sweep(cutter):
 
 
 @pytest.mark.parametrize("cutter", CUTTERS, ids=lambda c: c.kind)
+@pytest.mark.slow
 def test_dexel_stock_is_the_sweep_rounded_up_to_float32(cutter):
     prog = parse(START + PROGRAMS["g17_arc"] + "G1 X6 Y3 Z2.5\nG18 G3 X2 Z2.5 I-2 K0\n")
     run = simulate(prog, (-4, -4, 0, 8, 6, 5), tool=cutter, pitch=0.37, history="treap")
@@ -142,6 +143,7 @@ def moves(draw):
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(moves(), st.sampled_from(CUTTERS), st.floats(0.2, 0.6))
+@pytest.mark.slow
 def test_random_moves_equal_dense_reference(text, cutter, pitch):
     try:
         prog = parse(text)

@@ -94,6 +94,7 @@ def test_real_program_facts():
 
 
 @pytest.mark.parametrize("name", ["flower_mold.nc", "cameo.nc", "rgh.ngc", "tort.ngc"])
+@pytest.mark.slow
 def test_fast_path_equals_full_interpreter(name, monkeypatch):
     import zmap.sim.gcode as gcode
 

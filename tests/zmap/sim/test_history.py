@@ -49,6 +49,7 @@ def _fresh(run, k):
 
 @SETTINGS
 @given(programs(), cutters(), st.sampled_from(["ztrace", "ttrace", "treap", "none"]), st.data())
+@pytest.mark.slow
 def test_reconstruct_and_display_equal_fresh_simulation(text, cutter, history, data):
     try:
         run = simulate(text, (0, 0, -3, 4, 3, 0), tool=cutter, pitch=0.3, history=history)
@@ -139,6 +140,7 @@ def test_empty_program_and_empty_rays():
 
 @SETTINGS
 @given(st.lists(cutters(), min_size=1, max_size=2), st.integers(0, 2**31), st.integers(1, 50))
+@pytest.mark.slow
 def test_treap_traversal_builds_the_same_treap(cs, seed, n):
     """The paper's traversal update (pruned by conditions (1), (2)) equals the leaf-scan update."""
     from zmap.sim.history.treap import simulate_treap

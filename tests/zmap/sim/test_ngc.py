@@ -102,6 +102,7 @@ def _render(t) -> tuple[str, float]:
 
 @settings(max_examples=200, deadline=None)
 @given(_tree(4))
+@pytest.mark.slow
 def test_random_bracketed_expressions_equal_python(tree):
     text, want = _render(tree)
     if not text.startswith("["):
@@ -284,6 +285,7 @@ _PIECES = ("[", "]", "[", "]", "1", "2.5", "-", "+", "*", "/", "**", " MOD ", " 
 @settings(max_examples=300, deadline=None)
 @given(st.lists(st.sampled_from(_PIECES), max_size=60), st.integers(0, 3000),
        st.integers(0, 3000))
+@pytest.mark.slow
 def test_random_expressions_raise_only_ngc_errors(pieces, opening, closing):
     text = "[" * opening + "".join(pieces) + "]" * closing
     p = Parameters()

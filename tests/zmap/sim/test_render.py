@@ -103,6 +103,7 @@ def test_replay_stage_prints_title_with_gcode_text(small_run, capsys):
 
 
 @pytest.mark.parametrize("span,frames", [("end:0", 7), ("0:end", 40)])
+@pytest.mark.slow
 def test_replay_gif_writes_every_frame_it_announces(small_run, tmp_path, capsys, span, frames):
     import re
 

@@ -28,6 +28,7 @@ def _same(a, b):
     return np.array_equal(a, b, equal_nan=True)
 
 
+@pytest.mark.slow
 def test_grid_plan_and_every_tile_equal_the_in_memory_map(part_and_map):
     from cad_io.tiled import _face_set, plan_grid, sample_tile
 
@@ -50,6 +51,7 @@ def test_grid_plan_and_every_tile_equal_the_in_memory_map(part_and_map):
     assert np.isfinite(zm.z).mean() > 0.5
 
 
+@pytest.mark.slow
 def test_worker_reads_the_file_only_for_a_fine_pass(part_and_map):
     """Workers get the client's face set; the file is read in a worker only when a tile
     keeps facet answers on exact faces, and then it is not meshed: the fine pass cuts the
@@ -73,6 +75,7 @@ def test_worker_reads_the_file_only_for_a_fine_pass(part_and_map):
     T._WORKER_PART.clear()
 
 
+@pytest.mark.slow
 def test_tiled_conversion_on_a_local_cluster_equals_in_memory_and_resumes(part_and_map, dask_client, tmp_path):
     from cad_io.tiled import convert_tiled
 
@@ -155,6 +158,7 @@ def test_cli_tiled_convert_end_to_end(tmp_path, capsys):
     assert "tiled zarr z-map, complete" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_shared_input_survives_the_death_of_its_worker(dask_client):
     """What every tile task reads (the face set, the program) is held by a task, not
     scattered: when the worker holding it dies, the scheduler makes it again elsewhere."""

@@ -48,6 +48,7 @@ def _assert_same_run(a: Run, b: Run, history: str):
 
 
 @pytest.mark.parametrize("history", ["none", "ztrace", "ttrace", "treap"])
+@pytest.mark.slow
 def test_tiled_run_equals_single_process_run(job, single, dask_client, history):
     prog, bounds, tools, tool = job
     run = simulate(prog, bounds, tools=tools, tool=tool, pitch=PITCH, history=history, tiles=40,
@@ -60,6 +61,7 @@ def test_tiled_run_equals_single_process_run(job, single, dask_client, history):
 
 
 @pytest.mark.parametrize("through_files", [True, False])
+@pytest.mark.slow
 def test_tiles_come_back_through_files_on_this_machine_and_through_dask_elsewhere(job, single, dask_client,
                                                                                  monkeypatch, through_files):
     """Workers that see the client's files hand the program, stock and tiles over as .npy files
@@ -117,6 +119,7 @@ def test_tiled_history_saves_and_loads(job, single, dask_client, tmp_path):
     assert back.summary["tiles"]["tile"] == 64
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_run_is_recovered_and_the_result_is_exact(job, single, dask_client):
     from zmap.sim.session import _as_positions, _resolve_tools, stock_from_spec
     from zmap.sim.tiled import TiledHistory, simulate_tiles
@@ -184,6 +187,7 @@ def test_our_local_workers_run_without_the_profiler_and_the_malloc_trim_setting(
     assert "MALLOC_TRIM_THRESHOLD_" not in os.environ
 
 
+@pytest.mark.slow
 def test_tiles_of_a_handful_of_rays_warn(job, dask_client, monkeypatch):
     """Thousands of 2 x 2-ray tasks run slower than no tiles: a warning names the count and a size."""
     import zmap.sim.tiled as st

@@ -59,6 +59,7 @@ def test_bezier_equals_in_memory_to_the_last_bit(rough, tangent, boundary):
     assert np.isfinite(a).sum() > 2500
 
 
+@pytest.mark.slow
 def test_bilinear_equals_in_memory_and_in_a_rotated_frame(tmp_path):
     zm = _rough_map(angle=0.3, origin=(5.0, -2.0))
     tz = TiledZMap.from_zmap(zm, tmp_path / "rot.zarr", tile=5)
@@ -70,6 +71,7 @@ def test_bilinear_equals_in_memory_and_in_a_rotated_frame(tmp_path):
 
 @settings(max_examples=10, deadline=None)
 @given(nx=st.integers(2, 19), ny=st.integers(2, 19), tile=st.integers(HALO, 9), seed=st.integers(0, 2**16))
+@pytest.mark.slow
 def test_property_any_tile_size_matches_in_memory(tmp_path_factory, nx, ny, tile, seed):
     zm = _rough_map(nx, ny, seed)
     tz = TiledZMap.from_zmap(zm, tmp_path_factory.mktemp("p") / "m.zarr", tile=tile)

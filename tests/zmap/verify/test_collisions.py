@@ -32,6 +32,7 @@ def test_rapid_into_stock_named_by_line(tmp_path):
     assert collisions(run2, p2, kinds=["rapid"]) == []
 
 
+@pytest.mark.slow
 def test_flat_plunge_but_not_ball(tmp_path):
     prog = "G21 G90\nG0 X5 Y5 Z2\nG1 Z-1 F50\nG1 X10\nG0 Z2\nG0 X15\nG1 Z0.5\n"
     p, run = _run(tmp_path, prog, "flat:4")

@@ -22,6 +22,7 @@ def files(tmp_path):
     return tmp_path, prog
 
 
+@pytest.mark.slow
 def test_compare_writes_reports_pictures_regions(files, capsys):
     d, prog = files
     rc = main(["compare", str(d / "r.zsim"), str(d / "d.zmap.npz"), "--tol", "0.01", "--format", "json",
@@ -51,6 +52,7 @@ def test_compare_bad_input_one_line(files, capsys, args, needle):
     assert rc == 1 and err[-1].startswith("zmap: error:") and needle in err[-1]
 
 
+@pytest.mark.slow
 def test_compare_missing_holder_data(files, capsys):
     d, prog = files
     rc = main(["compare", str(d / "r.zsim"), str(d / "d.zmap.npz"), "--program", str(prog), "--collisions"])

@@ -111,6 +111,7 @@ def _brute_first(run, ray, level):
 
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 10_000))
+@pytest.mark.slow
 def test_first_offending_equals_brute_force(seed):
     rng = np.random.default_rng(seed)
     n = 12

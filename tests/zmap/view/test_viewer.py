@@ -217,6 +217,7 @@ def _pixels(png: bytes) -> np.ndarray:
     return mpimg.imread(io.BytesIO(png), format="png")[..., :3].astype(np.float64) * 255
 
 
+@pytest.mark.slow
 def test_serve_in_a_child_process_for_notebooks(tmp_path, pocket_run):
     import urllib.request
 
