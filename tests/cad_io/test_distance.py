@@ -44,6 +44,7 @@ def test_real_part_matches_occ(sample_data):
     assert np.max(np.abs(d - ref)) <= 0.005
 
 
+@pytest.mark.slow
 def test_on_surface_is_zero_and_nan_rows():
     part = read_step(DATA / "pocket.step")
     d = distance_to_part(part, [[0.0, 0.0, 15.0], [0.0, 0.0, 16.0], [np.nan, 0.0, 0.0]])
@@ -54,6 +55,7 @@ def test_on_surface_is_zero_and_nan_rows():
         distance_to_part(part, np.zeros((3, 2)))
 
 
+@pytest.mark.slow
 def test_dense_face_does_not_crowd_out_the_nearest_one():
     # Beside the pocket's corner torus a floor-fillet cylinder is meshed far more densely;
     # its samples used to fill all the nearest neighbours and the distance came out 0.044
@@ -210,6 +212,7 @@ def test_mesh_distance_on_degenerate_triangles():
     assert np.max(np.abs(out - ref)) < 1e-7
 
 
+@pytest.mark.slow
 def test_distance_to_part_with_degenerate_mesh_triangles():
     """A part whose face meshes carry degenerate triangles measures as it does without them."""
     import copy
@@ -243,7 +246,8 @@ def test_kernels_never_raise_for_a_division_by_zero():
 
     for name in ("cad_io._sample_kernels", "cad_io._trim_kernels", "cad_io._newton_kernels",
                  "cad_io._distance_kernels", "cad_io._nurbs_kernels", "cad_io._tiled_kernels",
-                 "zmap.refine._ez_kernels"):
+                 "zmap.refine._ez_kernels", "zmap.refine._edge_kernels", "zmap.refine._thin_kernels",
+                 "zmap.refine._coons_kernels", "zmap.refine._trace_kernels", "zmap.refine._split_kernels"):
         mod = importlib.import_module(name)
         kernels = [v for v in vars(mod).values() if isinstance(v, CPUDispatcher) and v.__module__ == name]
         assert kernels, name

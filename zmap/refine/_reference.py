@@ -143,7 +143,7 @@ def _edge_value(seq, kind, tb, t, side):
 
 def evaluate(ez, base: ZMap, x, y) -> np.ndarray:
     """EZ heights point by point (NaN outside :meth:`EZMap.cell_mask`)."""
-    from ._ez_kernels import (
+    from ._coons_kernels import (
         _edge_slope,  # the base's slope rule, plain-side tangent at breaks
     )
 

@@ -56,6 +56,7 @@ import numpy as np
 from .. import features
 from ..errors import RefineError
 from ..grid import ZMap
+from ._eedges import _n_points, split_forced
 from ._emap import (  # noqa: F401  (BREAK_RATIO, FORMAT_VERSION, SERIAL_BELOW: importable here as before)
     BREAK_RATIO,
     FORMAT_VERSION,
@@ -63,12 +64,10 @@ from ._emap import (  # noqa: F401  (BREAK_RATIO, FORMAT_VERSION, SERIAL_BELOW: 
     QUANTUM_SHARE,
     SERIAL_BELOW,
     EZMap,
-    _n_points,
     cells_around,
     decimate,
     edge_count,
     encode_heights,
-    split_forced,
 )
 from .patch import patch_failing
 

@@ -12,6 +12,7 @@ from zmap import ZMap
 from zmap.model import PrecisionModel
 from zmap.refine import _ez_kernels as _k
 from zmap.refine import _reference as ref
+from zmap.refine._ecodec import pack_offsets, unpack_offsets
 from zmap.refine._emap import (
     NAN_CODE,
     QUANTUM_SHARE,
@@ -19,9 +20,7 @@ from zmap.refine._emap import (
     EZMap,
     encode_heights,
     pack_codes,
-    pack_offsets,
     unpack_codes,
-    unpack_offsets,
 )
 from zmap.refine.ez import BREAK_RATIO, build_ez
 
@@ -151,7 +150,7 @@ def _node_codes(p):
 
 
 def test_sub_edge_counts_above_15_are_stored_in_the_bits_the_largest_needs_behind_a_bit():
-    from zmap.refine._emap import _pack_counts, _unpack_counts
+    from zmap.refine._patches import _pack_counts, _unpack_counts
 
     c = np.array([0, 0, 17, 0, 3, 200, 0, 0, 0], dtype=np.uint16)
     a = _pack_counts(c)
@@ -171,7 +170,7 @@ def test_sub_edge_counts_above_15_are_stored_in_the_bits_the_largest_needs_behin
 
 
 def test_the_common_quantum_is_stored_once():
-    from zmap.refine._emap import _pack_steps, _unpack_steps, half_step
+    from zmap.refine._ecodec import _pack_steps, _unpack_steps, half_step
 
     q = half_step(np.array([QUANTUM_SHARE * TOL]))[0]
     step = np.full(40, q, dtype=np.float32)

@@ -152,6 +152,7 @@ def test_patches_thin_their_sub_edges(thin):
 
 # ---- windowed wall edges -------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_wall_edges_keep_a_window_read_as_their_full_sequence():
     f = SlopeWall()
     base = ZMap.from_function(f, (0, 0, 4, 4), 0.5)
@@ -243,7 +244,7 @@ def test_patch_sub_edges_may_keep_no_point_and_counts_pack_two_to_a_byte():
 
 
 def test_quanta_are_stored_in_two_bytes_and_still_span_the_range():
-    from zmap.refine._emap import encode_heights, half_step
+    from zmap.refine._ecodec import encode_heights, half_step
 
     rng = np.random.default_rng(11)
     h = np.concatenate([rng.uniform(-50, 80, 40), [1.0, 1.0 + 3e-9], rng.uniform(0, 1e-4, 9), [2.0, 2.0]])
