@@ -8,7 +8,7 @@ import pytest
 
 from zmap import ZMap
 from zmap.model import PrecisionModel
-from zmap.refine import _reference as ref
+from tests.reference import refine as ref
 from zmap.refine._emap import QUANTUM_SHARE
 from zmap.refine.ez import EZMap, build_ez
 from zmap.refine.patch import misfit

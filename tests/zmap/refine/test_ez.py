@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from zmap import ZMap
 from zmap.errors import RefineError
 from zmap.interpolate import bezier
-from zmap.refine import _reference as ref
+from tests.reference import refine as ref
 from zmap.refine._emap import QUANTUM_SHARE
 from zmap.refine.ez import BREAK_RATIO, EZMap, build_ez, edge_count
 

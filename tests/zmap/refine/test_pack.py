@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from zmap import ZMap
 from zmap.model import PrecisionModel
 from zmap.refine import _ez_kernels as _k
-from zmap.refine import _reference as ref
+from tests.reference import refine as ref
 from zmap.refine._ecodec import pack_offsets, unpack_offsets
 from zmap.refine._emap import (
     NAN_CODE,

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from zmap import ZMap
 from zmap.model import PrecisionModel
 from zmap.refine import _ez_kernels as _k
-from zmap.refine import _reference as ref
+from tests.reference import refine as ref
 from zmap.refine._emap import QUANTUM_SHARE, decimate
 from zmap.refine.ez import THIN_SHARE, EZMap, build_ez
 

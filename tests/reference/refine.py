@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ..grid import ZMap
+from zmap.grid import ZMap
 
 __all__ = ["detect_break", "edge_break", "edge_points", "edge_sequence", "evaluate"]
 
@@ -143,7 +143,7 @@ def _edge_value(seq, kind, tb, t, side):
 
 def evaluate(ez, base: ZMap, x, y) -> np.ndarray:
     """EZ heights point by point (NaN outside :meth:`EZMap.cell_mask`)."""
-    from ._coons_kernels import (
+    from zmap.refine._coons_kernels import (
         _edge_slope,  # the base's slope rule, plain-side tangent at breaks
     )
 
