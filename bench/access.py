@@ -69,7 +69,6 @@ def main() -> None:
     part = read_step(args.part)
     read_s = time.perf_counter() - t
     res = analyse(part, d=args.voxel, q=args.q, tool=tool, rays=args.rays)
-    from zmap.access.voxelmap import _LAST_REFINE_STATS, _LAST_TOOL_STATS
     vm = res.vm
     pairs = vm.n_boundary * vm.directions.k
     ag = agreement(part, res, n_points=args.points, seed=args.seed, explain=True)
@@ -83,8 +82,8 @@ def main() -> None:
         "stage_seconds": {k: round(v, 2) for k, v in res.seconds.items()},
         "pairs_per_s": round(pairs / (res.seconds["visibility"] + res.seconds["access"])),
         "pairs_per_s_pipeline": round(pairs / res.seconds["total"]),
-        "tool_stats": dict(zip(("clear", "blocked", "scanned"), _LAST_TOOL_STATS)),
-        "refine": dict(_LAST_REFINE_STATS),
+        "tool_stats": res.stats["tool"],
+        "refine": res.stats["refine"],
         "agree_share": round(ag["agree_share"], 5), "agree_pairs": ag["pairs"],
         "voxel_only_near": ag["voxel_only_near"], "voxel_only_far": ag["voxel_only_far"],
         "reference_only": ag["reference_only"],

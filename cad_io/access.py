@@ -284,8 +284,9 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     say(f"material: {vm.solid_note}")
     say(f"{vm.n_boundary:,} boundary, {vm.n_interior:,} interior, {int(vm.uncertain.sum()):,} uncertain voxels; "
         "cylinder casting")
+    stats: dict = {"refine": {}, "tool": {}}
     if refine:
-        vg, vg_pieces, vg_fine = global_visibility(vm, rays=rays, pieces=True, refine=True)
+        vg, vg_pieces, vg_fine = global_visibility(vm, rays=rays, pieces=True, refine=True, stats=stats["refine"])
     else:
         (vg, vg_pieces), vg_fine = global_visibility(vm, rays=rays, pieces=True), None
     sec["visibility"] = time.perf_counter() - t
@@ -297,7 +298,7 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     ts = s if tstep == step else surface_samples(part, tstep)
     amap, amap_pieces = accessibility(vm, vg, tool, pieces=True,
                                       samples=(ts.points, vm.orient(ts.points, ts.normals, ts.face), ts.face),
-                                      vg_pieces=vg_pieces)
+                                      vg_pieces=vg_pieces, stats=stats["tool"])
     sec["access"] = time.perf_counter() - t
     t = time.perf_counter()
     verdict = three_axis(vm, amap)
@@ -306,7 +307,7 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     sec["total"] = time.perf_counter() - t0
     return AccessResult(vm=vm, vg=vg, amap=amap, tool=tool, verdict=verdict, setups=setups, seconds=sec,
                         source=str(part.source or ""), vg_pieces=vg_pieces, vg_fine=vg_fine,
-                        amap_pieces=amap_pieces)
+                        amap_pieces=amap_pieces, stats=stats)
 
 
 def read_part(path) -> Part:

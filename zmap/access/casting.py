@@ -167,7 +167,7 @@ def _self_blocking(vm: VoxelMap) -> np.ndarray:
 
 
 def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True, pieces: bool = False,
-                      refine: bool = False) -> np.ndarray | tuple[np.ndarray, ...]:
+                      refine: bool = False, stats: dict | None = None) -> np.ndarray | tuple[np.ndarray, ...]:
     """``V'_g`` of every boundary voxel by cylinder casting (paper 002 §4.5).
 
     A direction n stays in ``V'_g(v)`` when no line parallel to n through v's surface box
@@ -219,6 +219,10 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True, pieces:
     agreement with the OCC thin rays on 300 points (``bench/access.py``, seed 0) from 98.457 %
     to 99.218 % (99.268 % casting every lost direction, for ten times the pairs).
 
+    ``stats``, a dict, receives the refinement's figures: half-voxel ``pieces``, those
+    ``cast`` again, (piece, direction) ``pairs`` cast again, pairs ``freed``, and
+    ``voxel_pairs_freed`` and ``piece_pairs_freed``.
+
     Returns
     -------
     ndarray of shape (mb, words), uint64; with ``pieces``, also the pieces' (np, words); with
@@ -253,7 +257,7 @@ def global_visibility(vm: VoxelMap, *, rays: int = 2, cull: bool = True, pieces:
     del out
     if refine and vm.fine is not None and vm.fine.octant is not None:
         vb, pb = bits[:mb], (bits[mb:] if extra else np.zeros((0, ds.words), dtype=np.uint64))
-        vb, pb, fb = _refine(vm, cast, vb, pb, rays)
+        vb, pb, fb = _refine(vm, cast, vb, pb, rays, stats=stats)
         return (vb, pb, fb) if pieces else vb
     if refine and pieces:
         nofine = np.zeros((0, ds.words), dtype=np.uint64)
@@ -346,19 +350,13 @@ def _piece_index(vm: VoxelMap, voxel: np.ndarray, face: np.ndarray) -> np.ndarra
     return out
 
 
-#: the last refinement's figures (:func:`global_visibility` with ``refine=True``), for benches:
-#: half-voxel pieces, those cast again, (piece, direction) pairs cast again, pairs it freed,
-#: voxel and piece pairs it freed
-_LAST_REFINE_STATS: dict = {}
-
-
 #: the refinement casts a half-voxel piece's direction only where a boundary voxel within this
 #: many voxels (along each axis) keeps it; -1: everywhere (tests)
 _REFINE_NEAR = 1
 
 
 def _refine(vm: VoxelMap, cast: tuple, vb: np.ndarray, pb: np.ndarray, rays: int, near: int | None = None,
-            tile: int | None = None):
+            tile: int | None = None, stats: dict | None = None):
     """The refinement of :func:`global_visibility` (``refine=True``): the half-voxel pieces
     cast at half the pitch for the directions of their V'_l their voxel (piece) lost and some
     boundary voxel within ``near`` voxels keeps (itself or one of its pieces); then the voxels
@@ -412,8 +410,8 @@ def _refine(vm: VoxelMap, cast: tuple, vb: np.ndarray, pb: np.ndarray, rays: int
         st = np.flatnonzero(np.r_[True, ps[1:] != ps[:-1]])
         pb = pb.copy()
         pb[ps[st]] |= np.bitwise_and.reduceat(fb[order], st, axis=0)
-    _LAST_REFINE_STATS.clear()
-    _LAST_REFINE_STATS.update(pieces=int(nfine), cast=int(len(todo)), pairs=int(count(need).sum()),
-                              freed=int(count(got).sum()), voxel_pairs_freed=int(count(vb).sum() - vb0),
-                              piece_pairs_freed=int((count(pb).sum() if len(pb) else 0) - pb0))
+    if stats is not None:
+        stats.update(pieces=int(nfine), cast=int(len(todo)), pairs=int(count(need).sum()),
+                     freed=int(count(got).sum()), voxel_pairs_freed=int(count(vb).sum() - vb0),
+                     piece_pairs_freed=int((count(pb).sum() if len(pb) else 0) - pb0))
     return vb, pb, fb

@@ -121,6 +121,9 @@ class AccessResult:
     vg_fine: np.ndarray | None = None
     #: ``A'`` of each piece of ``vm.pieces`` (:func:`accessibility` with ``pieces``), or None
     amap_pieces: np.ndarray | None = None
+    #: the casting's refinement figures (``"refine"``, :func:`global_visibility`'s ``stats``)
+    #: and the tool test's (``"tool"``: pairs clear, blocked and scanned)
+    stats: dict = field(default_factory=dict)
 
     def summary(self) -> str:
         """A markdown table of the verdict and the set-ups."""

@@ -121,9 +121,13 @@ def _covered_rows(rad: float) -> np.ndarray:
     return w[:keep.max() + 1] if len(keep) else w[:1]
 
 
-#: pairs the last :func:`accessibility` call decided by the dilated buffers as clear, as
-#: blocked, and by scanning the disc (shank and holder tests together); for benches.
-_LAST_TOOL_STATS = [0, 0, 0]
+def _tally(counts: np.ndarray, stats: dict | None) -> None:
+    """Add a tool test's per-direction ``counts`` to ``stats``: the pairs the dilated buffers
+    decided as ``clear``, as ``blocked``, and those ``scanned`` on the disc (shank and holder
+    tests together)."""
+    if stats is not None:
+        for key, n in zip(("clear", "blocked", "scanned"), counts.sum(axis=0)):
+            stats[key] = stats.get(key, 0) + int(n)
 
 
 def _curved(vm: VoxelMap, a: float) -> np.ndarray:
@@ -183,7 +187,8 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
                   cell_holder: float | None = None, method: str = "capsule",
                   pieces: bool = False,
                   samples: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-                  vg_pieces: np.ndarray | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+                  vg_pieces: np.ndarray | None = None,
+                  stats: dict | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Ball-end accessibility map ``A'`` (paper 002 §4.6) with shank and holder.
 
     ``method="paper"``: n is in ``A'(v)`` when n is in ``V'_g(v)`` and
@@ -238,7 +243,8 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     the depth buffers: ``cell``, d by default, and ``cell_holder``, the larger of d and a fifth
     of the holder's radius; see :func:`tool_clearance`), and a voxel where the ball itself
     would hold a boundary or interior voxel centre closer than a - half a diagonal to its
-    centre has no direction.
+    centre has no direction. ``stats``, a dict, gathers the tool test's figures
+    (:func:`tool_clearance`).
 
     Returns
     -------
@@ -262,9 +268,9 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
         local = np.empty_like(vg)
         ball_conditions(np.ascontiguousarray(vg), np.ascontiguousarray(vm.centres), centre, vm.origin, vm.d,
                         vm.index, vm.state, a - hd, a + hd, bad, cap, ds._centres, ds._frames, ds.q, local)
-        return tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell, cell_holder=cell_holder)
+        return tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell, cell_holder=cell_holder, stats=stats)
     if samples is not None:
-        return _sampled_access(vm, tool, bad, pieces, samples, cell, vg, vg_pieces)
+        return _sampled_access(vm, tool, bad, pieces, samples, cell, vg, vg_pieces, stats=stats)
     fits = np.empty(vm.n_boundary, dtype=np.bool_)
     ball_fits(centre, vm.origin, vm.d, vm.state, a - hd, fits)
     # not ANDed with V'_g: the capsule holds the thin ray, and the cast's voxel-wide cylinders
@@ -273,14 +279,14 @@ def accessibility(vm: VoxelMap, vg: np.ndarray, tool: Tool, *, cell: float | Non
     p = vm.pieces
     if not _has_pieces(vm, pieces):
         return _split_pieces(vm, tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell,
-                                                cell_holder=cell_holder), pieces)
+                                                cell_holder=cell_holder, stats=stats), pieces)
     # the pieces ride along as more queries of the same buffers
     pcentre = np.ascontiguousarray(p.point + a * p.normal)
     pfits = np.empty(len(p.voxel), dtype=np.bool_)
     ball_fits(pcentre, vm.origin, vm.d, vm.state, a - hd, pfits)
     plocal = np.where((pfits & ~_curved(vm, a)[p.voxel])[:, None], p.vl, np.uint64(0))
     both = tool_clearance(vm, np.ascontiguousarray(np.concatenate([local, plocal])), tool, cell=cell,
-                          cell_holder=cell_holder,
+                          cell_holder=cell_holder, stats=stats,
                           queries=(np.concatenate([vm.point, p.point]), np.concatenate([vm.normal, p.normal]),
                                    np.concatenate([vm.surface.astype(np.int64), p.face])))
     return _split_pieces(vm, both, pieces)
@@ -321,7 +327,8 @@ def _hemisphere_bits(vm: VoxelMap, normal: np.ndarray) -> np.ndarray:
 def _sampled_access(vm: VoxelMap, tool: Tool, bad: np.ndarray, pieces: bool,
                     samples: tuple[np.ndarray, np.ndarray, np.ndarray],
                     cell: float | None, vg: np.ndarray | None = None,
-                    vg_pieces: np.ndarray | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+                    vg_pieces: np.ndarray | None = None,
+                    stats: dict | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """:func:`accessibility` by the capsule on the surface samples (its ``samples``)."""
     from scipy.spatial import cKDTree
 
@@ -367,7 +374,7 @@ def _sampled_access(vm: VoxelMap, tool: Tool, bad: np.ndarray, pieces: bool,
             local[mb + pu] = (local[mb + pu] & np.asarray(vg_pieces, dtype=np.uint64)[pu]) if vg_pieces is not None \
                 else 0
     both = tool_clearance(vm, np.ascontiguousarray(local), tool, cell=cell,
-                          queries=(qp, qn, np.full(len(qp), -1)), samples=spts)
+                          queries=(qp, qn, np.full(len(qp), -1)), samples=spts, stats=stats)
     return _split_pieces(vm, both, pieces)
 
 
@@ -441,7 +448,7 @@ def _plane_queries(vm: VoxelMap, plane: np.ndarray) -> np.ndarray:
 def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float | None = None,
                    cell_holder: float | None = None, skin: bool = False,
                    queries: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-                   samples: np.ndarray | None = None) -> np.ndarray:
+                   samples: np.ndarray | None = None, stats: dict | None = None) -> np.ndarray:
     """The directions of ``local`` (mb, words) along which the shank and the holder clear the
     part: no blocker of the casting (:meth:`VoxelMap.blockers`, merged) leaves a line of a
     buffer cell meeting the shank's disc above the ball's centre, nor one meeting the holder's
@@ -472,6 +479,9 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     same 1e-3 mm), with no voxel-sized slack and no plane-face rule (a ball's own plane stays
     outside its shank exactly); ``cell`` is then the pitch of the samples' cells for both
     cylinders (``cell_holder`` is not read).
+
+    ``stats``, a dict, gathers the pairs the dilated buffers decided as ``clear``, as
+    ``blocked``, and those ``scanned`` on the disc (added to counts already there).
     """
     from ._access_kernels import pack_columns, tool_kernel
 
@@ -484,7 +494,7 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     mb = len(qpoint)
     if samples is not None:
         return _sample_clearance(vm, local, tool, centre, np.ascontiguousarray(samples, dtype=np.float64),
-                                 float(cell or vm.d))
+                                 float(cell or vm.d), stats)
     sk = vm.skin()
     blockers = tuple(np.ascontiguousarray(x) for x in vm.blockers()) + (_blocker_faces(vm),)
     plane = _plane_faces(vm, blockers[5], blockers[4])
@@ -515,7 +525,7 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
     radius = 0.5 * float(np.linalg.norm(hi_ - lo_)) + vm.d + a
     out = np.zeros((ds.k, mb), dtype=np.uint8)
     holder_r = tool.holder_diameter / 2.0
-    stats = np.zeros((ds.k, 3), dtype=np.int64)
+    counts = np.zeros((ds.k, 3), dtype=np.int64)
     cell = float(cell or vm.d)
     cell_holder = float(cell_holder or max(vm.d, holder_r / 5))
     # the holder's buffer from the shank's by block maxima where its cell is a power of two
@@ -527,8 +537,8 @@ def tool_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, *, cell: float |
                 cell_holder, hm, tool.stickout - a, holder_r,
                 mid, radius, _disc_rows(a / cell, outer=True), _disc_rows(a / cell, outer=False),
                 _disc_rows(holder_r / cell_holder, outer=True), _disc_rows(holder_r / cell_holder, outer=False),
-                out, stats)
-    _LAST_TOOL_STATS[:] = [int(x) for x in stats.sum(axis=0)]
+                out, counts)
+    _tally(counts, stats)
     bits = np.empty((mb, ds.words), dtype=np.uint64)
     pack_columns(out, bits)
     return bits
@@ -548,7 +558,7 @@ def _direction_pairs(ds: DirectionSet) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _sample_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, centre: np.ndarray, samples: np.ndarray,
-                      cell: float) -> np.ndarray:
+                      cell: float, stats: dict | None = None) -> np.ndarray:
     """:func:`tool_clearance` on the surface samples (its ``samples``): (mb, words) uint64."""
     import numba
 
@@ -560,13 +570,13 @@ def _sample_clearance(vm: VoxelMap, local: np.ndarray, tool: Tool, centre: np.nd
     r_shank = tool.radius - tol
     r_holder = tool.holder_diameter / 2.0 - tol if tool.holder_diameter > 0 else 0.0
     out = np.zeros((ds.k, len(centre)), dtype=np.uint8)
-    stats = np.zeros((ds.k, 3), dtype=np.int64)
+    counts = np.zeros((ds.k, 3), dtype=np.int64)
     sample_tool_kernel(ds.normals, np.ascontiguousarray(local), centre, samples, r_shank,
                        tool.stickout - tool.radius, r_holder, cell, _disc_rows(r_shank / cell, outer=True),
                        _covered_rows(r_shank / cell), _disc_rows(max(r_holder, 0.0) / cell, outer=True),
-                       _covered_rows(max(r_holder, 0.0) / cell), out, stats, numba.get_num_threads(),
+                       _covered_rows(max(r_holder, 0.0) / cell), out, counts, numba.get_num_threads(),
                        *_direction_pairs(ds))
-    _LAST_TOOL_STATS[:] = [int(x) for x in stats.sum(axis=0)]
+    _tally(counts, stats)
     bits = np.empty((len(centre), ds.words), dtype=np.uint64)
     pack_columns(out, bits)
     return bits

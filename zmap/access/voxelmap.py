@@ -32,11 +32,11 @@ from __future__ import annotations
 from .build import (BOUNDARY, EXTERIOR, INTERIOR, MAX_VOXELS, UNPAINTED, AccessModelError,  # noqa: F401
                     Pieces, VoxelMap, _check_connected, _check_d, _direction_set, _orient, vl_all,
                     _fine_pieces, _octant, _octant_lo, _ranges, paint)
-from .casting import (_FINE_RAYS, _FINE_STRICT, _LAST_REFINE_STATS, _REFINE_NEAR, _TILE,  # noqa: F401
+from .casting import (_FINE_RAYS, _FINE_STRICT, _REFINE_NEAR, _TILE,  # noqa: F401
                       _FINE_TILE, _cast, _casting, _hide_masks, _merged_blockers, _opposite, _piece_index,
                       _query_boxes, _refine, _row_groups, _self_blocking, _skin_boxes, global_visibility)
 from .result import AccessResult, _timer, node_directions, set_cover, three_axis  # noqa: F401
-from .tool import (_GRAZE, _LAST_TOOL_STATS, Tool, _ball_inputs, _blocker_faces, _concave_creases,  # noqa: F401
+from .tool import (_GRAZE, Tool, _ball_inputs, _blocker_faces, _concave_creases,  # noqa: F401
                    _covered_rows, _curved, _direction_pairs, _disc_rows, _has_pieces, _hemisphere_bits,
                    _plane_faces, _plane_queries, _sample_clearance, _sampled_access, _snap, _split_pieces,
                    accessibility, parse_holder, parse_tool, tool_clearance)
