@@ -46,9 +46,11 @@ class Design:
         not a model within a tolerance of it.
     grid : callable ``(x0, y0, h, nx, ny) -> (nx, ny)`` or None — heights on a grid, where the
         type samples a grid faster than scattered points.
-    drop_pitch, drop_check : the drop-cutter's default sample spacing (mm) and fine samples
-        per interval for a design that is not a z-map (None: the cutter radius / 8).
-    source : the object itself.
+    drop_pitch, drop_check
+        The drop-cutter's default sample spacing (mm) and fine samples per interval for a
+        design that is not a z-map (None: the cutter radius / 8).
+    source
+        The object itself.
     """
 
     heights: Callable[[np.ndarray, np.ndarray], np.ndarray]

@@ -154,7 +154,7 @@ def gaussian_bump(amplitude: float = 20.0, sigma: float = 15.0) -> AnalyticSurfa
 
 
 def torus_patch(major: float = 60.0, minor: float = 20.0) -> AnalyticSurface:
-    """Upper half of a torus about the z axis: ``z = sqrt(r^2 - (rho - R)^2)``, rho = |xy|.
+    """Upper half of a torus about the z axis: ``z = sqrt(r^2 - (rho - R)^2)``, ``rho = |xy|``.
 
     The query domain is the quadrant patch ``x, y in [10, 70]``; heights are NaN off the
     torus.

@@ -12,7 +12,7 @@ The map is split into square regions of ``region x region`` cells, meshed indepe
 
 Every node of the map is then within ``allowance`` of the mesh, measured vertically at the
 node (:func:`max_error` measures it). The kernels stop at the allowance less a rounding
-margin of 1e-11 * max(1000, max |z|) mm (1e-8 mm for heights up to a metre); an allowance
+margin of ``1e-11 * max(1000, max |z|)`` mm (1e-8 mm for heights up to a metre); an allowance
 of 0, or one below that margin, gives the full mesh (two triangles per cell), exact at
 every node.
 

@@ -152,7 +152,7 @@ class LocalMesh:
         return self._reg.triangles()
 
     def max_error(self) -> float:
-        """Largest |mesh height - z| over every valid node of the map it came from, mm."""
+        """Largest ``|mesh height - z|`` over every valid node of the map it came from, mm."""
         return self._reg.max_error()
 
     # ---- following a run -----------------------------------------------------------------

@@ -53,9 +53,9 @@ class Region:
     area : float — mm^2 (rays x pitch^2).
     volume : float — mm^3: material missing below ``design + offset`` (gouge) or left above
         it (excess), summed over the region's rays.
-    depth : float — mm, the largest |deviation| in the region.
+    depth : float — mm, the largest ``|deviation|`` in the region.
     bbox : (xmin, ymin, xmax, ymax) — mm, ray centres.
-    deepest : (x, y) — mm, the ray of the largest |deviation|.
+    deepest : (x, y) — mm, the ray of the largest ``|deviation|``.
     first_stage, first_line : int — gouges: the earliest stage (>= 1) at which the program cut
         a ray of the region below ``design + offset - tol``, and its G-code line (>= 1); -1
         when unknown (a run of bare positions has no lines).

@@ -52,7 +52,7 @@ class IntervalTreap:
     root_off : ndarray of shape (n_rays + 1,), int64 — ray r has root_off[r+1]-root_off[r] roots,
         the first nodes of its block.
     root_hi : ndarray of shape (n_roots,), float32 — Zmax of each root, mm.
-    z : ndarray of shape (m,), float32; stage, kids : ndarray of shape (m,), int32 — the nodes.
+    z, stage, kids : ndarray of shape (m,); float32, int32, int32 — the nodes.
 
     Examples
     --------
