@@ -27,6 +27,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from zmap.fmt import count, size
+from zmap.gridspec import GridSpec
 from zmap.tiled.cluster import (
     CONNECT_TIMEOUT,
     cpu_figures,
@@ -45,19 +46,13 @@ DEFAULT_TILE = 4096
 
 
 @dataclass(frozen=True)
-class TiledGrid:
-    """The whole map's grid and what every tile task needs to sample its part of it."""
+class TiledGrid(GridSpec):
+    """The whole map's grid (a :class:`zmap.gridspec.GridSpec`) and what every tile task
+    needs to sample its part of it."""
 
-    x0: float
-    y0: float
-    dx: float
-    dy: float
-    nx: int
-    ny: int
     deflection: float
     axis: str
     method: str
-    window: tuple
     fine: float | None = None
     #: per face, whether the fine facet pass ray-casts it (:func:`cad_io.sampler.fine_cast`)
     fine_cast: tuple = ()
@@ -92,7 +87,7 @@ def plan_grid(part: Part, grid: Any, *, bounds: Sequence[float] | None = None, a
         from .sampler import fine_cast
 
         cast = tuple(fine_cast(part, fine).tolist())
-    return TiledGrid(g.x0, g.y0, g.dx, g.dy, g.nx, g.ny, plan.deflection, axis, method, g.window, fine, cast)
+    return TiledGrid(g.x0, g.y0, g.dx, g.dy, g.nx, g.ny, plan.deflection, axis, method, fine, cast)
 
 
 def _face_set(part: Part, g: TiledGrid):
