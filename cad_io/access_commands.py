@@ -110,7 +110,7 @@ def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output,
     result.save(output)
     click.echo(result.summary())
     if not no_png:
-        from zmap.access.plot import sphere_3d, voxels_3d
+        from zmap.plot.access import sphere_3d, voxels_3d
 
         prefix = png or (output[:-len(".access.npz")] if output.endswith(".access.npz") else os.path.splitext(output)[0])
         say("pictures")

@@ -27,7 +27,7 @@ def run(out_dir: str | Path) -> list[Path]:
 
     from .accuracy import accuracy_rows, format_csv, format_markdown, zmap_of
     from .grid import atomic_write
-    from .plot import plot_error_maps, plot_zmap
+    from .plot.maps import plot_error_maps, plot_zmap
     from .surfaces import get
 
     out = Path(out_dir)
@@ -60,7 +60,7 @@ def run(out_dir: str | Path) -> list[Path]:
     written.append(atomic_write(out / "gaussian.png",
                                 lambda tmp: fig.savefig(tmp, dpi=110, format="png", bbox_inches="tight")))
     plt.close(fig)
-    from .plot3d import zmap_3d
+    from .plot.scene import zmap_3d
 
     written.append(zmap_3d(bump, out / "gaussian_3d.png", title="gaussian bump, grid 0.5 mm: heights (3D view)"))
 
@@ -75,7 +75,7 @@ def run(out_dir: str | Path) -> list[Path]:
 
     if (out / "demo_pocket.zsim") in written:
         _step("3D view of the simulated stock (pyvista, off-screen)")
-        from .plot3d import stock_3d
+        from .plot.scene import stock_3d
         from .sim.demo import DEMO_PROGRAM
         from .sim.session import Run
 

@@ -128,3 +128,13 @@ def test_cad_io_commands_plug_into_zmap_and_a_broken_plugin_leaves_the_rest(monk
     group = click.Group()
     assert cli.add_plugin_commands(group) == [] and not group.commands
     assert "the commands of broken_pkg.commands:COMMANDS did not load (ImportError" in capsys.readouterr().err
+
+
+def test_pictures_are_drawn_only_where_they_are_shown():
+    # plotting lives in zmap.plot; the computing packages never import it (only the commands,
+    # the demos, the viewer and the verify report, which draw what they show)
+    graph = import_graph()
+    drawers = {m for m, ts in graph.items() if not m.startswith("zmap.plot") for t in ts if t.startswith("zmap.plot.")}
+    allowed = {m for m in drawers if m.endswith(("commands", ".demo")) or m in {"zmap.demo", "zmap.view.app",
+                                                                                   "zmap.verify.report"}}
+    assert drawers and drawers == allowed, sorted(drawers - allowed)

@@ -9,7 +9,7 @@ pytest.importorskip("pyvista")
 from PIL import Image  # noqa: E402
 
 from zmap import ZMap  # noqa: E402
-from zmap.plot3d import stock_3d, zmap_3d  # noqa: E402
+from zmap.plot.scene import stock_3d, zmap_3d  # noqa: E402
 
 SIZE = (400, 300)
 

@@ -19,7 +19,7 @@ _WHERE = {
     "global_visibility": "voxelmap", "accessibility": "voxelmap", "tool_clearance": "voxelmap",
     "three_axis": "voxelmap",
     "set_cover": "voxelmap", "node_directions": "voxelmap", "AccessResult": "voxelmap",
-    "AccessModelError": "voxelmap", "voxels_3d": "plot", "sphere_3d": "plot",
+    "AccessModelError": "voxelmap", "voxels_3d": ".plot.access", "sphere_3d": ".plot.access",
 }
 
 __all__ = list(_WHERE)

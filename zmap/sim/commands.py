@@ -148,7 +148,7 @@ def replay_cmd(run_path, stage, png, view3d, span, gif, frames, fps, scale, prog
     """Show a saved run at a stage (PNG) or between two stages (GIF), or print its summary."""
     import numpy as np
 
-    from .render import StageFigure, program_lines, save_gif, save_png, stage_line, stage_title
+    from ..plot.stages import StageFigure, program_lines, save_gif, save_png, stage_line, stage_title
     from .session import Run
 
     _need_file(program)
@@ -169,7 +169,7 @@ def replay_cmd(run_path, stage, png, view3d, span, gif, frames, fps, scale, prog
     if stage is not None:
         k = run.stage(stage)
         if png and view3d:
-            from ..plot3d import stock_3d
+            from ..plot.scene import stock_3d
 
             stock_3d(run, k, png, name=name, program=program)
             click.echo(f"stage {k}/{run.n_stages} (3D) -> {png}")

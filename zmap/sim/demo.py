@@ -36,7 +36,7 @@ def run_demo(out_dir: str | os.PathLike = "out", *, echo=print) -> list[Path]:
     list of Path
         The run file, the two pictures and the GIF, in that order.
     """
-    from .render import StageFigure, program_lines, save_gif, save_png, stage_line, stage_title
+    from ..plot.stages import StageFigure, program_lines, save_gif, save_png, stage_line, stage_title
     from ..fmt import size
     from .session import Run, simulate
 

@@ -191,7 +191,7 @@ def deviation_3d(c: Any, path: str | os.PathLike | None = None, *, title: str | 
     """pyvista 3D view of the stock top coloured by deviation (same tolerance-tied colours)."""
     from matplotlib.colors import ListedColormap
 
-    from ..plot3d import _surface_plot
+    from ..plot.scene import _surface_plot
 
     bounds, colours = band_colours(c)
     # a continuous colour map sampled so that each band keeps its colour over the clim

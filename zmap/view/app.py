@@ -164,7 +164,7 @@ class Viewer:
             self.plotter.add_mesh(self.poly, scalars=self.scalar_name, cmap="viridis", clim=clim,
                                   scalar_bar_args=bar)
         self.plotter.add_mesh(self.sides, color=SIDES_COLOUR, name="sides")
-        from ..plot3d import axes_in_mm
+        from ..plot.scene import axes_in_mm
 
         b = self.poly.bounds
         axes_in_mm(self.plotter, (b[0], b[1], b[2], b[3], min(b[4], self.bottom), max(b[5], self.bottom)))

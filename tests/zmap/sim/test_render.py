@@ -7,7 +7,7 @@ import pytest
 from PIL import Image
 
 from zmap.cli import main
-from zmap.sim.render import StageFigure, save_gif, stage_line, stage_title
+from zmap.plot.stages import StageFigure, save_gif, stage_line, stage_title
 
 PROGRAM = """%
 G21 G90 G17

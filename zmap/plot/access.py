@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from .._npzfile import atomic_write
-from .directions import count
+from ..access.directions import count
 
 __all__ = ["voxels_3d", "sphere_3d"]
 
@@ -95,7 +95,7 @@ def sphere_3d(result, path: str | os.PathLike | None = None, *, title: str | Non
 
     vm = result.vm
     ds = vm.directions
-    from .directions import to_bool
+    from ..access.directions import to_bool
 
     reach = to_bool(result.amap, ds.k).T.astype(float) @ vm.area  # (k,)
     verts = ds.vertices.reshape(-1, 3)

@@ -6,9 +6,9 @@ from typing import Sequence
 
 import numpy as np
 
-from .grid import ZMap
-from .interpolate import SCHEMES
-from .surfaces import AnalyticSurface
+from ..grid import ZMap
+from ..interpolate import SCHEMES
+from ..surfaces import AnalyticSurface
 
 __all__ = ["error_map", "plot_error_maps", "hillshade", "plot_zmap"]
 

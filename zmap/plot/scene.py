@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .grid import ZMap, atomic_write
+from ..grid import ZMap, atomic_write
 
 __all__ = ["zmap_3d", "stock_3d", "axes_in_mm"]
 
@@ -240,7 +240,7 @@ def stock_3d(run: Any, stage: Any, path: str | os.PathLike | None = None, *, des
     >>> stock_3d(run, "end", "stock3d.png").name  # doctest: +SKIP
     'stock3d.png'
     """
-    from .sim.render import height_range, program_lines, stage_line, stage_title
+    from .stages import height_range, program_lines, stage_line, stage_title
 
     k = run.stage(stage)
     s = run.stock
@@ -256,7 +256,7 @@ def stock_3d(run: Any, stage: Any, path: str | os.PathLike | None = None, *, des
         clim = height_range(run) if clim is None else clim
         cmap = cmap or "viridis"
     else:
-        from .interpolate import bilinear
+        from ..interpolate import bilinear
 
         values, bar = z - bilinear(design, X, Y), "stock - design (mm)"
         if clim is None:
