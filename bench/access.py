@@ -71,7 +71,7 @@ def main() -> None:
     res = analyse(part, d=args.voxel, q=args.q, tool=tool, rays=args.rays)
     vm = res.vm
     pairs = vm.n_boundary * vm.directions.k
-    ag = agreement(part, res, n_points=args.points, seed=args.seed, explain=True)
+    ag = agreement(part, res, n_points=args.points, seed=args.seed, explain=True) if args.points else None
     out = {
         "part": Path(args.part).name, "seed": args.seed, "d": args.voxel, "q": args.q, "rays": args.rays,
         "k": vm.directions.k,
@@ -84,15 +84,16 @@ def main() -> None:
         "pairs_per_s_pipeline": round(pairs / res.seconds["total"]),
         "tool_stats": res.stats["tool"],
         "refine": res.stats["refine"],
-        "agree_share": round(ag["agree_share"], 5), "agree_pairs": ag["pairs"],
-        "voxel_only_near": ag["voxel_only_near"], "voxel_only_far": ag["voxel_only_far"],
-        "reference_only": ag["reference_only"],
-        "disagree_near_silhouette": ag["disagree_near_silhouette"], "disagree": ag["disagree"],
         "three_axis_share": round(res.verdict["share"], 4),
         "area_inaccessible_mm2": round(res.verdict["area_inaccessible"], 1),
         "setups": len(res.setups),
         "map_mb": round(vm.nbytes / 2**20, 1),
     }
+    if ag is not None:  # --points 0: no agreement with the OCC rays
+        out.update({"agree_share": round(ag["agree_share"], 5), "agree_pairs": ag["pairs"],
+                    "voxel_only_near": ag["voxel_only_near"], "voxel_only_far": ag["voxel_only_far"],
+                    "reference_only": ag["reference_only"],
+                    "disagree_near_silhouette": ag["disagree_near_silhouette"], "disagree": ag["disagree"]})
     if args.tool_points:
         t = time.perf_counter()
         agt = agreement(part, res, n_points=args.tool_points, seed=args.seed + 1, tool=True)

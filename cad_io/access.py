@@ -454,7 +454,7 @@ def point_visibility(result: AccessResult, voxel: np.ndarray, face: np.ndarray,
     face = np.asarray(face, dtype=np.int64)
     out = _by_piece(vm, result.vg, result.vg_pieces, voxel, face)
     f = vm.fine
-    if points is None or result.vg_fine is None or f is None or not len(f.voxel):
+    if points is None or result.vg_fine is None or f is None or not len(f.voxel) or not len(voxel):
         return out
     octant = _octant(points, vm.origin, vm.d, vm.ijk[voxel])
     nf = int(max(f.face.max(), face.max())) + 1
@@ -511,11 +511,15 @@ def agreement(part: Part, result: AccessResult, *, n_points: int = 60, seed: int
     """
     from zmap.access.directions import to_bool
 
+    if int(n_points) < 1:
+        raise ValueError(f"n_points must be at least 1 (the agreement of no points is no figure), got {n_points!r}")
     vm = result.vm
     ds = vm.directions
     s = samples if samples is not None else surface_samples(part, vm.step)
     rng = np.random.default_rng(seed)
     vox = vm.voxel_of(s.points)
+    if not (vox >= 0).any():
+        raise ValueError(f"none of the {len(s.points):,} surface samples of {part.source!r} lies in a voxel of the map")
     pick = rng.choice(np.flatnonzero(vox >= 0), size=min(n_points, int((vox >= 0).sum())), replace=False)
     pts, vb = s.points[pick], vox[pick]
     nrm = vm.orient(pts, s.normals[pick], s.face[pick])

@@ -410,3 +410,14 @@ def test_thin_rib_voxels_uncertain_and_never_freed_where_occ_blocks(tmp_path):
     fits = reference_tool(part.shape, pts, nrm, ds.normals, res.tool)
     mine = to_bool(point_access(res, vb, fc), ds.k)
     assert not (mine & ~fits).any()
+
+
+def test_agreement_of_no_points_is_refused_not_nan(sample_data):
+    from cad_io.access import agreement, analyse
+    from cad_io.step import read_step
+
+    part = read_step(sample_data / "boss.step")
+    res = analyse(part, d=2.0, q=2, tool=Tool(6.0))
+    assert set(res.stats) == {"refine", "tool"} and res.stats["tool"]["scanned"] >= 0
+    with pytest.raises(ValueError, match="n_points must be at least 1"):
+        agreement(part, res, n_points=0)
