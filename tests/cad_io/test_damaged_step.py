@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from tests.cad_io import corrupt
-from zmap.errors import GridTooLargeError, StepImportError
+from zmap.errors import GridTooLargeError
 
 pytest.importorskip("OCP")
 

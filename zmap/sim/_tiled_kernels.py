@@ -9,7 +9,6 @@ history events are the single-process run's, ray for ray.
 
 from __future__ import annotations
 
-import math
 
 from numba import njit
 

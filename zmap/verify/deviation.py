@@ -32,7 +32,6 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..errors import ZMapError
 
 __all__ = ["compare", "Comparison", "Region", "design_heights", "first_offending", "CLASSES",
            "load_design"]

@@ -5,7 +5,6 @@ Private to :mod:`zmap.sim.history`. Stages are int32, z values float32 (NaN = no
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 from numba import njit
