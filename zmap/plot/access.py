@@ -13,32 +13,15 @@ from typing import Any
 
 import numpy as np
 
-from .._npzfile import atomic_write
 from ..access.directions import count
+from .scene import _quiet_vtk, _shot
 
 __all__ = ["voxels_3d", "sphere_3d"]
 
 
-def _quiet_vtk() -> None:
-    try:
-        from vtkmodules.vtkCommonCore import vtkLogger
-    except ImportError:
-        return
-    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
-
-
 def _finish(p, path, title) -> Any:
     p.add_text(title, position="upper_left", font_size=11, color="black")
-    if path is None:
-        return p
-
-    def write(tmp: str) -> None:
-        p.screenshot(tmp)
-
-    try:
-        return atomic_write(path, write, suffix=".png")
-    finally:
-        p.close()
+    return _shot(p, path)
 
 
 def voxels_3d(result, path: str | os.PathLike | None = None, *, by: str = "count", title: str | None = None,

@@ -148,6 +148,12 @@ def _surface_plot(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, values: np.ndarra
     p.add_text(title, position="upper_left", font_size=11, color="black")
     p.view_isometric()
     p.camera.zoom(0.9)
+    return _shot(p, path)
+
+
+def _shot(p: Any, path: str | os.PathLike | None) -> Any:
+    """The plotter ``p`` itself without a ``path``; else its screenshot written atomically to
+    ``path`` (PNG) and the plotter closed."""
     if path is None:
         return p
 
