@@ -16,6 +16,8 @@ from zmap.fmt import count, size
 
 from cad_io.refine import format_report, refine_models, report_rows
 
+from .access_commands import access_cmd
+
 __all__ = ["convert_cmd", "refine_cmd", "report_cmd"]
 
 _AXES = ("+z", "-z", "+x", "-x", "+y", "-y")
@@ -234,8 +236,6 @@ def report_cmd(part_path, grid, tol, points, seed, methods, axis, deflection, fm
     rep["warnings"] = list(part.warnings)
     click.echo(json.dumps(rep, indent=1) if fmt == "json" else format_report(rep))
 
-
-from .access_commands import access_cmd  # noqa: E402  (defined beside the access library it calls)
 
 #: the commands cad_io adds to ``zmap`` (the ``zmap.commands`` entry point in pyproject.toml)
 COMMANDS = (convert_cmd, refine_cmd, report_cmd, access_cmd)
