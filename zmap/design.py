@@ -38,14 +38,19 @@ class Design:
 
     Attributes
     ----------
-    heights : callable ``(x, y) -> z`` — top-most heights in mm, NaN where there is no surface.
-    bounds : (xmin, ymin, xmax, ymax) or None — the xy extent (None: unbounded, a callable).
-    pitch : float or None — the design's natural spacing between samples, mm.
-    kind : str — "zmap", "precision model", "part", "callable", or a registered type's name.
-    exact : bool — the heights are the shape itself (a z-map's own surface, a part's B-rep),
-        not a model within a tolerance of it.
-    grid : callable ``(x0, y0, h, nx, ny) -> (nx, ny)`` or None — heights on a grid, where the
-        type samples a grid faster than scattered points.
+    heights : callable ``(x, y) -> z``
+        Top-most heights in mm, NaN where there is no surface.
+    bounds : (xmin, ymin, xmax, ymax) or None
+        The xy extent (None: unbounded, a callable).
+    pitch : float or None
+        The design's natural spacing between samples, mm.
+    kind : str
+        "zmap", "precision model", "part", "callable", or a registered type's name.
+    exact : bool
+        The heights are the shape itself (a z-map's own surface, a part's B-rep), not a model within
+        a tolerance of it.
+    grid : callable ``(x0, y0, h, nx, ny) -> (nx, ny)`` or None
+        Heights on a grid, where the type samples a grid faster than scattered points.
     drop_pitch, drop_check
         The drop-cutter's default sample spacing (mm) and fine samples per interval for a
         design that is not a z-map (None: the cutter radius / 8).

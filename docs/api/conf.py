@@ -63,12 +63,6 @@ napoleon_preprocess_types = False
 # (finalised)" likewise
 napoleon_custom_sections = [("Attributes", "params_style"), ("Attributes (finalised)", "params_style")]
 
-#: the docstrings' sections of ``name : type`` fields
-FIELD_SECTIONS = {"parameters", "other parameters", "returns", "yields", "attributes",
-                  "attributes (finalised)"}
-#: the one-line field of this code base: ``name : type — description``
-ONE_LINE_FIELD = re.compile(r"^(\s*)([A-Za-z_*][\w, *]*?) : (.+?)\s+—\s+(.+)$")
-
 #: public modules that have no place in the reference: the halves of zmap.access.voxelmap,
 #: which re-exports their public names
 UNDOCUMENTED = {"zmap.access.build", "zmap.access.casting", "zmap.access.result", "zmap.access.tool"}
@@ -168,23 +162,6 @@ class AllNamesModuleDocumenter(ModuleDocumenter):
                 for name, member, isattr in kept]
 
 
-def _one_line_fields(app, what, name, obj, options, lines) -> None:
-    """``name : type — description`` (one line, in a field section) as numpy's two lines
-    (``name : type``, then the description indented), before napoleon reads the fields."""
-    section, indent = None, ""
-    out: list[str] = []
-    for i, line in enumerate(lines):
-        following = lines[i + 1] if i + 1 < len(lines) else ""
-        if following.strip() and set(following.strip()) == {"-"} and line.strip():
-            section, indent = line.strip().lower(), line[: len(line) - len(line.lstrip())]
-        match = ONE_LINE_FIELD.match(line) if section in FIELD_SECTIONS else None
-        if match and match.group(1) == indent:
-            out += [f"{indent}{match.group(2)} : {match.group(3)}", f"{indent}    {match.group(4)}"]
-        else:
-            out.append(line)
-    lines[:] = out
-
-
 def _value_docstrings(app, what, name, obj, options, lines) -> None:
     """A module's value says what it is, never its type's docstring (``str``'s, click's
     ``Command``'s): a click command names the ``zmap`` command, another value says nothing."""
@@ -247,7 +224,6 @@ def setup(app):
     app.add_autodocumenter(AllNamesModuleDocumenter, override=True)
     app.connect("missing-reference", _resolve_alias)
     app.connect("env-updated", lambda app, env: _HOMES.clear())
-    app.connect("autodoc-process-docstring", _one_line_fields, priority=400)  # before napoleon (500)
     app.connect("autodoc-process-docstring", _value_docstrings)
     app.connect("env-check-consistency", _check_every_module)
     app.add_directive("notebook-gallery", NotebookGallery)

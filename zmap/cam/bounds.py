@@ -61,14 +61,21 @@ class BoundingSurface:
 
     Attributes
     ----------
-    nets : ndarray (ncx, ncy, 4, 4) — each cell's control net, NaN where the cell has no patch.
-    cmax : ndarray (ncx, ncy) — each net's highest control point (-inf: no patch).
-    margin : ndarray (ncx, ncy) — mm the design may rise above the patch (0: exact).
-    z : ndarray (nx, ny) — the nodes, exact heights of the design (NaN: none).
-    x0, y0, dx, dy : float — the node grid, mm.
-    source : str — what the surface was made from.
-    sub, subidx : ndarray — flat cells as finer flat sub-cells: ``sub[subidx[ci, cj]]`` their
-        heights (n x n, NaN: none); ``subidx`` -1 for a patch.
+    nets : ndarray (ncx, ncy, 4, 4)
+        Each cell's control net, NaN where the cell has no patch.
+    cmax : ndarray (ncx, ncy)
+        Each net's highest control point (-inf: no patch).
+    margin : ndarray (ncx, ncy)
+        mm the design may rise above the patch (0: exact).
+    z : ndarray (nx, ny)
+        The nodes, exact heights of the design (NaN: none).
+    x0, y0, dx, dy : float
+        The node grid, mm.
+    source : str
+        What the surface was made from.
+    sub, subidx : ndarray
+        Flat cells as finer flat sub-cells: ``sub[subidx[ci, cj]]`` their heights (n x n, NaN:
+        none); ``subidx`` -1 for a patch.
     """
 
     nets: np.ndarray
@@ -140,10 +147,14 @@ def from_heights(heights: Callable, bounds: tuple, pitch: float, *, check: int =
 
     Parameters
     ----------
-    heights : callable ``heights(x, y)`` — the design's heights, mm, NaN where it has none.
-    bounds : (xmin, ymin, xmax, ymax) — the region, mm (the grid covers it).
-    pitch : float — node spacing, mm.
-    check : int — fine samples per node interval (>= 2).
+    heights : callable ``heights(x, y)``
+        The design's heights, mm, NaN where it has none.
+    bounds : (xmin, ymin, xmax, ymax)
+        The region, mm (the grid covers it).
+    pitch : float
+        Node spacing, mm.
+    check : int
+        Fine samples per node interval (>= 2).
 
     Examples
     --------

@@ -231,23 +231,28 @@ def drop_cutter(model: Any, cutter: Any, x: Any, y: Any, *, pitch: float | None 
     ----------
     model : ZMap, PrecisionModel, cad_io.Part or callable ``heights(x, y)``
         The design; NaN heights are "no surface" (the cutter falls past them).
-    cutter : Cutter or str — e.g. ``"ball:6"``, ``"flat:10"``, ``"bull:10:1"``.
-    x, y : array_like of float — axis positions in mm (broadcast together).
-    pitch : float, optional — spacing of the design's samples, mm, for a design that is not a
-        z-map (a z-map is dropped on its own surface and ignores it); default a precision
-        model's base grid / 4, a part's 0.25 mm, a callable's cutter radius / 8. With
-        ``refine=False``, the spacing of the discrete drop's samples for every design.
-    return_contact : bool — also return the contact points ``(cx, cy, cz)``.
-    refine : bool — True: the certified drop (:mod:`zmap.cam.bounds`); False: the discrete
-        drop over samples alone (never above the true height, low by up to the rise between
-        samples).
-    eps : float — mm; the certified drop's answer is never below the true height, and never
-        above it by more on exact cells.
+    cutter : Cutter or str
+        e.g. ``"ball:6"``, ``"flat:10"``, ``"bull:10:1"``.
+    x, y : array_like of float
+        Axis positions in mm (broadcast together).
+    pitch : float, optional
+        Spacing of the design's samples, mm, for a design that is not a z-map (a z-map is dropped on
+        its own surface and ignores it); default a precision model's base grid / 4, a part's 0.25
+        mm, a callable's cutter radius / 8. With ``refine=False``, the spacing of the discrete
+        drop's samples for every design.
+    return_contact : bool
+        Also return the contact points ``(cx, cy, cz)``.
+    refine : bool
+        True: the certified drop (:mod:`zmap.cam.bounds`); False: the discrete drop over samples
+        alone (never above the true height, low by up to the rise between samples).
+    eps : float
+        mm; the certified drop's answer is never below the true height, and never above it by more
+        on exact cells.
 
     Returns
     -------
-    cl : ndarray, float64, mm (shape of the broadcast x, y; a float for scalars) — tool-tip
-        heights; NaN where no surface lies under the cutter.
+    cl : ndarray, float64, mm (shape of the broadcast x, y; a float for scalars)
+        Tool-tip heights; NaN where no surface lies under the cutter.
     (cl, cx, cy, cz) with ``return_contact``.
 
     Examples

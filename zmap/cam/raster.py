@@ -105,12 +105,16 @@ class RasterProgram:
 
     Attributes
     ----------
-    text : str — the G-code.
-    passes : list of ndarray of shape (m, 3) — the CL points kept on each pass (tool tip, mm),
-        in cutting order.
-    scallop : float — predicted scallop height on a flat floor, mm.
-    params : dict — tool, stepover, angle, tol, step, feeds, spindle, clearance.
-    stats : dict — passes, points dropped, points kept, retracts, links, seconds.
+    text : str
+        The G-code.
+    passes : list of ndarray of shape (m, 3)
+        The CL points kept on each pass (tool tip, mm), in cutting order.
+    scallop : float
+        Predicted scallop height on a flat floor, mm.
+    params : dict
+        Tool, stepover, angle, tol, step, feeds, spindle, clearance.
+    stats : dict
+        Passes, points dropped, points kept, retracts, links, seconds.
     """
 
     text: str
@@ -156,30 +160,40 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
 
     Parameters
     ----------
-    model : ZMap, PrecisionModel, cad_io.Part or callable — the design (see :func:`drop_cutter`).
-    cutter : Cutter or str — e.g. ``"ball:6"``.
-    stepover : float — mm between passes (0 < stepover <= diameter).
-    angle : float — pass direction in radians from +x.
-    tol : float — chord tolerance, mm (> 0).
-    bounds : (xmin, ymin, xmax, ymax), optional — region the tool axis covers; default the
-        model's extent.
-    step : float, optional — CL sampling along a pass, mm; default ``min(stepover / 2, 0.1)``.
-    feed, plunge_feed, spindle : float — mm/min (plunge default feed / 3), rev/min.
-    clearance : float — mm above the highest CL point for rapids.
-    name : str — the design's name for the header comment.
-    pitch : float, optional — sample pitch of a design that is not a z-map (see
-        :func:`drop_cutter`).
-    outside : {"skip", "lowest"} or float — where the design has no height (outside the
-        part's outline, a hole): "skip" breaks a pass where no design lies under the cutter
-        (the tool is dropped on the design alone wherever some of it is under the cutter);
-        "lowest" treats the empty space as a floor at the lowest CL height of the passes, a
-        number as a floor at that z: every CL point is then at least the floor and passes run
-        on across gaps. The design itself is never cut into either way.
-    sag : float — mm; where the straight feed between two CL points would pass more than this
-        under the CL surface at a quarter, half or three quarters of the way (a steep or sharply
-        curved stretch: over a wall's top edge), the middle is dropped and added, down to
-        ``step / 256``.
-    progress : callable, optional — ``progress(done, total)`` after each block of passes.
+    model : ZMap, PrecisionModel, cad_io.Part or callable
+        The design (see :func:`drop_cutter`).
+    cutter : Cutter or str
+        e.g. ``"ball:6"``.
+    stepover : float
+        mm between passes (0 < stepover <= diameter).
+    angle : float
+        Pass direction in radians from +x.
+    tol : float
+        Chord tolerance, mm (> 0).
+    bounds : (xmin, ymin, xmax, ymax), optional
+        Region the tool axis covers; default the model's extent.
+    step : float, optional
+        CL sampling along a pass, mm; default ``min(stepover / 2, 0.1)``.
+    feed, plunge_feed, spindle : float
+        mm/min (plunge default feed / 3), rev/min.
+    clearance : float
+        mm above the highest CL point for rapids.
+    name : str
+        The design's name for the header comment.
+    pitch : float, optional
+        Sample pitch of a design that is not a z-map (see :func:`drop_cutter`).
+    outside : {"skip", "lowest"} or float
+        Where the design has no height (outside the part's outline, a hole): "skip" breaks a pass
+        where no design lies under the cutter (the tool is dropped on the design alone wherever some
+        of it is under the cutter); "lowest" treats the empty space as a floor at the lowest CL
+        height of the passes, a number as a floor at that z: every CL point is then at least the
+        floor and passes run on across gaps. The design itself is never cut into either way.
+    sag : float
+        mm; where the straight feed between two CL points would pass more than this under the CL
+        surface at a quarter, half or three quarters of the way (a steep or sharply curved stretch:
+        over a wall's top edge), the middle is dropped and added, down to ``step / 256``.
+    progress : callable, optional
+        ``progress(done, total)`` after each block of passes.
 
     Returns
     -------

@@ -69,11 +69,16 @@ def plot_zmap(zm: ZMap, *, title: str = "", ax=None, colorbar: bool = True, cmap
 
     Parameters
     ----------
-    zm : ZMap — heights in mm; NaN cells are left transparent.
-    title : str — default the map's ``meta["source"]`` (or "z-map") and its grid.
-    ax : matplotlib Axes, optional — drawn into; a new figure otherwise.
-    colorbar : bool — add a colour bar "height (mm)" beside ``ax``.
-    cmap : str — colour map.
+    zm : ZMap
+        Heights in mm; NaN cells are left transparent.
+    title : str
+        Default the map's ``meta["source"]`` (or "z-map") and its grid.
+    ax : matplotlib Axes, optional
+        Drawn into; a new figure otherwise.
+    colorbar : bool
+        Add a colour bar "height (mm)" beside ``ax``.
+    cmap : str
+        Colour map.
 
     Returns
     -------

@@ -66,8 +66,10 @@ def axes_in_mm(p: Any, bounds: tuple, *, z_scale: float = 1.0, font_size: int = 
     Parameters
     ----------
     p : pyvista.Plotter
-    bounds : (x0, x1, y0, y1, z0, z1) — the scene's extent in true mm.
-    z_scale : float — z is drawn stretched by this factor; the labels say true mm.
+    bounds : (x0, x1, y0, y1, z0, z1)
+        The scene's extent in true mm.
+    z_scale : float
+        z is drawn stretched by this factor; the labels say true mm.
     font_size : int
 
     The axes span the ticks' round ends (3 z labels, about 5 on x and y), so no label is an
@@ -174,18 +176,27 @@ def zmap_3d(zm: ZMap, path: str | os.PathLike | None = None, *, title: str | Non
 
     Parameters
     ----------
-    zm : ZMap — heights in mm; NaN nodes are left out (with their cells).
-    path : str or PathLike, optional — PNG to write (atomically, off-screen). Without it the
-        pyvista Plotter is returned, not shown, for a notebook to ``show()``.
-    title : str, optional — default the map's ``meta["source"]`` and its grid.
-    scalars : "height" or ndarray of shape (nx, ny) — what colours the surface.
-    scalar_title : str, optional — colour bar title with its unit for an array ``scalars``
-        (default ``"value"``); ``"height (mm)"`` for heights.
-    clim : (lo, hi), optional — colour range; default the finite range.
-    cmap : str — colour map.
-    window_size : (width, height) — pixels.
-    z_scale : "auto" or float — z drawn stretched by this factor (axis labels stay true mm);
-        "auto" stretches a flat surface by 2, 5, 10 or 20 so that its relief shows.
+    zm : ZMap
+        Heights in mm; NaN nodes are left out (with their cells).
+    path : str or PathLike, optional
+        PNG to write (atomically, off-screen). Without it the pyvista Plotter is returned, not
+        shown, for a notebook to ``show()``.
+    title : str, optional
+        Default the map's ``meta["source"]`` and its grid.
+    scalars : "height" or ndarray of shape (nx, ny)
+        What colours the surface.
+    scalar_title : str, optional
+        Colour bar title with its unit for an array ``scalars`` (default ``"value"``);
+        ``"height (mm)"`` for heights.
+    clim : (lo, hi), optional
+        Colour range; default the finite range.
+    cmap : str
+        Colour map.
+    window_size : (width, height)
+        Pixels.
+    z_scale : "auto" or float
+        z drawn stretched by this factor (axis labels stay true mm); "auto" stretches a flat surface
+        by 2, 5, 10 or 20 so that its relief shows.
 
     Returns
     -------
@@ -227,12 +238,16 @@ def stock_3d(run: Any, stage: Any, path: str | os.PathLike | None = None, *, des
     ----------
     run : zmap.sim.session.Run
     stage : int, "end" or fraction text like "1/2".
-    path : str or PathLike, optional — PNG to write; without it the Plotter is returned.
-    design : ZMap, optional — colour by ``stock - design`` (mm, bilinear design heights,
-        symmetric range) instead of by height.
-    name : str — the run's name in the title.
-    program : str or PathLike, optional — the run's G-code file, to quote the stage's line;
-        by default the program the run keeps (``run.program_text``).
+    path : str or PathLike, optional
+        PNG to write; without it the Plotter is returned.
+    design : ZMap, optional
+        Colour by ``stock - design`` (mm, bilinear design heights, symmetric range) instead of by
+        height.
+    name : str
+        The run's name in the title.
+    program : str or PathLike, optional
+        The run's G-code file, to quote the stage's line; by default the program the run keeps
+        (``run.program_text``).
     clim, cmap, window_size, z_scale : as in :func:`zmap_3d`.
 
     Returns

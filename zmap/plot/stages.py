@@ -32,10 +32,14 @@ def shade(z: np.ndarray, pitch: float, zrange: tuple[float, float] | None = None
 
     Parameters
     ----------
-    z : ndarray of shape (nx, ny), float64 — heights in mm, NaN = background.
-    pitch : float — ray spacing in mm (for the slopes).
-    zrange : (zmin, zmax), optional — colour scale; default the finite range of ``z``.
-    cmap : str — matplotlib colour map.
+    z : ndarray of shape (nx, ny), float64
+        Heights in mm, NaN = background.
+    pitch : float
+        Ray spacing in mm (for the slopes).
+    zrange : (zmin, zmax), optional
+        Colour scale; default the finite range of ``z``.
+    cmap : str
+        Matplotlib colour map.
 
     Returns
     -------
@@ -99,11 +103,15 @@ def stage_title(name: str, stage: int, n_stages: int, line: int = 0, text: str |
 
     Parameters
     ----------
-    name : str — the run (file name or part).
-    stage, n_stages : int — the stage shown and the last stage.
-    line : int — 1-based G-code line that made the stage (0: stock or unknown).
-    text : str or list of str, optional — that line's text, or all lines of the program
-        (indexed by ``line``); without it the title gives the line number alone.
+    name : str
+        The run (file name or part).
+    stage, n_stages : int
+        The stage shown and the last stage.
+    line : int
+        1-based G-code line that made the stage (0: stock or unknown).
+    text : str or list of str, optional
+        That line's text, or all lines of the program (indexed by ``line``); without it the title
+        gives the line number alone.
 
     Examples
     --------
@@ -144,12 +152,18 @@ class StageFigure:
 
     Parameters
     ----------
-    x0, y0 : float — centre of ray (0, 0), mm.
-    pitch : float — ray spacing, mm.
-    nx, ny : int — rays along x and y.
-    zrange : (zmin, zmax) — colour range in mm, fixed for every frame.
-    scale : int — about this many pixels per ray in the picture (within 360..1400 px).
-    cmap : str — matplotlib colour map.
+    x0, y0 : float
+        Centre of ray (0, 0), mm.
+    pitch : float
+        Ray spacing, mm.
+    nx, ny : int
+        Rays along x and y.
+    zrange : (zmin, zmax)
+        Colour range in mm, fixed for every frame.
+    scale : int
+        About this many pixels per ray in the picture (within 360..1400 px).
+    cmap : str
+        Matplotlib colour map.
 
     Examples
     --------

@@ -41,10 +41,14 @@ class Holder:
 
     Attributes
     ----------
-    stickout : float — from the tool tip to the holder's face (>= the cutting length).
-    diameter : float — holder diameter.
-    length : float — holder length above its face.
-    shank_diameter : float or None — default: the cutter's diameter.
+    stickout : float
+        From the tool tip to the holder's face (>= the cutting length).
+    diameter : float
+        Holder diameter.
+    length : float
+        Holder length above its face.
+    shank_diameter : float or None
+        Default: the cutter's diameter.
     """
 
     stickout: float
@@ -144,12 +148,15 @@ def collisions(run: Any, program: Any, *, holders: Any = None, kinds: Any = COLL
 
     Parameters
     ----------
-    run : zmap.sim.session.Run — simulated with ``history="treap"``.
-    program : str, PathLike or Program — the program of the run (for move kinds).
+    run : zmap.sim.session.Run
+        Simulated with ``history="treap"``.
+    program : str, PathLike or Program
+        The program of the run (for move kinds).
     holders : dict of int to Holder, or path of a TOML file with ``[holder.N]`` tables —
         needed for the ``holder`` check, for every tool the run uses.
     kinds : sequence of {"rapid", "plunge", "shank", "holder"}
-    clearance : float — mm; material closer than this to the shank or holder counts too.
+    clearance : float
+        mm; material closer than this to the shank or holder counts too.
 
     Returns
     -------

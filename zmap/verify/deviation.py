@@ -48,17 +48,25 @@ class Region:
     Attributes
     ----------
     kind : {"gouge", "excess"}
-    rays : int — rays in the region.
-    area : float — mm^2 (rays x pitch^2).
-    volume : float — mm^3: material missing below ``design + offset`` (gouge) or left above
-        it (excess), summed over the region's rays.
-    depth : float — mm, the largest ``|deviation|`` in the region.
-    bbox : (xmin, ymin, xmax, ymax) — mm, ray centres.
-    deepest : (x, y) — mm, the ray of the largest ``|deviation|``.
-    first_stage, first_line : int — gouges: the earliest stage (>= 1) at which the program cut
-        a ray of the region below ``design + offset - tol``, and its G-code line (>= 1); -1
-        when unknown (a run of bare positions has no lines).
-    first_xy : (x, y) — mm, the ray that went first (NaN when unknown).
+    rays : int
+        Rays in the region.
+    area : float
+        mm^2 (rays x pitch^2).
+    volume : float
+        mm^3: material missing below ``design + offset`` (gouge) or left above it (excess), summed
+        over the region's rays.
+    depth : float
+        mm, the largest ``|deviation|`` in the region.
+    bbox : (xmin, ymin, xmax, ymax)
+        mm, ray centres.
+    deepest : (x, y)
+        mm, the ray of the largest ``|deviation|``.
+    first_stage, first_line : int
+        Gouges: the earliest stage (>= 1) at which the program cut a ray of the region below
+        ``design + offset - tol``, and its G-code line (>= 1); -1 when unknown (a run of bare
+        positions has no lines).
+    first_xy : (x, y)
+        mm, the ray that went first (NaN when unknown).
     """
 
     kind: str
@@ -86,23 +94,32 @@ class Comparison:
 
     Attributes
     ----------
-    x0, y0, pitch : float — ray grid, mm; ray (i, j) at ``(x0 + i*pitch, y0 + j*pitch)``.
-    stage, n_stages : int — the stage compared and the run's last stage.
-    tol, offset : float — mm.
-    top : ndarray of shape (nx, ny), float64 — stock top at ``stage`` (an emptied ray takes
-        its stock bottom; NaN where the stock never had material).
-    design : ndarray of shape (nx, ny), float64 — design heights (NaN: not covered).
-    deviation : ndarray of shape (nx, ny), float64 — ``top - (design + offset)``, NaN where
-        uncovered.
-    classes : ndarray of shape (nx, ny), int8 — :data:`CLASSES` codes.
-    first_stage, first_line : ndarray of shape (nx, ny), int32 — per gouge ray, the first
-        stage (>= 1) at which the program cut it below ``design + offset - tol``, and its
-        G-code line (>= 1, -1 when the run has no lines); -1 elsewhere.
-    regions : list of Region — gouges and excesses, each kind by volume, largest first.
-    totals : dict — figures of the whole comparison (never NaN): rays, area (and for gouges
-        and excesses volume) of each class, ``outline_rays``/``outline_area_mm2`` and
-        ``short_rays``/``short_area_mm2`` among them; ``first_gouge_stage`` and
-        ``first_gouge_line`` when a gouge has a known line of the program.
+    x0, y0, pitch : float
+        Ray grid, mm; ray (i, j) at ``(x0 + i*pitch, y0 + j*pitch)``.
+    stage, n_stages : int
+        The stage compared and the run's last stage.
+    tol, offset : float
+        mm.
+    top : ndarray of shape (nx, ny), float64
+        Stock top at ``stage`` (an emptied ray takes its stock bottom; NaN where the stock never had
+        material).
+    design : ndarray of shape (nx, ny), float64
+        Design heights (NaN: not covered).
+    deviation : ndarray of shape (nx, ny), float64
+        ``top - (design + offset)``, NaN where uncovered.
+    classes : ndarray of shape (nx, ny), int8
+        :data:`CLASSES` codes.
+    first_stage, first_line : ndarray of shape (nx, ny), int32
+        Per gouge ray, the first stage (>= 1) at which the program cut it below
+        ``design + offset - tol``, and its G-code line (>= 1, -1 when the run has no lines); -1
+        elsewhere.
+    regions : list of Region
+        Gouges and excesses, each kind by volume, largest first.
+    totals : dict
+        Figures of the whole comparison (never NaN): rays, area (and for gouges and excesses volume)
+        of each class, ``outline_rays``/``outline_area_mm2`` and ``short_rays``/``short_area_mm2``
+        among them; ``first_gouge_stage`` and ``first_gouge_line`` when a gouge has a known line of
+        the program.
     """
 
     x0: float
@@ -188,12 +205,16 @@ def first_offending(run: Any, rays: np.ndarray, level: np.ndarray, *, floor: np.
 
     Parameters
     ----------
-    run : zmap.sim.session.Run — with ``history="treap"`` (others: bisection over stages on
-        :meth:`Run.display`, slower; ``"none"`` replays).
-    rays : ndarray of shape (m,), int — flat ray ids ``i*ny + j``.
-    level : ndarray of shape (m,), float64 — mm.
-    floor : ndarray of shape (m,), optional — height taken for a ray left without material
-        (default -inf: an emptied ray is below any level).
+    run : zmap.sim.session.Run
+        With ``history="treap"`` (others: bisection over stages on :meth:`Run.display`, slower;
+        ``"none"`` replays).
+    rays : ndarray of shape (m,), int
+        Flat ray ids ``i*ny + j``.
+    level : ndarray of shape (m,), float64
+        mm.
+    floor : ndarray of shape (m,), optional
+        Height taken for a ray left without material (default -inf: an emptied ray is below any
+        level).
 
     Returns
     -------
@@ -272,14 +293,18 @@ def _classify(covered: np.ndarray, dev: np.ndarray, tol: float, has_design: np.n
 
     Parameters
     ----------
-    covered : ndarray of shape (nx, ny), bool — stock and design both have a height.
-    dev : ndarray of shape (nx, ny), float64 — deviation, mm (NaN where not covered).
-    tol : float — mm.
-    has_design, has_stock : ndarray of shape (nx, ny), bool — the design has a height; the
-        stock has (or had, at stage 0) material.
-    cut : ndarray of shape (nx, ny), bool — the program has lowered the ray's top.
-    inside : ndarray of shape (nx, ny), bool, optional — rays inside the design's extent
-        (default: the compared rays and their 8 neighbours).
+    covered : ndarray of shape (nx, ny), bool
+        Stock and design both have a height.
+    dev : ndarray of shape (nx, ny), float64
+        Deviation, mm (NaN where not covered).
+    tol : float
+        mm.
+    has_design, has_stock : ndarray of shape (nx, ny), bool
+        The design has a height; the stock has (or had, at stage 0) material.
+    cut : ndarray of shape (nx, ny), bool
+        The program has lowered the ray's top.
+    inside : ndarray of shape (nx, ny), bool, optional
+        Rays inside the design's extent (default: the compared rays and their 8 neighbours).
 
     Examples
     --------
@@ -319,10 +344,14 @@ def compare(run: Any, design: Any, *, stage: Any = "end", tol: float = 0.01, off
     design : PrecisionModel, ZMap, cad_io Part, heights(x, y) callable, or a path
         (``.zpm``, ``.zmap.npz``, ``.step``/``.stp``) — the design heights in mm.
     stage : int, "end" or a fraction text like "1/2"
-    tol : float — half-width of the tolerance band, mm (>= 0).
-    offset : float — design offset (stock allowance), mm: the target is ``design + offset``.
-    connectivity : {4, 8} — neighbours that join rays into regions.
-    first : bool — find the first offending stage and line of every gouge ray.
+    tol : float
+        Half-width of the tolerance band, mm (>= 0).
+    offset : float
+        Design offset (stock allowance), mm: the target is ``design + offset``.
+    connectivity : {4, 8}
+        Neighbours that join rays into regions.
+    first : bool
+        Find the first offending stage and line of every gouge ray.
 
     Returns
     -------

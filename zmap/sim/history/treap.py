@@ -48,11 +48,14 @@ class IntervalTreap:
 
     Attributes (finalised)
     ----------------------
-    node_off : ndarray of shape (n_rays + 1,), int64 — ray r owns nodes node_off[r]:node_off[r+1].
-    root_off : ndarray of shape (n_rays + 1,), int64 — ray r has root_off[r+1]-root_off[r] roots,
-        the first nodes of its block.
-    root_hi : ndarray of shape (n_roots,), float32 — Zmax of each root, mm.
-    z, stage, kids : ndarray of shape (m,); float32, int32, int32 — the nodes.
+    node_off : ndarray of shape (n_rays + 1,), int64
+        Ray r owns nodes node_off[r]:node_off[r+1].
+    root_off : ndarray of shape (n_rays + 1,), int64
+        Ray r has root_off[r+1]-root_off[r] roots, the first nodes of its block.
+    root_hi : ndarray of shape (n_roots,), float32
+        Zmax of each root, mm.
+    z, stage, kids : ndarray of shape (m,); float32, int32, int32
+        The nodes.
 
     Examples
     --------
@@ -225,8 +228,9 @@ def simulate_treap(stock: Any, xyz: np.ndarray, cutters: Any, tool_slot: np.ndar
     ----------
     stock : DexelWorkpiece
         Stage 0 (not modified).
-    xyz : ndarray of shape (n, 3), float64, or Pieces — tool-tip positions (stamps), mm, or
-        the path pieces of a program (each stage its exact sweep).
+    xyz : ndarray of shape (n, 3), float64, or Pieces
+        Tool-tip positions (stamps), mm, or the path pieces of a program (each stage its exact
+        sweep).
     cutters : Cutter or list of Cutter; tool_slot : ndarray of shape (n,), int, optional.
 
     Returns

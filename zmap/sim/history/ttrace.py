@@ -25,8 +25,10 @@ class TimeTrace:
     Attributes (finalised)
     ----------------------
     offsets : ndarray of shape (n_rays + 1,), int64
-    z : ndarray of shape (m,), float32 — last FarZ in mm, NaN for background.
-    stage : ndarray of shape (m,), int32 — creation stage, increasing within a ray.
+    z : ndarray of shape (m,), float32
+        Last FarZ in mm, NaN for background.
+    stage : ndarray of shape (m,), int32
+        Creation stage, increasing within a ray.
 
     Examples
     --------

@@ -31,8 +31,10 @@ class ZTrace:
     ----------------------
     offsets : ndarray of shape (n_rays + 1,), int64
         Ray r owns elements ``offsets[r]:offsets[r+1]``, in creation order.
-    z : ndarray of shape (m,), float32 — Z value in mm.
-    created, deleted : ndarray of shape (m,), int32 — stages; ``deleted = 2**31 - 1`` while alive.
+    z : ndarray of shape (m,), float32
+        Z value in mm.
+    created, deleted : ndarray of shape (m,), int32
+        Stages; ``deleted = 2**31 - 1`` while alive.
 
     Examples
     --------
