@@ -1,4 +1,4 @@
-"""CZ against EZ (issue 14, deliverable 3): what a CZ model must store on each real part.
+"""CZ against EZ: what a CZ model must store on each real part.
 
 A CZ-map (paper 004 §3.1) holds a wall or sharp edge to ``tol`` by sampling a band along
 the feature curve on a rotated grid ``delta_y = tol`` across the curve and
@@ -89,9 +89,9 @@ def one_part(path: Path, grid: float, tol: float, with_ez: bool) -> dict:
            "least_kb": round(least_bytes / 1024, 1), "least_over_base": round(least_bytes / base_bytes, 1),
            "paper_dx_kb": round(paper_dx_bytes / 1024, 1)}
     if with_ez:
-        from cad_io.refine import refine_models
+        from cad_io.refine import RefineOptions, refine_models
 
-        model, info = refine_models(part, base, tol, ("ez",))["ez"]
+        model, info = refine_models(part, base, RefineOptions(tol, ("ez",)))["ez"]
         ez_bytes = model.ez.nbytes
         out.update({"ez_kb": round(ez_bytes / 1024, 1), "ez_over_base": round(1 + ez_bytes / base_bytes, 2),
                     "least_over_ez": round(least_bytes / ez_bytes, 1), "ez_seconds": round(info["seconds"], 1)})

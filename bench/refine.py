@@ -21,14 +21,14 @@ DATA = Path(__file__).resolve().parents[1] / "data"
 
 
 def run(path: Path, grid: float, tol: float, points: int) -> dict:
-    from cad_io.refine import refine_models, report_rows
+    from cad_io.refine import RefineOptions, ReportOptions, refine_models, report_rows
     from cad_io.sampler import sample
     from cad_io.step import read_step
 
     part = read_step(path)
     base = sample(part, grid)
-    models = refine_models(part, base, tol, ("ez", "cz"))
-    rep = report_rows(part, grid, tol, n_points=points, models=models, base=base)
+    models = refine_models(part, base, RefineOptions(tol, ("ez", "cz")))
+    rep = report_rows(part, ReportOptions(grid, tol, n_points=points), models=models, base=base)
     ez = models["ez"][0]
     rng = np.random.default_rng(0)
     x0, y0, x1, y1 = base.bounds

@@ -1,4 +1,4 @@
-"""Benchmark of the tiled path (issue 13): tiled conversion and tiled simulation on Dask.
+"""Benchmark of the tiled path: tiled conversion and tiled simulation on Dask.
 
 Conversion: a real 1.2 m x 1.45 m part of ``data/step`` (``bm2_ec_t4-A.stp``, OCCT's test
 model) converted at ``--grid`` mm into a zarr store in ``--tile``-node tiles, on a

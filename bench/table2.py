@@ -63,7 +63,7 @@ def _default_plan(path: Path) -> dict:
 def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods: tuple,
             deflection: float | None = None) -> dict:
     """Report of one part (called in the child process); ``deflection`` None: tol/2 (report_rows')."""
-    from cad_io.refine import refine_models, report_rows
+    from cad_io.refine import ReportOptions, refine_models, report_rows
     from cad_io.sampler import sample
     from cad_io.step import read_step
     from cad_io.view import view_part
@@ -79,12 +79,13 @@ def run_one(path: Path, grid: float, tol: float, points: int, axis: str, methods
     base = sample(part, grid, progress=False) if _takes_progress() else sample(part, grid)
     t_base = time.perf_counter() - t0 - t_read
     print(f"  base {base.nx} x {base.ny} in {t_base:.1f} s", file=sys.stderr, flush=True)
-    models = refine_models(part, base, tol, methods, deflection=deflection)
+    options = ReportOptions(grid, tol, n_points=points, methods=methods, deflection=deflection,
+                            distance_deflection=deflection)
+    models = refine_models(part, base, options.refine_options())
     cz_plan = _cz_plan(part, base, tol) if "cz" not in methods else None
     for m, (_, info) in models.items():
         print(f"  {m}: {info['seconds']:.1f} s, {info['sampled']:,} points sampled", file=sys.stderr, flush=True)
-    rep = report_rows(part, grid, tol, n_points=points, models=models, base=base, deflection=deflection,
-                      distance_deflection=deflection)
+    rep = report_rows(part, options, models=models, base=base)
     x0, y0, x1, y1 = base.bounds
     r = rep["rows"]
     kb = lambda b: round(b / 1024, 1)

@@ -63,12 +63,12 @@ def log(msg: str) -> None:
 
 def die_model():
     import cad_io
-    from cad_io.refine import refine_models
+    from cad_io.refine import RefineOptions, refine_models
 
     part = cad_io.read_step(DIE)
     w = WINDOW
     base = cad_io.sample(part, 0.5, bounds=(w[0] - 5, w[1] - 5, w[2] + 5, w[3] + 5))
-    model = refine_models(part, base, 0.01, methods=("ez",))["ez"][0]
+    model = refine_models(part, base, RefineOptions(0.01, ("ez",)))["ez"][0]
     return part, model
 
 

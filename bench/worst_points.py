@@ -26,7 +26,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--top", type=int, default=5)
     a = ap.parse_args()
-    from cad_io.refine import refine_models
+    from cad_io.refine import RefineOptions, refine_models
     from cad_io.distance import distance_to_part
     from cad_io.sampler import sample, sample_points
     from cad_io.step import read_step
@@ -35,7 +35,7 @@ def main() -> None:
     part = view_part(read_step(a.part), a.axis)
     base = sample(part, a.grid)
     defl = a.tol / 2
-    model = refine_models(part, base, a.tol, ("ez",), deflection=defl)["ez"][0]
+    model = refine_models(part, base, RefineOptions(a.tol, ("ez",), deflection=defl))["ez"][0]
     rng = np.random.default_rng(a.seed)
     x0, y0, x1, y1 = base.bounds
     xs, ys = rng.uniform(x0, x1, a.points), rng.uniform(y0, y1, a.points)

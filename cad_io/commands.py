@@ -7,14 +7,15 @@ imported inside the commands, so ``zmap --help`` and ``zmap accuracy`` never loa
 
 from __future__ import annotations
 
-import math
+import contextlib
 import os
+import time
 
 import click
 
 from zmap.fmt import count, size
 
-from cad_io.refine import format_report, refine_models, report_rows
+from cad_io.refine import OptionError, RefineOptions, ReportOptions, check_tol, format_report, refine_models, report_rows
 
 from .access_commands import access_cmd
 
@@ -52,12 +53,9 @@ def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progr
                 tiles=None, scheduler=None, workers=2) -> None:
     """Convert a STEP part to a master z-map (paper 004 §2.1) and save it."""
     if tiles is not None or scheduler is not None:  # tiled conversion on Dask (cad_io/tiled.py)
-        from cad_io.tiled import convert_cmd_tiled
-
-        return convert_cmd_tiled(part_path, grid, bounds, method, axis, deflection, output, progress, tiles,
-                                 scheduler, workers)
+        return _convert_tiled(part_path, grid=grid, bounds=bounds, method=method, axis=axis, deflection=deflection,
+                              output=output, progress=progress, tiles=tiles, scheduler=scheduler, workers=workers)
     import sys
-    import time
     import warnings
 
     from cad_io.reading import explain_extent, read_part
@@ -105,6 +103,69 @@ def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progr
                f"working estimate")
 
 
+# ---- the tiled conversion: zmap convert --tiles N ------------------------------------------------
+
+def zarr_name(output: str) -> str:
+    """The store's folder name for ``-o``: ``.zarr`` required for an ``.npz`` name, appended to others.
+
+    >>> zarr_name("die.zarr"), zarr_name("die")
+    ('die.zarr', 'die.zarr')
+    """
+    name = str(output).rstrip("/\\")
+    if name.endswith(".zarr"):
+        return name
+    if name.endswith(".npz"):
+        stem = name[:-len(".zmap.npz")] if name.endswith(".zmap.npz") else name[:-len(".npz")]
+        raise click.BadParameter(f"a tiled conversion writes a zarr store (a folder), not {output!r}: "
+                                 f"name it {stem + '.zarr'!r}", param_hint="-o")
+    click.echo(f"note: writing the tiled store to {name}.zarr", err=True)
+    return name + ".zarr"
+
+
+def _convert_tiled(part_path: str, *, grid: float, bounds, method: str, axis: str, deflection, output: str,
+                   progress: bool, tiles: int | None, scheduler: str | None, workers: int) -> None:
+    """``zmap convert ... --tiles N [--scheduler ADDRESS]``: the tiled branch of the command."""
+    from cad_io.tiled import convert_tiled, dask_client
+    from zmap.errors import StepImportError
+    from zmap.tiled.store import check_tile
+
+    t0 = time.perf_counter()
+    if tiles is None:
+        raise click.BadParameter("--scheduler needs --tiles N (the tiled conversion)", param_hint="--scheduler")
+    try:
+        check_tile(tiles)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--tiles") from None
+    if grid <= 0:
+        raise click.BadParameter(f"must be positive, got {grid!r}", param_hint="--grid")
+    output = zarr_name(output)
+    if not os.path.exists(part_path):
+        raise StepImportError(f"{part_path}: no such file")
+    if scheduler:
+        # fail fast, before reading and meshing the part, when the address does not answer
+        with dask_client(scheduler):
+            pass
+    click.echo(f"reading  {part_path}", err=True)
+    store, rep = convert_tiled(part_path, grid, output, tile=tiles, bounds=bounds, method=method, axis=axis,
+                               deflection=deflection, scheduler=scheduler, workers=workers, progress=progress,
+                               echo=lambda line: click.echo(line, err=True))
+    for w in store.meta.get("warnings", []):
+        click.echo(f"warning: {' '.join(str(w).split())}", err=True)
+    st = store.tile_stats()
+    n = store.nx * store.ny
+    click.echo(f"wrote    {output} (tiled zarr store, complete)")
+    click.echo(f"part     {os.path.basename(part_path)}: {store.meta.get('faces')} faces, axis {axis}")
+    click.echo(f"grid     {store.nx:,} x {store.ny:,} = {count(n)} points, dx={store.dx:g} dy={store.dy:g} mm, "
+               f"x {store.x0:g} .. {store.x1:g}, y {store.y0:g} .. {store.y1:g}")
+    click.echo(f"tiles    {store.n_tiles} of {store.tile} x {store.tile} nodes: {rep['tiles_done_now']} sampled now, "
+               f"{rep['tiles_skipped']} finished before; {count(st['filled'])} points with surface")
+    click.echo(f"time     {time.perf_counter() - t0:.2f} s (tiles {rep['seconds']:.2f} s on {rep['workers']} workers, "
+               f"{rep['nodes_per_s'] / 1e6:.3f} M nodes/s)")
+    click.echo(f"memory   peak {rep['peak_rss_mb_per_worker']:.0f} MB per worker; "
+               f"store {size(store.disk_bytes())} "
+               f"on disk, {size(store.nbytes)} in memory")
+
+
 # ---- precision refinements: zmap refine, zmap report ------------------------------------------
 
 _NEEDS_PART = ("refinement needs the exact surface: pass --part PART.step, the STEP file the z-map "
@@ -131,13 +192,18 @@ def _view_part_checked(part, axis: str, base, part_path: str):
     return vpart
 
 
-def _check_tol(tol: float, base) -> None:
-    if not (tol > 0 and math.isfinite(tol)):
-        raise click.BadParameter(f"must be a positive number of mm, got {tol!r}", param_hint="--tol")
-    if tol >= min(base.dx, base.dy):
-        raise click.BadParameter(f"tolerance {tol:g} mm is not smaller than the grid interval "
-                                 f"(dx={base.dx:g}, dy={base.dy:g} mm); use a smaller --tol or a finer grid",
-                                 param_hint="--tol")
+#: the command-line option of each field of RefineOptions / ReportOptions
+_OPTION_NAMES = {"tol": "--tol", "grid": "--grid", "n_points": "--points", "methods": "--method",
+                 "deflection": "--deflection", "distance_deflection": "--deflection"}
+
+
+@contextlib.contextmanager
+def _as_bad_parameter():
+    """An OptionError of the library as click's BadParameter on the option it came from."""
+    try:
+        yield
+    except OptionError as exc:
+        raise click.BadParameter(str(exc), param_hint=_OPTION_NAMES.get(exc.option, exc.option)) from None
 
 
 @click.command("refine")
@@ -158,7 +224,9 @@ def refine_cmd(zmap_path, part_path, tol, method, output, strict=False, partial=
     if part_path is None:
         raise click.UsageError(_NEEDS_PART)
     base = ZMap.load(zmap_path)
-    _check_tol(tol, base)
+    with _as_bad_parameter():
+        options = RefineOptions(tol, (method,))
+        check_tol(tol, base)
     if not os.path.exists(part_path):
         raise StepImportError(f"{part_path}: no such file; {_NEEDS_PART}")
     part = read_part(part_path, strict=strict, partial=partial)
@@ -169,7 +237,7 @@ def refine_cmd(zmap_path, part_path, tol, method, output, strict=False, partial=
         raise click.BadParameter(f"the z-map's axis {axis!r} is not one of {', '.join(_AXES)}",
                                  param_hint="PART.zmap.npz")
     part = _view_part_checked(part, axis, base, part_path)
-    model, info = refine_models(part, base, tol, (method,))[method]
+    model, info = refine_models(part, base, options)[method]
     model.meta["source"] = os.path.basename(part_path)
     model.save(output)
     nb = model.nbytes
@@ -215,22 +283,15 @@ def report_cmd(part_path, grid, tol, points, seed, methods, axis, deflection, fm
 
     if not os.path.exists(part_path):
         raise StepImportError(f"{part_path}: no such file")
-    if grid <= 0:
-        raise click.BadParameter(f"must be positive, got {grid!r}", param_hint="--grid")
-    if points < 1:
-        raise click.BadParameter(f"must be at least 1, got {points!r}", param_hint="--points")
-    if not (0 < tol < grid):
-        raise click.BadParameter(f"tolerance {tol:g} mm must be positive and smaller than the grid interval "
-                                 f"{grid:g} mm", param_hint="--tol")
-    if deflection is not None and not (deflection > 0 and math.isfinite(deflection)):
-        raise click.BadParameter(f"must be a positive number of mm, got {deflection!r}", param_hint="--deflection")
+    with _as_bad_parameter():
+        options = ReportOptions(grid, tol, n_points=points, seed=seed, methods=methods or ("ez", "cz"),
+                                deflection=deflection, distance_deflection=deflection)
     part = read_part(part_path, strict=strict, partial=partial)
     if not part.faces:
         raise StepImportError(f"{part_path}: no faces in the file")
     from cad_io.view import view_part
 
-    rep = report_rows(view_part(part, axis), grid, tol, n_points=points, seed=seed, methods=methods or ("ez", "cz"),
-                      deflection=deflection, distance_deflection=deflection)
+    rep = report_rows(view_part(part, axis), options)
     rep["part"] = os.path.basename(part_path)
     rep["axis"] = axis
     rep["warnings"] = list(part.warnings)

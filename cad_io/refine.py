@@ -1,28 +1,208 @@
 """Precision refinements of a z-map against its STEP part, and their accuracy report.
 
 :func:`refine_models` builds EZ and CZ precision models of a base z-map from the exact
-surface; :func:`report_rows` measures the base and the models against the B-rep (paper 004's
-Table 2); :func:`format_report` writes that as markdown. The commands ``zmap refine`` and
-``zmap report`` (:mod:`cad_io.commands`) parse their options, call these and print.
+surface, as :class:`RefineOptions` say; :func:`report_rows` measures the base and the models
+against the B-rep (paper 004's Table 2), as :class:`ReportOptions` say; :func:`format_report`
+writes that as markdown. The commands ``zmap refine`` and ``zmap report``
+(:mod:`cad_io.commands`) parse their options into these, call and print.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["refine_models", "report_rows", "format_report", "cz_curves", "check_tol", "CZ_DELTA_Y_SHARE",
-           "REPORT_DEFLECTION_SHARE", "REPORT_DISTANCE_DEFLECTION_SHARE"]
+from zmap.errors import RefineError
+
+__all__ = ["RefineOptions", "ReportOptions", "OptionError", "refine_models", "report_rows", "format_report",
+           "cz_curves", "check_tol", "METHODS", "CZ_DELTA_Y_SHARE", "REPORT_DEFLECTION_SHARE",
+           "REPORT_DISTANCE_DEFLECTION_SHARE"]
+
+#: the precision models :func:`refine_models` builds
+METHODS = ("ez", "cz")
+
+
+class OptionError(RefineError):
+    """An option of :class:`RefineOptions` or :class:`ReportOptions` out of its range;
+    ``option`` names the field (the commands turn it into their own option's name)."""
+
+    def __init__(self, option: str, message: str):
+        super().__init__(message)
+        self.option = option
+
+
+def _positive_mm(name: str, value, *, optional: bool = False) -> float | None:
+    """``value`` as a float, OptionError unless a positive finite number of mm (or None where optional)."""
+    if value is None and optional:
+        return None
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not (v > 0 and math.isfinite(v)):
+        raise OptionError(name, f"{name} must be a positive number of mm, got {value!r}")
+    return v
+
+
+def _methods(value) -> tuple[str, ...]:
+    methods = (value,) if isinstance(value, str) else tuple(value)
+    for m in methods:
+        if m not in METHODS:
+            raise OptionError("methods", f"method {m!r} is not one of {', '.join(map(repr, METHODS))}")
+    return methods
+
+
+@dataclass(frozen=True)
+class RefineOptions:
+    """How :func:`refine_models` refines a base z-map.
+
+    Parameters
+    ----------
+    tol : float
+        Tolerance in mm, below the base's grid interval (checked against the base by
+        :func:`refine_models`).
+    methods : sequence of {'ez', 'cz'}
+        The models to build (a single name is taken as one method).
+    theta_x : float
+        CZ-maps: the largest angle (radians) between a domain's x axis and its curve.
+    deflection : float, optional
+        Mesh deflection (mm) of the exact sampler's Newton starts and facets; default ``tol / 2``.
+
+    Raises
+    ------
+    OptionError
+        A tolerance or deflection that is not a positive number of mm, an unknown method.
+
+    Examples
+    --------
+    >>> RefineOptions(0.01, "ez").mesh_deflection
+    0.005
+    >>> RefineOptions(-1)
+    Traceback (most recent call last):
+    ...
+    cad_io.refine.OptionError: tol must be a positive number of mm, got -1
+    """
+
+    tol: float
+    methods: tuple[str, ...] = METHODS
+    theta_x: float = math.radians(20.0)
+    deflection: float | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "tol", _positive_mm("tol", self.tol))
+        object.__setattr__(self, "methods", _methods(self.methods))
+        object.__setattr__(self, "deflection", _positive_mm("deflection", self.deflection, optional=True))
+        if not (0 < self.theta_x < math.pi / 2):
+            raise OptionError("theta_x", f"theta_x must lie between 0 and pi/2 radians, got {self.theta_x!r}")
+
+    @property
+    def mesh_deflection(self) -> float:
+        """The deflection in mm: the one given, or ``tol / 2``."""
+        return self.tol / 2.0 if self.deflection is None else self.deflection
+
+
+#: report_rows: default mesh deflection of the reference heights, as a share of the tolerance
+#: (the same as refine_models', so one meshed face set serves the models and the reference)
+REPORT_DEFLECTION_SHARE = 0.5
+#: report_rows: default mesh deflection of the 3D distances, as a share of the tolerance
+REPORT_DISTANCE_DEFLECTION_SHARE = 0.5
+
+
+@dataclass(frozen=True)
+class ReportOptions:
+    """What :func:`report_rows` measures, and how.
+
+    Parameters
+    ----------
+    grid : float
+        Base grid interval in mm (the base is sampled at it when none is given).
+    tol : float
+        Tolerance in mm, below the grid interval.
+    n_points : int
+        Random query points, uniform over the base's domain.
+    seed : int
+        The seed of their generator.
+    methods : sequence of {'ez', 'cz'}
+        Models to build when none are given (empty: the base alone).
+    deflection : float, optional
+        Mesh deflection (mm) of the exact reference heights (and of the models built here);
+        default ``tol / 2``, as :class:`RefineOptions`, so that both use one meshed face set.
+        The mesh only gives the Jacobian inversion its starts, whose heights are exact
+        whatever the deflection; only points answered by facets (where the inversion failed)
+        are off by up to the deflection. They are counted in ``reference_facet_points``.
+    distance_deflection : float, optional
+        Mesh deflection (mm) of the KD-tree and fallback of :func:`cad_io.distance_to_part`;
+        default ``tol / 2`` (no second meshing of the part). Exact NURBS feet do not depend
+        on it; a distance measured to the mesh may under-report by up to it, so every point
+        whose distance plus that slack exceeds ``tol / 2`` is measured again by OCC: above
+        ``tol / 2`` the figures are exact (up to 2000 points a model), below it they are
+        within the deflection.
+
+    Raises
+    ------
+    OptionError
+        A grid, tolerance or deflection that is not a positive number of mm, a tolerance not
+        below the grid interval, fewer than one point, an unknown method.
+
+    Examples
+    --------
+    >>> o = ReportOptions(1.0, 0.05, n_points=500, methods=("ez",))
+    >>> o.height_deflection, o.refine_options().methods
+    (0.025, ('ez',))
+    >>> ReportOptions(1.0, 2.0)
+    Traceback (most recent call last):
+    ...
+    cad_io.refine.OptionError: tolerance 2 mm must be smaller than the grid interval 1 mm
+    """
+
+    grid: float
+    tol: float
+    n_points: int = 100_000
+    seed: int = 0
+    methods: tuple[str, ...] = METHODS
+    deflection: float | None = None
+    distance_deflection: float | None = None
+
+    def __post_init__(self) -> None:
+        grid = _positive_mm("grid", self.grid)
+        tol = _positive_mm("tol", self.tol)
+        if tol >= grid:
+            raise OptionError("tol", f"tolerance {tol:g} mm must be smaller than the grid interval {grid:g} mm")
+        if isinstance(self.n_points, bool) or int(self.n_points) != self.n_points or self.n_points < 1:
+            raise OptionError("n_points", f"n_points must be a whole number of at least 1, got {self.n_points!r}")
+        object.__setattr__(self, "grid", grid)
+        object.__setattr__(self, "tol", tol)
+        object.__setattr__(self, "n_points", int(self.n_points))
+        object.__setattr__(self, "seed", int(self.seed))
+        object.__setattr__(self, "methods", _methods(self.methods))
+        object.__setattr__(self, "deflection", _positive_mm("deflection", self.deflection, optional=True))
+        object.__setattr__(self, "distance_deflection",
+                           _positive_mm("distance_deflection", self.distance_deflection, optional=True))
+
+    @property
+    def height_deflection(self) -> float:
+        """The reference heights' deflection in mm: the one given, or ``tol / 2``."""
+        return self.tol * REPORT_DEFLECTION_SHARE if self.deflection is None else self.deflection
+
+    @property
+    def distance_mesh_deflection(self) -> float:
+        """The distance index's deflection in mm: the one given, or ``tol / 2``."""
+        return (self.tol * REPORT_DISTANCE_DEFLECTION_SHARE if self.distance_deflection is None
+                else self.distance_deflection)
+
+    def refine_options(self) -> RefineOptions:
+        """The :class:`RefineOptions` of the models this report builds (one meshed face set)."""
+        return RefineOptions(self.tol, self.methods, deflection=self.height_deflection)
 
 
 def check_tol(tol: float, base) -> None:
-    """ValueError unless ``tol`` is a positive number of mm below the base's grid interval."""
-    if not (tol > 0 and math.isfinite(tol)):
-        raise ValueError(f"tol must be a positive number of mm, got {tol!r}")
+    """OptionError unless ``tol`` is a positive number of mm below the base's grid interval."""
+    _positive_mm("tol", tol)
     if tol >= min(base.dx, base.dy):
-        raise ValueError(f"tolerance {tol:g} mm is not smaller than the grid interval "
-                         f"(dx={base.dx:g}, dy={base.dy:g} mm); use a smaller tol or a finer grid")
+        raise OptionError("tol", f"tolerance {tol:g} mm is not smaller than the grid interval "
+                                 f"(dx={base.dx:g}, dy={base.dy:g} mm); use a smaller tol or a finer grid")
 
 
 class _CountingHeights:
@@ -85,29 +265,43 @@ def cz_curves(base, eps_r: float, se_curves) -> list:
     return vertical_wall_curves(base, max(eps_r, 1.0)) + list(se_curves)
 
 
-def refine_models(part, base, tol: float, methods=("ez", "cz"), *, theta_x: float = math.radians(20.0),
-                  deflection: float | None = None) -> dict:
+def refine_models(part, base, options: RefineOptions) -> dict:
     """Build the EZ and/or CZ precision models of ``base`` from the exact ``part``.
 
     EZ: e-points on the steep grid edges and on those crossed by SE curves. CZ: domains
     along the VW curves (slope at least ``max(eps_r, 1)``, the walls) and the SE curves.
+
+    Parameters
+    ----------
+    part : cad_io.Part
+        The exact surface, in the view frame of ``base`` (see :func:`cad_io.view.view_part`).
+    base : ZMap
+        The master z-map to refine.
+    options : RefineOptions
+        Tolerance, methods, CZ angle and mesh deflection.
 
     Returns
     -------
     dict
         ``{method: (PrecisionModel, info)}``; ``info`` has the counts of sampled points,
         of those answered by facets (where the Jacobian inversion failed), and the seconds.
+
+    Raises
+    ------
+    OptionError
+        A tolerance not below the base's grid interval.
     """
     import time
 
     from zmap.features import default_eps_r, sharp_edge_curves
     from zmap.model import PrecisionModel
 
-    deflection = tol / 2.0 if deflection is None else float(deflection)
+    check_tol(options.tol, base)
+    tol, deflection = options.tol, options.mesh_deflection
     se = sharp_edge_curves(part.edges)
     eps_r = default_eps_r(tol, base.dx, base.dy)
     out = {}
-    for method in methods:
+    for method in options.methods:
         h = _CountingHeights(part, deflection, base=base if method == "ez" else None, tol=tol)
         t0 = time.perf_counter()
         if method == "ez":
@@ -124,11 +318,9 @@ def refine_models(part, base, tol: float, methods=("ez", "cz"), *, theta_x: floa
             curves = cz_curves(base, eps_r, se)
             # delta_y = CZ_DELTA_Y_SHARE * tol: at the paper's delta_y = tol the ramp across a
             # wall inside one CZ cell measured 0.0102 (pocket) and 0.0105 mm (boss) at tol 0.01
-            cz = build_cz(base, h, tol=CZ_DELTA_Y_SHARE * tol, curves=curves, theta_x=theta_x)
-            model = PrecisionModel(base, cz=cz, meta={"method": "cz", "tol": tol, "theta_x": theta_x,
+            cz = build_cz(base, h, tol=CZ_DELTA_Y_SHARE * tol, curves=curves, theta_x=options.theta_x)
+            model = PrecisionModel(base, cz=cz, meta={"method": "cz", "tol": tol, "theta_x": options.theta_x,
                                                       "curves": len(curves)})
-        else:
-            raise ValueError(f"method={method!r} is not one of 'ez', 'cz'")
         info = {"sampled": h.points, "facet": h.facet, "empty": h.empty, "bridged": h.bridged,
                 "seconds": round(time.perf_counter() - t0, 3)}
         model.meta.update({"source": str(getattr(part, "source", "")), "facet_points": h.facet,
@@ -153,47 +345,20 @@ def _steep(part, x, y, h0, deflection: float, step: float = 0.01, max_slope: flo
     return steep
 
 
-#: report_rows: default mesh deflection of the reference heights, as a share of the tolerance
-#: (the same as refine_models', so one meshed face set serves the models and the reference)
-REPORT_DEFLECTION_SHARE = 0.5
-#: report_rows: default mesh deflection of the 3D distances, as a share of the tolerance
-REPORT_DISTANCE_DEFLECTION_SHARE = 0.5
-
-
-def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed: int = 0,
-                methods=("ez", "cz"), models: dict | None = None, base=None,
-                deflection: float | None = None, distance_deflection: float | None = None) -> dict:
+def report_rows(part, options: ReportOptions, *, models: dict | None = None, base=None) -> dict:
     """Accuracy and memory of the base z-map and its EZ and CZ models (a Table 2 analogue).
 
     Parameters
     ----------
     part : cad_io.Part
         The exact surface, in the view frame of ``base`` (see :func:`cad_io.view.view_part`).
-    grid : float
-        Base grid interval in mm (used when ``base`` is None).
-    tol : float
-        Tolerance in mm, below the grid interval.
-    n_points, seed : int
-        Random query points, uniform over the base's domain, and the seed of their generator.
-    methods : sequence of {'ez', 'cz'}
-        Models to build when ``models`` is None.
+    options : ReportOptions
+        Grid, tolerance, random points and their seed, methods, mesh deflections.
     models : dict, optional
-        ``{method: (PrecisionModel, info)}`` from :func:`refine_models`, built here if None.
+        ``{method: (PrecisionModel, info)}`` from :func:`refine_models`, built here (with
+        ``options.refine_options()``) if None.
     base : ZMap, optional
-        The base z-map, sampled here at ``grid`` if None.
-    deflection : float, optional
-        Mesh deflection (mm) of the exact reference heights (and of the models built here);
-        default ``tol / 2``, as :func:`refine_models`, so that both use one meshed face set.
-        The mesh only gives the Jacobian inversion its starts, whose heights are exact
-        whatever the deflection; only points answered by facets (where the inversion failed)
-        are off by up to the deflection. They are counted in ``reference_facet_points``.
-    distance_deflection : float, optional
-        Mesh deflection (mm) of the KD-tree and fallback of :func:`cad_io.distance_to_part`;
-        default ``tol / 2`` (no second meshing of the part). Exact NURBS feet do not depend
-        on it; a distance measured to the mesh may under-report by up to it, so every point
-        whose distance plus that slack exceeds ``tol / 2`` is measured again by OCC: above
-        ``tol / 2`` the figures are exact (up to 2000 points a model), below it they are
-        within the deflection.
+        The base z-map, sampled here at ``options.grid`` if None.
 
     Returns
     -------
@@ -222,7 +387,7 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
     >>> from pathlib import Path
     >>> import cad_io
     >>> part = cad_io.read_step(Path(cad_io.__file__).parents[1] / "data" / "boss.step")
-    >>> rep = report_rows(part, 1.0, 0.05, n_points=500, methods=("ez",))
+    >>> rep = report_rows(part, ReportOptions(1.0, 0.05, n_points=500, methods=("ez",)))
     >>> sorted(rep["rows"]), rep["deflection"], rep["reference_facet_points"]
     (['base', 'ez'], 0.025, 0)
     """
@@ -231,17 +396,14 @@ def report_rows(part, grid: float, tol: float, *, n_points: int = 100_000, seed:
     from zmap.model import PrecisionModel
 
     if base is None:
-        base = sample(part, grid)
+        base = sample(part, options.grid)
+    tol, n_points = options.tol, options.n_points
     check_tol(tol, base)
-    defl = tol * REPORT_DEFLECTION_SHARE if deflection is None else float(deflection)
-    ddefl = tol * REPORT_DISTANCE_DEFLECTION_SHARE if distance_deflection is None else float(distance_deflection)
-    for name, v in (("deflection", defl), ("distance_deflection", ddefl)):
-        if not (v > 0 and math.isfinite(v)):
-            raise ValueError(f"{name} must be a positive number of mm, got {v!r}")
+    defl, ddefl = options.height_deflection, options.distance_mesh_deflection
     if models is None:
-        models = refine_models(part, base, tol, methods, deflection=defl)
+        models = refine_models(part, base, options.refine_options())
     all_models = {"base": (PrecisionModel(base), {})} | dict(models)
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(options.seed)
     x0, y0, x1, y1 = base.bounds
     xs = rng.uniform(x0, x1, n_points)
     ys = rng.uniform(y0, y1, n_points)

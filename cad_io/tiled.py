@@ -26,7 +26,6 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from zmap.fmt import count, size
 from zmap.gridspec import GridSpec
 from zmap.tiled.cluster import (
     CONNECT_TIMEOUT,
@@ -39,7 +38,7 @@ from zmap.tiled.cluster import (
 from .part import Part
 
 __all__ = ["DEFAULT_TILE", "CONNECT_TIMEOUT", "TiledGrid", "plan_grid", "sample_tile", "convert_tiled",
-           "convert_cmd_tiled", "dask_client"]
+           "dask_client"]
 
 #: tile side in grid nodes when none is given (16.7 M nodes, about 0.45 GB of working memory)
 DEFAULT_TILE = 4096
@@ -270,9 +269,9 @@ def convert_tiled(part: str | os.PathLike, grid: Any, output: str | os.PathLike,
 
     t_start = time.perf_counter()
     say = echo or (lambda line: None)
-    from zmap.tiled.store import _check_tile
+    from zmap.tiled.store import check_tile
 
-    tile = _check_tile(tile)
+    tile = check_tile(tile)
     from .step import read_step
 
     part_path = os.path.abspath(str(part))
@@ -341,69 +340,3 @@ def convert_tiled(part: str | os.PathLike, grid: Any, output: str | os.PathLike,
                                   sorted(results, key=lambda r: -r.get("fine_points", 0)) if r.get("fine_points")]}
     report.update(cpu_figures(results))
     return store, report
-
-
-def zarr_name(output: str) -> str:
-    """The store's folder name for ``-o``: ``.zarr`` required for an ``.npz`` name, appended to others.
-
-    >>> zarr_name("die.zarr"), zarr_name("die")
-    ('die.zarr', 'die.zarr')
-    """
-    import click
-
-    name = str(output).rstrip("/\\")
-    if name.endswith(".zarr"):
-        return name
-    if name.endswith(".npz"):
-        stem = name[:-len(".zmap.npz")] if name.endswith(".zmap.npz") else name[:-len(".npz")]
-        raise click.BadParameter(f"a tiled conversion writes a zarr store (a folder), not {output!r}: "
-                                 f"name it {stem + '.zarr'!r}", param_hint="-o")
-    click.echo(f"note: writing the tiled store to {name}.zarr", err=True)
-    return name + ".zarr"
-
-
-def convert_cmd_tiled(part_path: str, grid: float, bounds, method: str, axis: str, deflection, output: str,
-                      progress: bool, tiles: int | None, scheduler: str | None, workers: int) -> None:
-    """``zmap convert ... --tiles N [--scheduler ADDRESS]``: the tiled branch of the command."""
-    import click
-
-    from zmap.errors import StepImportError
-
-
-    t0 = time.perf_counter()
-    if tiles is None:
-        raise click.BadParameter("--scheduler needs --tiles N (the tiled conversion)", param_hint="--scheduler")
-    from zmap.tiled.store import _check_tile
-
-    try:
-        _check_tile(tiles)
-    except ValueError as exc:
-        raise click.BadParameter(str(exc), param_hint="--tiles") from None
-    if grid <= 0:
-        raise click.BadParameter(f"must be positive, got {grid!r}", param_hint="--grid")
-    output = zarr_name(output)
-    if not os.path.exists(part_path):
-        raise StepImportError(f"{part_path}: no such file")
-    if scheduler:
-        # fail fast, before reading and meshing the part, when the address does not answer
-        with dask_client(scheduler):
-            pass
-    click.echo(f"reading  {part_path}", err=True)
-    store, rep = convert_tiled(part_path, grid, output, tile=tiles, bounds=bounds, method=method, axis=axis,
-                               deflection=deflection, scheduler=scheduler, workers=workers, progress=progress,
-                               echo=lambda line: click.echo(line, err=True))
-    for w in store.meta.get("warnings", []):
-        click.echo(f"warning: {' '.join(str(w).split())}", err=True)
-    st = store.tile_stats()
-    n = store.nx * store.ny
-    click.echo(f"wrote    {output} (tiled zarr store, complete)")
-    click.echo(f"part     {os.path.basename(part_path)}: {store.meta.get('faces')} faces, axis {axis}")
-    click.echo(f"grid     {store.nx:,} x {store.ny:,} = {count(n)} points, dx={store.dx:g} dy={store.dy:g} mm, "
-               f"x {store.x0:g} .. {store.x1:g}, y {store.y0:g} .. {store.y1:g}")
-    click.echo(f"tiles    {store.n_tiles} of {store.tile} x {store.tile} nodes: {rep['tiles_done_now']} sampled now, "
-               f"{rep['tiles_skipped']} finished before; {count(st['filled'])} points with surface")
-    click.echo(f"time     {time.perf_counter() - t0:.2f} s (tiles {rep['seconds']:.2f} s on {rep['workers']} workers, "
-               f"{rep['nodes_per_s'] / 1e6:.3f} M nodes/s)")
-    click.echo(f"memory   peak {rep['peak_rss_mb_per_worker']:.0f} MB per worker; "
-               f"store {size(store.disk_bytes())} "
-               f"on disk, {size(store.nbytes)} in memory")

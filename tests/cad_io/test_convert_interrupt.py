@@ -1,4 +1,4 @@
-"""Ctrl-C in the first second of ``zmap convert`` (issue 14): the imports of OCP and numba."""
+"""Ctrl-C in the first second of ``zmap convert``: the imports of OCP and numba."""
 
 from __future__ import annotations
 

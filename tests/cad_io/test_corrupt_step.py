@@ -1,6 +1,6 @@
 """Corrupt STEP files: a crash of OCC's reader is contained and reported in one line; lost
 entities and faces are counted, warned about, refused under ``--strict``; OCC's messages
-never reach our stdout (issue 14)."""
+never reach our stdout."""
 
 from __future__ import annotations
 
@@ -87,11 +87,14 @@ def test_lost_faces_are_counted_warned_and_refused_under_strict(tmp_path, capfd)
 @pytest.mark.parametrize("name", ["bm2_ec_t4-A.stp", "trj7_c2-td-203.stp", "nist_ftc_08_asme1_ap242-2.stp",
                                   "featuretype.STEP"])
 def test_sound_files_have_no_damage_report(name):
-    """AP242 files whose presentation/PMI records OCC rejects (trj7, nist_ftc_08) are not damaged."""
-    from cad_io.step import _load_shape
+    """AP242 files whose presentation/PMI records OCC rejects (trj7, nist_ftc_08) are not damaged:
+    read under ``strict`` (which refuses any damage report), with no damage warning."""
+    from cad_io.step import read_step
 
-    shape, msg = _load_shape(ROOT / "data" / "step" / name, strict=True)
-    assert msg == "" and not shape.IsNull()
+    told = []
+    part = read_step(ROOT / "data" / "step" / name, strict=True, warn=told.append)
+    assert not part.shape.IsNull() and len(part.faces) > 0
+    assert not any("damaged" in w for w in told + part.warnings), told
 
 
 def test_in_process_read_agrees_and_stays_quiet(tmp_path, capfd):

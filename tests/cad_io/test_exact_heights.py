@@ -1,4 +1,4 @@
-"""Exact heights on every real part in data/step (issue 14): sampled grid nodes agree with OCC's
+"""Exact heights on every real part in data/step: sampled grid nodes agree with OCC's
 ray cast (``cad_io.raycast``, OCC's own reader and intersector) within 1e-6 mm wherever both see
 a face more than one grid interval from a wall, with no empty/non-empty disagreement there; the
 same in a side view (``zmap convert --axis``). Coarse grids and sampled nodes keep it quick."""

@@ -245,7 +245,8 @@ def test_trimmed_grid_pairs_few_triangles_a_point(sample_data):
     twice that, paired 28 (Newton then ran 55 us a pair: trj8's EZ build over 42 minutes)."""
     from cad_io import _sample_kernels as K
     from cad_io._sample_faces import _cached_face_set
-    from cad_io._sample_points import POINTS_DEFLECTION, _bins
+    from cad_io._sample_points import _bins
+    from cad_io.sampler import POINTS_DEFLECTION
 
     part, f = _trj8_face(sample_data, 22)
     fs = _cached_face_set(part, POINTS_DEFLECTION, "+z")

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from cad_io.refine import OptionError, RefineOptions, ReportOptions
 from zmap.cli import main
 from zmap.model import PrecisionModel
 
@@ -108,16 +109,46 @@ def test_report_bad_deflection(capsys):
     assert "--deflection" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("make, field", [
+    (lambda: RefineOptions(0.0), "tol"),
+    (lambda: RefineOptions(float("nan")), "tol"),
+    (lambda: RefineOptions(0.01, ("ez", "xz")), "methods"),
+    (lambda: RefineOptions(0.01, deflection=-0.1), "deflection"),
+    (lambda: RefineOptions(0.01, theta_x=0.0), "theta_x"),
+    (lambda: ReportOptions(-1.0, 0.01), "grid"),
+    (lambda: ReportOptions(1.0, 1.0), "tol"),
+    (lambda: ReportOptions(1.0, 0.05, n_points=0), "n_points"),
+    (lambda: ReportOptions(1.0, 0.05, n_points=2.5), "n_points"),
+    (lambda: ReportOptions(1.0, 0.05, distance_deflection=float("inf")), "distance_deflection"),
+])
+def test_refine_and_report_options_name_the_field_at_fault(make, field):
+    with pytest.raises(OptionError) as err:
+        make()
+    assert err.value.option == field and isinstance(err.value, ValueError)
+
+
+def test_report_options_take_a_method_name_and_default_their_deflections_to_half_tol():
+    o = ReportOptions(2.0, 0.02, methods="ez")
+    assert o.methods == ("ez",) and o.height_deflection == o.distance_mesh_deflection == 0.01
+    assert o.refine_options() == RefineOptions(0.02, ("ez",), deflection=0.01)
+
+
+def test_report_bad_points_is_named_as_the_option(capsys):
+    assert main(["report", str(DATA / "boss.step"), "--grid", "1.0", "--tol", "0.05", "--points", "0"]) != 0
+    assert "--points" in capsys.readouterr().err
+
+
 @pytest.mark.slow
 def test_report_rows_deflection_and_reference_facet_count():
-    from cad_io.refine import report_rows
+    from cad_io.refine import ReportOptions, report_rows
     from cad_io.step import read_step
 
     part = read_step(DATA / "boss.step")
-    rep = report_rows(part, 1.0, 0.05, n_points=500, methods=("ez",))
+    rep = report_rows(part, ReportOptions(1.0, 0.05, n_points=500, methods=("ez",)))
     assert (rep["deflection"], rep["distance_deflection"]) == (0.025, 0.025)  # tol / 2 by default
     assert rep["reference_facet_points"] == 0 and rep["reference_empty_points"] == 0
-    fine = report_rows(part, 1.0, 0.05, n_points=500, methods=("ez",), deflection=0.005, distance_deflection=0.005)
+    fine = report_rows(part, ReportOptions(1.0, 0.05, n_points=500, methods=("ez",), deflection=0.005,
+                                           distance_deflection=0.005))
     assert fine["deflection"] == 0.005
     # the exact heights (Newton) and NURBS feet do not depend on the mesh
     for name in ("base", "ez"):
@@ -125,7 +156,7 @@ def test_report_rows_deflection_and_reference_facet_count():
         assert fine["rows"][name]["max_vertical_flat"] == pytest.approx(rep["rows"][name]["max_vertical_flat"],
                                                                        abs=1e-9)
     with pytest.raises(ValueError, match="distance_deflection must be a positive"):
-        report_rows(part, 1.0, 0.05, n_points=10, methods=(), distance_deflection=0.0)
+        ReportOptions(1.0, 0.05, n_points=10, methods=(), distance_deflection=0.0)
 
 
 def test_skirt_bound_under_an_overhang(tmp_path):

@@ -349,7 +349,7 @@ def test_steep_face_keeps_its_exact_heights(sample_data):
     assert np.abs(z - RayCaster(part.shape)(x, y)[0]).max() <= 1e-6
 
 
-# ---- the map covers the whole domain (issue 14) -------------------------------------------------
+# ---- the map covers the whole domain -------------------------------------------------
 
 def test_grid_covers_the_domain_and_is_symmetric_on_a_symmetric_part(tmp_path):
     """The last grid line is at or beyond the domain's end: a box of 10.3 x 7.3 mm centred on
@@ -377,7 +377,7 @@ def test_grid_covers_the_domain_and_is_symmetric_on_a_symmetric_part(tmp_path):
     assert np.isfinite(zb.z[-2, -2]) and np.isnan(zb.z[-1, -1])
 
 
-# ---- end-to-end speed: coarse start mesh, stages, Ctrl-C (issue 14) -----------------------------
+# ---- end-to-end speed: coarse start mesh, stages, Ctrl-C -----------------------------
 
 @pytest.mark.slow
 def test_default_start_mesh_is_coarse_and_facets_come_from_a_fine_one(parts, capsys):

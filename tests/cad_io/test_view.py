@@ -66,7 +66,7 @@ def test_view_part_meshes_and_measures_in_the_view_frame():
     assert np.max(occ_distance(vpart.shape, pts)) < 1e-6  # the OCP shape turned with the NURBS
 
 
-# ---- grid lines on silhouettes (issue 14) --------------------------------------------------------
+# ---- grid lines on silhouettes --------------------------------------------------------
 
 DATA = __import__("pathlib").Path(__file__).resolve().parents[2] / "data"
 

@@ -71,7 +71,7 @@ from ._emap import (  # noqa: F401  (BREAK_RATIO, FORMAT_VERSION, SERIAL_BELOW: 
 )
 from .patch import patch_failing
 
-__all__ = ["NAN_CODE", "EZMap", "build_ez", "edge_count", "encode_heights"]
+__all__ = ["NAN_CODE", "QUANTUM_SHARE", "EZMap", "build_ez", "decimate", "edge_count", "encode_heights"]
 
 #: An edge whose e-points all lie within this share of the tolerance of the base's Bezier
 #: curve along it carries nothing the base misses, and is dropped (``build_ez(prune=True)``).

@@ -45,8 +45,8 @@ from ._emap import (
     sub_grid,
 )
 
-__all__ = ["BEND_RETEST", "PATCH_SUBCELLS", "SUB_TEST", "TEST_POINTS", "CellPatches", "bending_cells",
-           "build_sub_lattices", "cell_test_points",
+__all__ = ["BEND_RETEST", "PATCH_SUBCELLS", "SUB_TEST", "TEST_POINTS", "CellPatches", "SubLattices",
+           "bending_cells", "build_sub_lattices", "cell_test_points",
            "failing_cells", "failing_subcells", "misfit", "patch_levels", "sub_lattice_intervals"]
 
 #: finest sub-cell of the cell patches, in tolerances: the levels are 2, 4, 8, ... sub-cells

@@ -1,4 +1,4 @@
-"""Tiled z-maps in zarr stores, read lazily as dask arrays (issue 13).
+"""Tiled z-maps in zarr stores, read lazily as dask arrays.
 
 ``zmap.tiled.TiledZMap`` keeps the :class:`zmap.ZMap` grid contract on a chunked zarr
 store; :func:`bezier` and :func:`bilinear` query it tile by tile with the in-memory answers.

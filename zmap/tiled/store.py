@@ -33,7 +33,7 @@ from ..fmt import count, size
 from ..memory import available_bytes
 
 __all__ = ["TiledZMap", "FORMAT_NAME", "FORMAT_VERSION", "HALO", "bezier", "bilinear", "is_tiled_store",
-           "remove_store", "tile_grid"]
+           "remove_store", "tile_grid", "check_tile"]
 
 FORMAT_NAME = "zmap.TiledZMap"
 FORMAT_VERSION = 1
@@ -45,7 +45,8 @@ _TILES = "zmap_tiles"
 _LAYER_PREFIX = "layer__"
 
 
-def _check_tile(tile: Any) -> int:
+def check_tile(tile: Any) -> int:
+    """``tile`` as a whole number of grid nodes, ValueError unless it is one and at least :data:`HALO`."""
     try:
         t = int(tile)
     except (TypeError, ValueError):
@@ -64,7 +65,7 @@ def tile_grid(nx: int, ny: int, tile: int) -> tuple[int, int]:
     >>> tile_grid(10, 7, 4)
     (3, 2)
     """
-    t = _check_tile(tile)
+    t = check_tile(tile)
     return -(-int(nx) // t), -(-int(ny) // t)
 
 
@@ -186,7 +187,7 @@ class TiledZMap:
         """
         from ..grid import ZMap
 
-        tile = _check_tile(tile)
+        tile = check_tile(tile)
         nx, ny = int(nx), int(ny)
         # the grid contract is ZMap's: let it check the numbers on a 2 x 2 stand-in
         probe = ZMap(x0, y0, dx, dy, np.zeros((2, 2)), angle=angle, origin=tuple(origin))

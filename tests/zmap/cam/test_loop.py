@@ -31,11 +31,11 @@ PITCH = 0.1
 @pytest.fixture(scope="module")
 def loop(tmp_path_factory):
     import cad_io
-    from cad_io.refine import refine_models
+    from cad_io.refine import RefineOptions, refine_models
 
     part = cad_io.read_step(STEP_DATA / "bug27693_cornetta-step.stp")
     base = cad_io.sample(part, 0.5, bounds=(WIN[0] - 8, WIN[1] - 8, WIN[2] + 8, WIN[3] + 8))
-    model = refine_models(part, base, 0.01, methods=("ez",))["ez"][0]
+    model = refine_models(part, base, RefineOptions(0.01, ("ez",)))["ez"][0]
     prog = raster_program(model, "ball:6", stepover=STEPOVER, tol=0.002, step=0.1,
                           bounds=(WIN[0] - 4, WIN[1] - STEPOVER, WIN[2] + 4, WIN[3] + STEPOVER),
                           name="cornetta")

@@ -38,12 +38,12 @@ def _kernel_heights(model, x, y):
 @pytest.fixture(scope="module")
 def boss_ez():
     import cad_io
-    from cad_io.refine import refine_models
+    from cad_io.refine import RefineOptions, refine_models
 
     part = cad_io.read_step(DATA / "boss.step")
     b = part.bbox
     base = cad_io.sample(part, 1.0, bounds=(b[0] - 2, b[1] - 2, b[3] + 2, b[4] + 2))
-    return refine_models(part, base, 0.01, methods=("ez",))["ez"][0]
+    return refine_models(part, base, RefineOptions(0.01, ("ez",)))["ez"][0]
 
 
 @pytest.mark.slow
@@ -163,12 +163,12 @@ _GRID_POINTS = [(30, 41), (66, 39), (17, 72), (50, 54), (20, 42), (100, 42), (60
 @pytest.mark.slow
 def test_cornetta_wall_tops_against_the_brute_force():
     import cad_io
-    from cad_io.refine import refine_models
+    from cad_io.refine import RefineOptions, refine_models
 
     W = (-45.0, -25.0, 5.0, 25.0)
     part = cad_io.read_step(STEP_DATA / "bug27693_cornetta-step.stp")
     base = cad_io.sample(part, 0.5, bounds=(W[0] - 5, W[1] - 5, W[2] + 5, W[3] + 5))
-    model = refine_models(part, base, 0.01, methods=("ez",))["ez"][0]
+    model = refine_models(part, base, RefineOptions(0.01, ("ez",)))["ez"][0]
     xs, ys = np.linspace(W[0], W[2], 120), np.linspace(W[1], W[3], 120)
     x = np.array([xs[i] for i, _ in _GRID_POINTS])
     y = np.array([ys[j] for _, j in _GRID_POINTS])

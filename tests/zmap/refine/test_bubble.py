@@ -9,8 +9,7 @@ import pytest
 from zmap import ZMap
 from zmap.model import PrecisionModel
 from tests.reference import refine as ref
-from zmap.refine._emap import QUANTUM_SHARE
-from zmap.refine.ez import EZMap, build_ez
+from zmap.refine.ez import QUANTUM_SHARE, EZMap, build_ez
 from zmap.refine.patch import misfit
 
 TOL = 0.01

@@ -20,8 +20,7 @@ from zmap import ZMap
 from zmap.errors import RefineError
 from zmap.interpolate import bezier
 from tests.reference import refine as ref
-from zmap.refine._emap import QUANTUM_SHARE
-from zmap.refine.ez import BREAK_RATIO, EZMap, build_ez, edge_count
+from zmap.refine.ez import BREAK_RATIO, QUANTUM_SHARE, EZMap, build_ez, edge_count
 
 DATA = Path(__file__).resolve().parents[3] / "data"
 TOL = 0.01

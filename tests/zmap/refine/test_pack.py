@@ -13,16 +13,8 @@ from zmap.model import PrecisionModel
 from zmap.refine import _ez_kernels as _k
 from tests.reference import refine as ref
 from zmap.refine._ecodec import pack_offsets, unpack_offsets
-from zmap.refine._emap import (
-    NAN_CODE,
-    QUANTUM_SHARE,
-    WINDOW_HALF,
-    EZMap,
-    encode_heights,
-    pack_codes,
-    unpack_codes,
-)
-from zmap.refine.ez import BREAK_RATIO, build_ez
+from zmap.refine._emap import WINDOW_HALF, pack_codes, unpack_codes
+from zmap.refine.ez import BREAK_RATIO, NAN_CODE, QUANTUM_SHARE, EZMap, build_ez, encode_heights
 
 from .test_thin import TOL, SlopeWall
 
@@ -110,7 +102,7 @@ def test_windowed_edges_force_the_full_sequences_break(tmp_path):
 
 
 def test_patch_sub_edges_are_stored_as_differences_from_their_chords():
-    from zmap.refine._emap import CellPatches
+    from zmap.refine.patch import CellPatches
 
     from .test_patch import Rib
 

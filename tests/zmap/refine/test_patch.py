@@ -14,8 +14,7 @@ import pytest
 
 from zmap import ZMap
 from zmap.model import PrecisionModel
-from zmap.refine._emap import QUANTUM_SHARE
-from zmap.refine.ez import EZMap, build_ez
+from zmap.refine.ez import QUANTUM_SHARE, EZMap, build_ez
 from zmap.refine.patch import (
     CellPatches,
     build_lattices,
@@ -212,14 +211,14 @@ def test_real_part_ez_holds_tol_in_3d(sample_data):
     checked EZ model stays within tol of the B-rep at random points where the paper's EZ
     alone (verify=False) does not, and within 3x the base's memory."""
     cad_io = pytest.importorskip("cad_io")
-    from cad_io.refine import refine_models
+    from cad_io.refine import RefineOptions, refine_models
     from cad_io.distance import confirm_with_occ, distance_to_part
     from cad_io.sampler import height_function
     from zmap.features import sharp_edge_curves
 
     part = cad_io.read_step(sample_data / "step" / "featuretype.STEP")
     base = cad_io.sample(part, 0.5)
-    model, info = refine_models(part, base, TOL, ("ez",))["ez"]
+    model, info = refine_models(part, base, RefineOptions(TOL, ("ez",)))["ez"]
     ez = model.ez
     assert ez.unresolved == 0 and ez.n_patches > 0 and ez.pruned > 0
     assert model.nbytes["total"] <= 3.0 * model.nbytes["base"]
@@ -304,7 +303,8 @@ def test_sub_lattices_over_the_missing_sub_cells_hold_tol_and_cost_less(tmp_path
     assert back.ez.patches.subs is not None and np.array_equal(back.ez.patches.subs.keys, subs.keys)
     assert np.array_equal(back.height(x, y), m_.height(x, y), equal_nan=True)
     # format 6 packs a lattice row a segment; format 5's lattice a segment still loads
-    from zmap.refine._emap import SubLattices, pack_codes
+    from zmap.refine._emap import pack_codes
+    from zmap.refine.patch import SubLattices
 
     a = subs.to_arrays()
     assert "rows" in a

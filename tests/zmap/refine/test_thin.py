@@ -13,8 +13,7 @@ from zmap import ZMap
 from zmap.model import PrecisionModel
 from zmap.refine import _ez_kernels as _k
 from tests.reference import refine as ref
-from zmap.refine._emap import QUANTUM_SHARE, decimate
-from zmap.refine.ez import THIN_SHARE, EZMap, build_ez
+from zmap.refine.ez import QUANTUM_SHARE, THIN_SHARE, EZMap, build_ez, decimate
 
 TOL = 0.01
 
@@ -214,7 +213,7 @@ def test_windowed_map_holds_tol_round_trips_and_old_files_load(tmp_path):
 
 def test_patch_sub_edges_may_keep_no_point_and_counts_pack_two_to_a_byte():
     from tests.zmap.refine.test_patch import Rib
-    from zmap.refine._emap import CellPatches
+    from zmap.refine.patch import CellPatches
 
     rib = Rib()
     base = ZMap.from_function(rib, (0, 0, 4, 4), 0.5)
@@ -244,7 +243,8 @@ def test_patch_sub_edges_may_keep_no_point_and_counts_pack_two_to_a_byte():
 
 
 def test_quanta_are_stored_in_two_bytes_and_still_span_the_range():
-    from zmap.refine._ecodec import encode_heights, half_step
+    from zmap.refine._ecodec import half_step
+    from zmap.refine.ez import encode_heights
 
     rng = np.random.default_rng(11)
     h = np.concatenate([rng.uniform(-50, 80, 40), [1.0, 1.0 + 3e-9], rng.uniform(0, 1e-4, 9), [2.0, 2.0]])

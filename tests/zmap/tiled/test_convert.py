@@ -180,7 +180,7 @@ def test_shared_input_survives_the_death_of_its_worker(dask_client):
 def test_cli_tiled_output_must_be_a_zarr_store(tmp_path, capsys):
     """`-o p.zmap.npz` with --tiles is refused before any work (ZMap.load would refuse the
     folder later); a name without a suffix gets `.zarr`."""
-    from cad_io.tiled import zarr_name
+    from cad_io.commands import zarr_name
 
     assert main(["convert", str(DATA / "boss.step"), "--grid", "1", "--tiles", "64", "-o",
                  str(tmp_path / "p.zmap.npz")]) != 0
