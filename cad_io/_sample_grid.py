@@ -10,16 +10,15 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from zmap.errors import GridTooLargeError
-from zmap.fmt import count, size
+from zmap.fmt import count
 from zmap.gridspec import GridSpec
-from zmap.memory import available_bytes
+from zmap.memory import check_room
 
 from ._sample_pairs import CHUNK_PAIRS
 from .part import Part
 from .view import view_matrix
 
-__all__ = ["FACET_SHARE", "START_SHARE", "_check_memory", "_spacing", "_view_bounds",
+__all__ = ["FACET_SHARE", "START_SHARE", "check_grid_memory", "_spacing", "_view_bounds",
            "estimate_bytes", "grid_shape"]
 
 #: default mesh deflections as shares of the grid interval: the Newton starts need only a
@@ -107,14 +106,16 @@ def estimate_bytes(nx: int, ny: int) -> int:
     return n * _POINT_BYTES + min(2 * n, CHUNK_PAIRS) * _PAIR_BYTES
 
 
-def _check_memory(nx: int, ny: int) -> int:
-    """:func:`estimate_bytes` of an ``nx`` x ``ny`` grid; raises ``GridTooLargeError`` above
-    80% of the available memory."""
-    need = estimate_bytes(nx, ny)
-    avail = available_bytes()
-    if need > 0.8 * avail:
-        raise GridTooLargeError(
-            f"grid of {count(nx)} x {count(ny)} = {count(nx * ny)} points needs about {size(need)}, "
-            f"more than 80% of the {size(avail)} of memory available; "
-            f"use a coarser grid or smaller bounds")
-    return need
+def check_grid_memory(nx: int, ny: int) -> int:
+    """:func:`estimate_bytes` of an ``nx`` x ``ny`` grid; raises ``GridTooLargeError`` where it
+    does not fit in the memory available (:func:`zmap.memory.check_room`).
+
+    Examples
+    --------
+    >>> check_grid_memory(10**50, 10**50)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    zmap.errors.GridTooLargeError: grid of 1e+50 x 1e+50 = 1e+100 points needs about ...
+    """
+    return check_room(estimate_bytes(nx, ny), f"grid of {count(nx)} x {count(ny)} = {count(nx * ny)} points",
+                      "use a coarser grid or smaller bounds")

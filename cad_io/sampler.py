@@ -35,7 +35,7 @@ from zmap.grid import ZMap
 
 from ._sample_faces import _face_set
 from ._sample_fine import _fine_facets, fine_cast
-from ._sample_grid import _check_memory, grid_shape
+from ._sample_grid import check_grid_memory, grid_shape
 from ._sample_pairs import _MODE, EMPTY, FACET, JACOBIAN, METHODS, NEWTON_MAX_ITER, NEWTON_TOL, _run_pairs
 from ._sample_plan import mesh_and_place, plan_inputs
 from .part import Part
@@ -51,7 +51,7 @@ from ._sample_points import POINTS_CHUNK, POINTS_DEFLECTION, height_function, sa
 from ._sample_trim import TRIM_SLACK_MM
 
 __all__ = ["EMPTY", "FACET", "JACOBIAN", "METHODS", "estimate_bytes", "grid_shape", "height_function", "sample",
-           "sample_points", "summary"]
+           "sample_points", "summary", "check_grid_memory"]
 
 
 def summary(zm: ZMap) -> dict:
@@ -141,7 +141,7 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
 
     t_start = time.perf_counter()
     plan = plan_inputs(part, grid, bounds=bounds, axis=axis, method=method, deflection=deflection)
-    need = _check_memory(*plan.spec.shape)
+    need = check_grid_memory(*plan.spec.shape)
     bar, own_bar = _stage_bar(progress)
 
     t_mesh = time.perf_counter()
@@ -150,7 +150,7 @@ def sample(part: Part, grid: float | tuple[float, float], *, bounds: Sequence[fl
     t_mesh = time.perf_counter() - t_mesh
     _stage(bar, "sampling", _MESH_SHARE)
     if placed.spec.shape != plan.spec.shape:
-        need = _check_memory(*placed.spec.shape)
+        need = check_grid_memory(*placed.spec.shape)
     plan = placed
     x0, y0, dx, dy, nx, ny = (plan.spec.x0, plan.spec.y0, plan.spec.dx, plan.spec.dy, plan.spec.nx, plan.spec.ny)
     deflection, fine, window = plan.deflection, plan.fine, plan.spec.window

@@ -25,11 +25,11 @@ def test_count(n, text):
 
 
 def test_no_long_digit_runs_in_a_refusal():
-    from cad_io.sampler import _check_memory
+    from cad_io.sampler import check_grid_memory
     from zmap.errors import GridTooLargeError
 
     with pytest.raises(GridTooLargeError) as info:
-        _check_memory(10**50, 10**50)
+        check_grid_memory(10**50, 10**50)
     msg = str(info.value)
     assert "1e+50 x 1e+50 = 1e+100 points" in msg and " TB" in msg
     assert max(len(w) for w in msg.replace(",", " ").split()) < 12, msg

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..errors import PathError, PathTooLargeError
 from ..fmt import count, size
-from ..memory import available_bytes
+from ..memory import MEMORY_SHARE, memory_limit
 from .gcode import ARC_CW, KNOWN_ALL, MOVE_DTYPE, Program, _PLANE_AXES, arc_sweep
 
 __all__ = ["DEFAULT_MAX_POSITIONS", "STAGE_MODES", "Positions", "arc_chords", "dda", "positions"]
@@ -580,11 +580,11 @@ def _check_size(per_move: np.ndarray, line: np.ndarray, fname: str, pitch: float
         return
     limit, why = cap, f"more than the cap of {cap:.3g} (max_positions)"
     if total <= cap:
-        avail = available_bytes()
-        if need <= 0.8 * avail:
+        room, avail = memory_limit()
+        if need <= room:
             return
-        limit = 0.8 * avail / _POSITION_BYTES
-        why = (f"more than the {count(limit)} that fit in 80 % of the {size(avail)} of "
+        limit = room / _POSITION_BYTES
+        why = (f"more than the {count(limit)} that fit in {MEMORY_SHARE:.0%} of the {size(avail)} of "
                "memory available")
     i = int(np.argmax(cum > limit))
     ln = int(line[i])

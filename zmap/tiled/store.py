@@ -28,9 +28,9 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
-from ..errors import GridTooLargeError, ZMapFileError
+from ..errors import ZMapFileError
 from ..fmt import count, size
-from ..memory import available_bytes
+from ..memory import check_room
 
 __all__ = ["TiledZMap", "FORMAT_NAME", "FORMAT_VERSION", "HALO", "bezier", "bilinear", "is_tiled_store",
            "remove_store", "tile_grid", "check_tile"]
@@ -492,12 +492,9 @@ class TiledZMap:
 
         i0, i1, j0, j1 = self.index_window(window)
         n = (i1 - i0) * (j1 - j0)
-        need = n * (8 + sum(np.dtype(d).itemsize for d in self.layers.values()))
-        avail = available_bytes()
-        if need > 0.8 * avail:
-            raise GridTooLargeError(f"window of {count(i1 - i0)} x {count(j1 - j0)} = {count(n)} nodes needs about {size(need)}, "
-                                    f"more than 80% of the {size(avail)} available; read a smaller window "
-                                    f"or work tile by tile (to_dask)")
+        check_room(n * (8 + sum(np.dtype(d).itemsize for d in self.layers.values())),
+                   f"window of {count(i1 - i0)} x {count(j1 - j0)} = {count(n)} nodes",
+                   "read a smaller window or work tile by tile (to_dask)")
         z = self.read(i0, i1, j0, j1)
         layers = {k: self.read(i0, i1, j0, j1, k) for k in self.layers}
         meta = dict(self.meta)
