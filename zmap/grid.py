@@ -165,26 +165,28 @@ class ZMap:
 
     @property
     def x(self) -> np.ndarray:
-        """Local x of the grid lines, shape (nx,)."""
-        return self.x0 + self.dx * np.arange(self.nx)
+        """Local x of the grid lines, shape (nx,) (:attr:`zmap.gridspec.GridSpec.x`)."""
+        return self.spec.x
 
     @property
     def y(self) -> np.ndarray:
-        """Local y of the grid lines, shape (ny,)."""
-        return self.y0 + self.dy * np.arange(self.ny)
+        """Local y of the grid lines, shape (ny,) (:attr:`zmap.gridspec.GridSpec.y`)."""
+        return self.spec.y
 
     @property
     def x1(self) -> float:
-        return self.x0 + self.dx * (self.nx - 1)
+        """Local x of the last grid line."""
+        return self.spec.bounds[2]
 
     @property
     def y1(self) -> float:
-        return self.y0 + self.dy * (self.ny - 1)
+        """Local y of the last grid line."""
+        return self.spec.bounds[3]
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:
-        """Local domain ``(x0, y0, x1, y1)``."""
-        return (self.x0, self.y0, self.x1, self.y1)
+        """Local domain ``(x0, y0, x1, y1)`` (:attr:`zmap.gridspec.GridSpec.bounds`)."""
+        return self.spec.bounds
 
     @property
     def has_frame(self) -> bool:

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import ZMapFileError
 from ..fmt import count, size
+from ..gridspec import GridSpec
 from ..memory import check_room
 
 __all__ = ["TiledZMap", "FORMAT_NAME", "FORMAT_VERSION", "HALO", "bezier", "bilinear", "is_tiled_store",
@@ -268,16 +269,24 @@ class TiledZMap:
         return (self.nx, self.ny)
 
     @property
+    def spec(self) -> GridSpec:
+        """The grid's lines (local frame) as a :class:`zmap.gridspec.GridSpec`."""
+        return GridSpec(self.x0, self.y0, self.dx, self.dy, self.nx, self.ny)
+
+    @property
     def x1(self) -> float:
-        return self.x0 + self.dx * (self.nx - 1)
+        """Local x of the last grid line."""
+        return self.spec.bounds[2]
 
     @property
     def y1(self) -> float:
-        return self.y0 + self.dy * (self.ny - 1)
+        """Local y of the last grid line."""
+        return self.spec.bounds[3]
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:
-        return (self.x0, self.y0, self.x1, self.y1)
+        """Local domain ``(x0, y0, x1, y1)`` (:attr:`zmap.gridspec.GridSpec.bounds`)."""
+        return self.spec.bounds
 
     @property
     def has_frame(self) -> bool:
