@@ -4,7 +4,8 @@ Consumers (:mod:`zmap.cam`, :mod:`zmap.verify`) never ask what type a design is:
 :func:`as_design` and get a :class:`Design` (heights at x, y with NaN where there is no
 surface, the xy extent, the natural sample spacing, whether the heights are the shape itself,
 and a fast grid sampler where the type has one). :class:`~zmap.ZMap`,
-:class:`~zmap.model.PrecisionModel` and ``heights(x, y)`` callables are built in. Packages
+:class:`~zmap.tiled.TiledZMap`, :class:`~zmap.model.PrecisionModel` and ``heights(x, y)``
+callables are built in. Packages
 above zmap register their own types with :func:`register` and the files they read with
 :func:`register_reader` (``cad_io`` registers its STEP ``Part`` and ``.step``/``.stp``); a
 package that declares a ``zmap.designs`` entry point is imported the first time a file suffix
@@ -108,8 +109,8 @@ def _load_plugins() -> bool:
 
 
 def as_design(obj: Any) -> Design:
-    """The :class:`Design` of a z-map, precision model, registered type (a STEP part) or
-    ``heights(x, y)`` callable; ValueError for anything else."""
+    """The :class:`Design` of a z-map, tiled z-map, precision model, registered type (a STEP
+    part) or ``heights(x, y)`` callable; ValueError for anything else."""
     if isinstance(obj, Design):
         return obj
     from .grid import ZMap
@@ -124,24 +125,35 @@ def as_design(obj: Any) -> Design:
         p = min(obj.base.dx, obj.base.dy) / 4
         return Design(obj.height, tuple(float(v) for v in obj.base.bounds), p, "precision model", False,
                       drop_pitch=p, drop_check=4, source=obj)
+    from .tiled.store import TiledZMap  # zarr and dask load only when the store is read
+
+    if isinstance(obj, TiledZMap):
+        from .tiled.store import bezier as tiled_bezier
+
+        return Design(lambda x, y: tiled_bezier(obj, x, y), tuple(float(v) for v in obj.bounds),
+                      min(obj.dx, obj.dy), "tiled zmap", True, source=obj)
     for cls, adapter in _TYPES:
         if isinstance(obj, cls):
             return adapter(obj)
     if callable(obj):
         return Design(obj, None, None, "callable", False, source=obj)
-    raise ValueError("a design must be a ZMap, a PrecisionModel, a STEP part (cad_io.Part) or a heights(x, y) "
-                     f"callable, got {type(obj).__name__}")
+    raise ValueError("a design must be a ZMap, a TiledZMap, a PrecisionModel, a STEP part (cad_io.Part) or a "
+                     f"heights(x, y) callable, got {type(obj).__name__}")
 
 
 def read_design(path: str | os.PathLike) -> Any:
-    """A design from a file: ``.zpm`` precision model, ``.zmap.npz`` z-map, or a registered
-    suffix (``.step``/``.stp`` through cad_io)."""
+    """A design from a file: ``.zpm`` precision model, ``.zmap.npz`` z-map, ``.zarr`` tiled
+    z-map (a folder), or a registered suffix (``.step``/``.stp`` through cad_io)."""
     from .errors import ZMapFileError
 
     p = os.fspath(path)
     if not os.path.exists(p):
         raise ZMapFileError(p, "no such file")
-    low = p.lower()
+    low = p.lower().rstrip("/\\")
+    if low.endswith(".zarr"):
+        from .tiled.store import TiledZMap
+
+        return TiledZMap.open(p)
     if low.endswith(".zpm"):
         from .model import PrecisionModel
 
@@ -157,5 +169,5 @@ def read_design(path: str | os.PathLike) -> Any:
         if attempt == 0 and not _load_plugins():
             break
     known = ", ".join(f"{s} ({w})" for s, (_r, w) in sorted(_READERS.items()))
-    raise ValueError(f"design {p!r} is not a .zpm precision model or a .zmap.npz z-map"
+    raise ValueError(f"design {p!r} is not a .zpm precision model, a .zmap.npz z-map or a .zarr tiled z-map"
                      + (f", nor one of {known}" if known else " (a .step part needs cad_io installed)"))

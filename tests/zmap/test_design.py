@@ -25,8 +25,30 @@ def test_builtin_kinds():
     assert (f.kind, f.bounds, f.exact) == ("callable", None, False)
     assert f.sample_grid(0.0, 0.0, 1.0, 3, 2).shape == (3, 2)
     assert as_design(d) is d
-    with pytest.raises(ValueError, match="must be a ZMap, a PrecisionModel, a STEP part"):
+    with pytest.raises(ValueError, match="must be a ZMap, a TiledZMap, a PrecisionModel, a STEP part"):
         as_design(42)
+
+
+def test_a_tiled_zmap_is_a_design_with_the_heights_of_its_map_in_memory(tmp_path):
+    from zmap.tiled import TiledZMap
+
+    zm = ZMap.from_function(lambda x, y: np.sin(x) * np.cos(y), (0, 0, 6, 5), 0.25)
+    path = tmp_path / "die.zarr"
+    TiledZMap.from_zmap(zm, path, tile=8)
+    d = as_design(read_design(path))
+    assert (d.kind, d.exact, d.pitch, d.bounds) == ("tiled zmap", True, 0.25, as_design(zm).bounds)
+    rng = np.random.default_rng(1)
+    x, y = rng.uniform(-0.5, 6.5, 500), rng.uniform(-0.5, 5.5, 500)
+    assert np.array_equal(d.heights(x, y), as_design(zm).heights(x, y), equal_nan=True)
+    # the comparison takes it as it takes the map it was written from
+    from zmap.verify.deviation import design_heights
+
+    assert np.array_equal(design_heights(d.source)(x, y), design_heights(zm)(x, y), equal_nan=True)
+    # and the drop-cutter
+    from zmap.cam import drop_cutter
+
+    xs, ys = np.linspace(1, 5, 30), np.full(30, 2.5)
+    assert np.array_equal(drop_cutter(d.source, "ball:2", xs, ys), drop_cutter(zm, "ball:2", xs, ys))
 
 
 def test_a_step_part_is_a_design_with_its_own_grid_sampler():

@@ -166,7 +166,7 @@ def load_design(design: Any) -> Any:
 
 
 def design_heights(design: Any) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    """``heights(x, y)`` of a design: PrecisionModel, ZMap (Bezier), STEP part (exact) or callable
+    """``heights(x, y)`` of a design: PrecisionModel, ZMap or TiledZMap (Bezier), STEP part (exact) or callable
     (:func:`zmap.design.as_design`)."""
     from ..design import as_design
 

@@ -130,7 +130,7 @@ def test_bad_input():
         drop_cutter(plane, "ball:2", 1.0, 1.0, pitch=-1)
     with pytest.raises(ValueError, match="cutter"):
         drop_cutter(plane, 3, 1.0, 1.0)
-    with pytest.raises(ValueError, match="must be a ZMap, a PrecisionModel, a STEP part"):
+    with pytest.raises(ValueError, match="must be a ZMap, a TiledZMap, a PrecisionModel, a STEP part"):
         drop_cutter("nope", "ball:2", 1.0, 1.0)
 
 
