@@ -8,6 +8,7 @@ import sys
 import click
 
 from .errors import ZMapError
+from .extras import missing_extra_message
 from .fmt import count, size
 
 __all__ = ["main", "cli"]
@@ -169,6 +170,10 @@ def _report(exc: BaseException, command: str) -> int:
         return exc.exit_code
     if isinstance(exc, (ZMapError, ValueError, OSError, EOFError)):
         click.echo(f"zmap: error: {_one_line(exc)}", err=True)
+        return 1
+    missing = missing_extra_message(exc, command.strip("'"))
+    if missing is not None:
+        click.echo(f"zmap: error: {missing}", err=True)
         return 1
     if isinstance(exc, MemoryError):
         detail = _one_line(exc)
