@@ -24,7 +24,7 @@ import numpy as np
 from cad_io.distance import faces_compound
 from cad_io.part import Part
 from zmap.access.voxelmap import (AccessModelError, AccessResult, Tool, VoxelMap, accessibility,
-                                  global_visibility, set_cover, three_axis)
+                                  check_voxel_size, global_visibility, set_cover, three_axis)
 
 __all__ = ["Samples", "surface_samples", "voxelize", "analyse", "agreement", "point_visibility", "point_access", "reference_visibility",
            "solid_rule", "top_faces",
@@ -170,12 +170,7 @@ def surface_samples(part: Part, step: float, *, deflection: float | None = None)
 
 
 def _check_args(d, step, q) -> tuple[float, float, int]:
-    try:
-        d = float(d)
-    except (TypeError, ValueError):
-        raise AccessModelError(f"voxel size d must be a positive number of mm, got {d!r}") from None
-    if not np.isfinite(d) or d <= 0:
-        raise AccessModelError(f"voxel size d must be a positive number of mm, got {d!r}")
+    d = check_voxel_size(d)
     step = d / 4 if step is None else float(step)
     if not np.isfinite(step) or step <= 0 or step >= d:
         raise AccessModelError(f"sampling step d' must be positive and smaller than the voxel d = {d:g} mm, "

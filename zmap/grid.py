@@ -19,7 +19,7 @@ import numpy as np
 
 from ._npzfile import atomic_write, read_npz, write_npz
 from .errors import ZMapFileError
-from .gridspec import GridSpec
+from .gridspec import GridSpec, OnGrid
 
 __all__ = ["ZMap", "FORMAT_NAME", "FORMAT_VERSION", "atomic_write"]
 
@@ -46,7 +46,7 @@ def _positive_float(name: str, value: Any) -> float:
 
 
 @dataclass(eq=False)
-class ZMap:
+class ZMap(OnGrid):
     """Heights on a regular grid, NaN where there is no surface.
 
     Parameters
@@ -162,31 +162,6 @@ class ZMap:
     @property
     def shape(self) -> tuple[int, int]:
         return (self.nx, self.ny)
-
-    @property
-    def x(self) -> np.ndarray:
-        """Local x of the grid lines, shape (nx,) (:attr:`zmap.gridspec.GridSpec.x`)."""
-        return self.spec.x
-
-    @property
-    def y(self) -> np.ndarray:
-        """Local y of the grid lines, shape (ny,) (:attr:`zmap.gridspec.GridSpec.y`)."""
-        return self.spec.y
-
-    @property
-    def x1(self) -> float:
-        """Local x of the last grid line."""
-        return self.spec.bounds[2]
-
-    @property
-    def y1(self) -> float:
-        """Local y of the last grid line."""
-        return self.spec.bounds[3]
-
-    @property
-    def bounds(self) -> tuple[float, float, float, float]:
-        """Local domain ``(x0, y0, x1, y1)`` (:attr:`zmap.gridspec.GridSpec.bounds`)."""
-        return self.spec.bounds
 
     @property
     def has_frame(self) -> bool:

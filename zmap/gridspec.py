@@ -24,7 +24,7 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["GridSpec", "lines_covering"]
+__all__ = ["GridSpec", "OnGrid", "lines_covering"]
 
 #: a domain within this share of an interval of a whole number of intervals ends on a line
 _SLACK = 1e-9
@@ -125,3 +125,38 @@ class GridSpec:
     def y(self) -> np.ndarray:
         """The y lines, shape (ny,)."""
         return self.y0 + self.dy * np.arange(self.ny)
+
+
+class OnGrid:
+    """The lines and bounds of a map on a grid (:class:`zmap.ZMap`, :class:`zmap.tiled.TiledZMap`),
+    all read off its :attr:`spec`: one formula for every kind of map.
+
+    A subclass gives ``spec``, its :class:`GridSpec` (local frame).
+    """
+
+    spec: GridSpec
+
+    @property
+    def x(self) -> np.ndarray:
+        """Local x of the grid lines, shape (nx,) (:attr:`GridSpec.x`)."""
+        return self.spec.x
+
+    @property
+    def y(self) -> np.ndarray:
+        """Local y of the grid lines, shape (ny,) (:attr:`GridSpec.y`)."""
+        return self.spec.y
+
+    @property
+    def x1(self) -> float:
+        """Local x of the last grid line."""
+        return self.spec.bounds[2]
+
+    @property
+    def y1(self) -> float:
+        """Local y of the last grid line."""
+        return self.spec.bounds[3]
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """Local domain ``(x0, y0, x1, y1)`` (:attr:`GridSpec.bounds`)."""
+        return self.spec.bounds

@@ -244,7 +244,7 @@ class VoxelMap:
         from ._solid_kernels import below_top, sample_sides
         from .solid import MAX_UNCERTAIN, check_solid, kfloor_of, refusal, top_heights, uncertain_report
 
-        d = _check_d(d)
+        d = check_voxel_size(d)
         solid, floor = check_solid(solid, floor)
         max_uncertain = MAX_UNCERTAIN if max_uncertain is None else float(max_uncertain)
         if not (0 <= max_uncertain <= 1):
@@ -572,7 +572,8 @@ def _direction_set(q) -> DirectionSet:
     return direction_set(int(q))
 
 
-def _check_d(d) -> float:
+def check_voxel_size(d) -> float:
+    """``d`` as a float, AccessModelError unless it is a positive number of mm."""
     try:
         d = float(d)
     except (TypeError, ValueError):

@@ -30,7 +30,7 @@ True
 from __future__ import annotations
 
 from .build import (BOUNDARY, EXTERIOR, INTERIOR, MAX_VOXELS, UNPAINTED, AccessModelError,  # noqa: F401
-                    Pieces, VoxelMap, _check_connected, _check_d, _direction_set, _orient, vl_all,
+                    Pieces, VoxelMap, _check_connected, check_voxel_size, _direction_set, _orient, vl_all,
                     _fine_pieces, _octant, _octant_lo, _ranges, paint)
 from .casting import (_FINE_RAYS, _FINE_STRICT, _REFINE_NEAR, _TILE,  # noqa: F401
                       _FINE_TILE, _cast, _casting, _hide_masks, _merged_blockers, _opposite, _piece_index,
@@ -43,4 +43,4 @@ from .tool import (_GRAZE, Tool, _ball_inputs, _blocker_faces, _concave_creases,
 
 __all__ = ["AccessModelError", "VoxelMap", "Tool", "parse_tool", "parse_holder", "paint",
            "global_visibility", "accessibility", "tool_clearance", "three_axis", "set_cover", "node_directions",
-           "AccessResult"]
+           "AccessResult", "check_voxel_size"]

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import ZMapFileError
 from ..fmt import count, size
-from ..gridspec import GridSpec
+from ..gridspec import GridSpec, OnGrid
 from ..memory import check_room
 
 __all__ = ["TiledZMap", "FORMAT_NAME", "FORMAT_VERSION", "HALO", "bezier", "bilinear", "is_tiled_store",
@@ -111,7 +111,7 @@ def is_tiled_store(path: str | os.PathLike) -> bool:
     return p.is_dir() and ((p / "zarr.json").exists() or (p / ".zgroup").exists())
 
 
-class TiledZMap:
+class TiledZMap(OnGrid):
     """A z-map in a zarr store, chunked in square tiles: the :class:`zmap.ZMap` grid contract.
 
     ``z[i, j]`` is the height at local ``(x0 + i*dx, y0 + j*dy)``, NaN where there is no
@@ -272,21 +272,6 @@ class TiledZMap:
     def spec(self) -> GridSpec:
         """The grid's lines (local frame) as a :class:`zmap.gridspec.GridSpec`."""
         return GridSpec(self.x0, self.y0, self.dx, self.dy, self.nx, self.ny)
-
-    @property
-    def x1(self) -> float:
-        """Local x of the last grid line."""
-        return self.spec.bounds[2]
-
-    @property
-    def y1(self) -> float:
-        """Local y of the last grid line."""
-        return self.spec.bounds[3]
-
-    @property
-    def bounds(self) -> tuple[float, float, float, float]:
-        """Local domain ``(x0, y0, x1, y1)`` (:attr:`zmap.gridspec.GridSpec.bounds`)."""
-        return self.spec.bounds
 
     @property
     def has_frame(self) -> bool:
