@@ -164,53 +164,9 @@ class ZMap(OnGrid):
         return (self.nx, self.ny)
 
     @property
-    def has_frame(self) -> bool:
-        return self.angle != 0.0 or self.origin != (0.0, 0.0)
-
-    @property
     def nbytes(self) -> int:
         """Bytes held by the heights and side layers."""
         return int(self.z.nbytes + sum(a.nbytes for a in self.layers.values()))
-
-    def world_to_local(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """World xy to the map's local frame (identity for a plain map)."""
-        x = np.asarray(x, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64)
-        if not self.has_frame:
-            return x, y
-        c, s = math.cos(self.angle), math.sin(self.angle)
-        px, py = x - self.origin[0], y - self.origin[1]
-        return c * px + s * py, -s * px + c * py
-
-    def local_to_world(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Local xy to world xy (identity for a plain map)."""
-        x = np.asarray(x, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64)
-        if not self.has_frame:
-            return x, y
-        c, s = math.cos(self.angle), math.sin(self.angle)
-        return self.origin[0] + c * x - s * y, self.origin[1] + s * x + c * y
-
-    def index_of(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Fractional grid indices ``(i, j)`` of world points (Eq. 3 of paper 004)."""
-        lx, ly = self.world_to_local(x, y)
-        return (lx - self.x0) / self.dx, (ly - self.y0) / self.dy
-
-    def world_of(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """World xy of (possibly fractional) grid indices."""
-        i = np.asarray(i, dtype=np.float64)
-        j = np.asarray(j, dtype=np.float64)
-        return self.local_to_world(self.x0 + i * self.dx, self.y0 + j * self.dy)
-
-    def grid_points(self) -> tuple[np.ndarray, np.ndarray]:
-        """World x and y of every grid point, each of shape (nx, ny)."""
-        X, Y = np.meshgrid(self.x, self.y, indexing="ij")
-        return self.local_to_world(X, Y)
-
-    def contains(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """True where a world point lies in the closed grid domain."""
-        fi, fj = self.index_of(x, y)
-        return (fi >= 0) & (fi <= self.nx - 1) & (fj >= 0) & (fj <= self.ny - 1)
 
     def copy(self) -> "ZMap":
         return ZMap(self.x0, self.y0, self.dx, self.dy, self.z.copy(), self.angle, self.origin,

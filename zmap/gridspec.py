@@ -128,13 +128,23 @@ class GridSpec:
 
 
 class OnGrid:
-    """The lines and bounds of a map on a grid (:class:`zmap.ZMap`, :class:`zmap.tiled.TiledZMap`),
-    all read off its :attr:`spec`: one formula for every kind of map.
+    """The lines, bounds and frame of a map on a grid (:class:`zmap.ZMap`,
+    :class:`zmap.tiled.TiledZMap`): one formula for every kind of map.
 
-    A subclass gives ``spec``, its :class:`GridSpec` (local frame).
+    A subclass gives ``spec``, its :class:`GridSpec` (local frame), and ``x0``, ``y0``,
+    ``dx``, ``dy``, ``nx``, ``ny``, ``angle`` (radians) and ``origin`` (world xy of the
+    local origin): the local frame is the world turned by ``angle`` about ``origin``.
     """
 
     spec: GridSpec
+    x0: float
+    y0: float
+    dx: float
+    dy: float
+    nx: int
+    ny: int
+    angle: float
+    origin: tuple[float, float]
 
     @property
     def x(self) -> np.ndarray:
@@ -160,3 +170,53 @@ class OnGrid:
     def bounds(self) -> tuple[float, float, float, float]:
         """Local domain ``(x0, y0, x1, y1)`` (:attr:`GridSpec.bounds`)."""
         return self.spec.bounds
+
+    @property
+    def frame(self) -> tuple[float, float, float, float]:
+        """``(cos angle, sin angle, origin x, origin y)``: the frame as the kernels take it."""
+        return math.cos(self.angle), math.sin(self.angle), float(self.origin[0]), float(self.origin[1])
+
+    @property
+    def has_frame(self) -> bool:
+        """True when the local frame is not the world's (a turn or an origin)."""
+        return self.angle != 0.0 or tuple(self.origin) != (0.0, 0.0)
+
+    def world_to_local(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World xy to the map's local frame (identity for a plain map)."""
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        if not self.has_frame:
+            return x, y
+        c, s = math.cos(self.angle), math.sin(self.angle)
+        px, py = x - self.origin[0], y - self.origin[1]
+        return c * px + s * py, -s * px + c * py
+
+    def local_to_world(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Local xy to world xy (identity for a plain map)."""
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        if not self.has_frame:
+            return x, y
+        c, s = math.cos(self.angle), math.sin(self.angle)
+        return self.origin[0] + c * x - s * y, self.origin[1] + s * x + c * y
+
+    def index_of(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fractional grid indices ``(i, j)`` of world points (Eq. 3 of paper 004)."""
+        lx, ly = self.world_to_local(x, y)
+        return (lx - self.x0) / self.dx, (ly - self.y0) / self.dy
+
+    def world_of(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World xy of (possibly fractional) grid indices."""
+        i = np.asarray(i, dtype=np.float64)
+        j = np.asarray(j, dtype=np.float64)
+        return self.local_to_world(self.x0 + i * self.dx, self.y0 + j * self.dy)
+
+    def grid_points(self) -> tuple[np.ndarray, np.ndarray]:
+        """World x and y of every grid point, each of shape (nx, ny)."""
+        X, Y = np.meshgrid(self.x, self.y, indexing="ij")
+        return self.local_to_world(X, Y)
+
+    def contains(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """True where a world point lies in the closed grid domain."""
+        fi, fj = self.index_of(x, y)
+        return (fi >= 0) & (fi <= self.nx - 1) & (fj >= 0) & (fj <= self.ny - 1)

@@ -8,7 +8,6 @@ NaN for NaN or infinite query coordinates. ``strict=True`` raises
 
 from __future__ import annotations
 
-import math
 from typing import Callable
 
 import numpy as np
@@ -35,10 +34,6 @@ def _prepare(zm: ZMap, x, y) -> tuple[np.ndarray, np.ndarray, tuple]:
         raise TypeError(f"zm must be a zmap.ZMap, got {type(zm).__name__}")
     xb, yb = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
     return np.ascontiguousarray(xb).ravel(), np.ascontiguousarray(yb).ravel(), xb.shape
-
-
-def _frame(zm: ZMap) -> tuple[float, float, float, float]:
-    return math.cos(zm.angle), math.sin(zm.angle), zm.origin[0], zm.origin[1]
 
 
 def _finish(out: np.ndarray, xs: np.ndarray, ys: np.ndarray, shape: tuple, strict: bool, zm: ZMap):
@@ -98,7 +93,7 @@ def bezier(zm: ZMap, x, y, *, tangent: str = "circle", boundary: str = "dummy", 
     bcode = _choice("boundary", boundary, BOUNDARIES)
     xs, ys, shape = _prepare(zm, x, y)
     out = np.empty(xs.shape[0], dtype=np.float64)
-    c, s, ox, oy = _frame(zm)
+    c, s, ox, oy = zm.frame
     _k.bezier_kernel(zm.z, zm.x0, zm.y0, zm.dx, zm.dy, c, s, ox, oy, xs, ys, tcode, bcode, out)
     return _finish(out, xs, ys, shape, strict, zm)
 
@@ -127,7 +122,7 @@ def bilinear(zm: ZMap, x, y, *, strict: bool = False):
     """
     xs, ys, shape = _prepare(zm, x, y)
     out = np.empty(xs.shape[0], dtype=np.float64)
-    c, s, ox, oy = _frame(zm)
+    c, s, ox, oy = zm.frame
     _k.bilinear_kernel(zm.z, zm.x0, zm.y0, zm.dx, zm.dy, c, s, ox, oy, xs, ys, out)
     return _finish(out, xs, ys, shape, strict, zm)
 

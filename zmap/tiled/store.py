@@ -274,10 +274,6 @@ class TiledZMap(OnGrid):
         return GridSpec(self.x0, self.y0, self.dx, self.dy, self.nx, self.ny)
 
     @property
-    def has_frame(self) -> bool:
-        return self.angle != 0.0 or self.origin != (0.0, 0.0)
-
-    @property
     def tiles_shape(self) -> tuple[int, int]:
         return tile_grid(self.nx, self.ny, self.tile)
 
@@ -314,21 +310,6 @@ class TiledZMap(OnGrid):
         si, sj = self.tile_slices(ti, tj)
         return (self.x0 + si.start * self.dx, self.y0 + sj.start * self.dy,
                 self.x0 + (si.stop - 1) * self.dx, self.y0 + (sj.stop - 1) * self.dy)
-
-    def world_to_local(self, x, y):
-        x = np.asarray(x, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64)
-        if not self.has_frame:
-            return x, y
-        c, s = math.cos(self.angle), math.sin(self.angle)
-        px, py = x - self.origin[0], y - self.origin[1]
-        return c * px + s * py, -s * px + c * py
-
-    def contains(self, x, y) -> np.ndarray:
-        """True where a world point lies in the closed grid domain."""
-        lx, ly = self.world_to_local(x, y)
-        fi, fj = (lx - self.x0) / self.dx, (ly - self.y0) / self.dy
-        return (fi >= 0) & (fi <= self.nx - 1) & (fj >= 0) & (fj <= self.ny - 1)
 
     # ---- completion markers -----------------------------------------------------------------
 
@@ -535,8 +516,7 @@ def _query(tz: TiledZMap, x, y, strict: bool, evaluate) -> Any:
     xs = np.ascontiguousarray(xb).ravel()
     ys = np.ascontiguousarray(yb).ravel()
     n = xs.size
-    c, s = math.cos(tz.angle), math.sin(tz.angle)
-    ox, oy = tz.origin
+    c, s, ox, oy = tz.frame
     ci = np.empty(n, dtype=np.int64)
     cj = np.empty(n, dtype=np.int64)
     K.locate_cells(tz.x0, tz.y0, tz.dx, tz.dy, c, s, ox, oy, tz.nx, tz.ny, xs, ys, ci, cj)
