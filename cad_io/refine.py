@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from zmap.errors import RefineError
+from zmap.gridspec import lines_within
 
 __all__ = ["RefineOptions", "ReportOptions", "OptionError", "refine_models", "report_rows", "format_report",
            "cz_curves", "check_tol", "METHODS", "CZ_DELTA_Y_SHARE", "REPORT_DEFLECTION_SHARE",
@@ -409,8 +410,7 @@ def report_rows(part, options: ReportOptions, *, models: dict | None = None, bas
     ys = rng.uniform(y0, y1, n_points)
     zex, _face, how = sample_points(part, xs, ys, deflection=defl)
     steep = _steep(part, xs, ys, zex, defl, step=tol)
-    nx_f = int(math.floor((x1 - x0) / tol + 1e-9)) + 1
-    ny_f = int(math.floor((y1 - y0) / tol + 1e-9)) + 1
+    nx_f, ny_f = lines_within(x0, x1, tol), lines_within(y0, y1, tol)
     rows = {}
     for name, (model, info) in all_models.items():
         h = model.height(xs, ys)

@@ -24,23 +24,40 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["GridSpec", "OnGrid", "lines_covering"]
+__all__ = ["GridSpec", "OnGrid", "lines_covering", "lines_within"]
 
 #: a domain within this share of an interval of a whole number of intervals ends on a line
 _SLACK = 1e-9
 
 
-def lines_covering(lo: float, hi: float, step: float) -> int:
-    """Grid lines ``step`` apart from ``lo`` up to the first at or beyond ``hi``; at least 2.
+def lines_covering(lo: float, hi: float, step: float, *, at_least: int = 2) -> int:
+    """Grid lines ``step`` apart from ``lo`` up to the first at or beyond ``hi``; at least
+    ``at_least`` (a map needs 2; a row of samples may be 1).
 
-    The one covering rule of :class:`GridSpec`.
+    The covering rule of :class:`GridSpec`: a map, a CZ domain, the drop-cutter's samples.
 
     Examples
     --------
     >>> lines_covering(0.0, 10.0, 1.0), lines_covering(0.0, 10.0 + 1e-12, 1.0), lines_covering(0.0, 10.2, 1.0)
     (11, 11, 12)
+    >>> lines_covering(3.0, 3.0, 1.0), lines_covering(3.0, 3.0, 1.0, at_least=1)
+    (2, 1)
     """
-    return max(2, int(math.ceil((hi - lo) / step - _SLACK)) + 1)
+    return max(at_least, int(math.ceil((hi - lo) / step - _SLACK)) + 1)
+
+
+def lines_within(lo: float, hi: float, step: float) -> int:
+    """Grid lines ``step`` apart from ``lo`` up to the last at or before ``hi`` (within the
+    slack of a whole number of steps): the rule where a line beyond ``hi`` would hold what
+    is not there (a dexel stock's rays stay inside its block; toolpath passes inside their
+    region; a plain map at the tolerance inside the base's domain).
+
+    Examples
+    --------
+    >>> lines_within(0.0, 10.0, 1.0), lines_within(0.0, 10.0 - 1e-12, 1.0), lines_within(0.0, 10.2, 1.0)
+    (11, 11, 11)
+    """
+    return int(math.floor((hi - lo) / step + _SLACK)) + 1
 
 
 @dataclass(frozen=True)

@@ -10,8 +10,19 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from zmap import ZMap
-from zmap.gridspec import GridSpec, lines_covering
+from zmap.gridspec import GridSpec, lines_covering, lines_within
 
+
+
+@settings(max_examples=200, deadline=None)
+@given(lo=st.floats(-1e3, 1e3), span=st.floats(0, 500), step=st.floats(0.01, 10))
+def test_lines_within_stay_inside_and_are_one_short_of_covering_at_most(lo, span, step):
+    hi = lo + span
+    n = lines_within(lo, hi, step)
+    assert n >= 1
+    assert lo + (n - 1) * step <= hi + 1e-9 * step + 1e-9 * abs(hi)  # inside
+    assert lo + n * step > hi  # the next line would fall beyond
+    assert lines_covering(lo, hi, step, at_least=1) in (n, n + 1)
 
 @settings(max_examples=200, deadline=None)
 @given(lo=st.floats(-1e3, 1e3), span=st.floats(0, 500), step=st.floats(0.01, 10))

@@ -31,12 +31,13 @@ Where the surface comes from:
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
+
+from ..gridspec import lines_covering
 
 __all__ = ["BoundingSurface", "from_zmap", "from_heights", "from_samples", "drop_bound", "MARGIN_FACTOR", "ROUGH"]
 
@@ -167,8 +168,8 @@ def from_heights(heights: Callable, bounds: tuple, pitch: float, *, check: int =
     if check < 2:
         raise ValueError(f"check must be at least 2, got {check}")
     x0, y0, x1, y1 = (float(v) for v in bounds)
-    nx = int(math.ceil((x1 - x0) / pitch - 1e-9)) + 1
-    ny = int(math.ceil((y1 - y0) / pitch - 1e-9)) + 1
+    nx = lines_covering(x0, x1, pitch, at_least=1)
+    ny = lines_covering(y0, y1, pitch, at_least=1)
     h = pitch / check
     X, Y = np.meshgrid(x0 + h * np.arange((nx - 1) * check + 1), y0 + h * np.arange((ny - 1) * check + 1),
                        indexing="ij")

@@ -36,6 +36,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import ZMapError
+from ..gridspec import lines_covering
 
 __all__ = ["drop_cutter", "model_heights", "as_cutter"]
 
@@ -195,8 +196,8 @@ def bounding_surface(model: Any, region: tuple, *, pitch: float | None = None, c
         if M is not None:
             hf = M
     x0, y0 = region[0], region[1]
-    nx = int(math.ceil((region[2] - x0) / pitch - 1e-9)) + 1
-    ny = int(math.ceil((region[3] - y0) / pitch - 1e-9)) + 1
+    nx = lines_covering(x0, region[2], pitch, at_least=1)
+    ny = lines_covering(y0, region[3], pitch, at_least=1)
     if nx * ny * check * check > _MAX_SAMPLES:
         raise ZMapError(f"the drop-cutter would sample {nx * check} x {ny * check} heights at "
                         f"{pitch / check:g} mm (cap {_MAX_SAMPLES:.0e}): give a coarser pitch or a smaller region")

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..grid import ZMap, atomic_write
+from ..gridspec import lines_within
 from .drop import as_cutter, drop_cutter
 
 __all__ = ["raster_program", "RasterProgram", "scallop_height", "simplify_chords"]
@@ -235,8 +236,8 @@ def raster_program(model: Any, cutter: Any, *, stepover: float, angle: float = 0
     cy = np.array([b[1], b[1], b[3], b[3]])
     u_c = cx * ca + cy * sa
     v_c = -cx * sa + cy * ca
-    nu = int(math.floor((u_c.max() - u_c.min()) / step + 1e-9)) + 1
-    nv = int(math.floor((v_c.max() - v_c.min()) / stepover + 1e-9)) + 1
+    nu = lines_within(u_c.min(), u_c.max(), step)
+    nv = lines_within(v_c.min(), v_c.max(), stepover)
     us = u_c.min() + step * np.arange(nu)
     vs = v_c.min() + stepover * np.arange(nv)
     U, V = np.meshgrid(us, vs, indexing="ij")

@@ -24,6 +24,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..grid import ZMap
+from ..gridspec import lines_covering
 
 __all__ = ["build_cz", "cz_intervals", "cz_layout", "split_runs"]
 
@@ -101,9 +102,8 @@ def _domain(pts: np.ndarray, along: np.ndarray | None, pad: float, ddx: float, d
     ly = (pts - o) @ nrm
     x0, x1 = lx.min() - pad, lx.max() + pad
     y0, y1 = ly.min() - pad, ly.max() + pad
-    nx = int(math.ceil((x1 - x0) / ddx - 1e-9)) + 1
-    ny = int(math.ceil((y1 - y0) / ddy - 1e-9)) + 1
-    return math.atan2(e[1], e[0]), (float(o[0]), float(o[1])), float(x0), float(y0), max(nx, 2), max(ny, 2)
+    nx, ny = lines_covering(x0, x1, ddx), lines_covering(y0, y1, ddy)
+    return math.atan2(e[1], e[0]), (float(o[0]), float(o[1])), float(x0), float(y0), nx, ny
 
 
 def build_cz(base: ZMap, heights: Callable[[np.ndarray, np.ndarray], np.ndarray], *, tol: float,

@@ -22,19 +22,15 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..gridspec import lines_within
 from . import _dexel_kernels as _k
 
-__all__ = ["DexelWorkpiece", "cutter_table", "ray_grid"]
+__all__ = ["DexelWorkpiece", "cutter_table"]
 
 
 #: dexel slots per ray of a new stock: one (a cut from above never splits a dexel); a ray
 #: that needs more makes all rays twice as wide (:meth:`DexelWorkpiece.grow`)
 START_SLOTS = 1
-
-
-def ray_grid(x0: float, x1: float, pitch: float) -> int:
-    """Number of rays at ``pitch`` from ``x0`` up to and including ``x1`` (1e-9 slack)."""
-    return int(math.floor((x1 - x0) / pitch + 1e-9)) + 1
 
 
 def cutter_table(cutters: Sequence[Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -117,7 +113,7 @@ class DexelWorkpiece:
         if not (x1 > x0 and y1 > y0 and z1 > z0):
             raise ValueError(f"box bounds must satisfy x0 < x1, y0 < y1, z0 < z1, got {tuple(b)}")
         pitch = _check_pitch(pitch)
-        nx, ny = ray_grid(x0, x1, pitch), ray_grid(y0, y1, pitch)
+        nx, ny = lines_within(x0, x1, pitch), lines_within(y0, y1, pitch)  # rays stay inside the block
         if np.float32(z0) >= np.float32(z1):
             raise ValueError(f"box is thinner than float32 resolution: z0={z0}, z1={z1}")
         near = np.full((nx * ny, START_SLOTS), np.float32(z0), dtype=np.float32)
@@ -152,7 +148,7 @@ class DexelWorkpiece:
         if not math.isfinite(bottom):
             raise ValueError(f"bottom must be finite, got {bottom!r}")
         pitch = _check_pitch(zm.dx if pitch is None else pitch)
-        nx, ny = ray_grid(zm.x0, zm.x1, pitch), ray_grid(zm.y0, zm.y1, pitch)
+        nx, ny = lines_within(zm.x0, zm.x1, pitch), lines_within(zm.y0, zm.y1, pitch)
         if pitch == zm.dx and pitch == zm.dy:
             top = z[:nx, :ny]
         else:
