@@ -105,11 +105,11 @@ def convert_cmd(part_path, grid, bounds, method, axis, deflection, output, progr
 
 # ---- the tiled conversion: zmap convert --tiles N ------------------------------------------------
 
-def zarr_name(output: str) -> str:
+def _zarr_name(output: str) -> str:
     """The store's folder name for ``-o``: ``.zarr`` required for an ``.npz`` name, appended to others.
 
-    >>> zarr_name("die.zarr"), zarr_name("die")
-    ('die.zarr', 'die.zarr')
+    >>> _zarr_name("die.zarr"), _zarr_name("die.zarr/"), _zarr_name("die")
+    ('die.zarr', 'die.zarr', 'die.zarr')
     """
     name = str(output).rstrip("/\\")
     if name.endswith(".zarr"):
@@ -138,7 +138,7 @@ def _convert_tiled(part_path: str, *, grid: float, bounds, method: str, axis: st
         raise click.BadParameter(str(exc), param_hint="--tiles") from None
     if grid <= 0:
         raise click.BadParameter(f"must be positive, got {grid!r}", param_hint="--grid")
-    output = zarr_name(output)
+    output = _zarr_name(output)
     if not os.path.exists(part_path):
         raise StepImportError(f"{part_path}: no such file")
     if scheduler:

@@ -19,7 +19,7 @@ import numpy as np
 
 from .errors import ZMapFileError
 
-__all__ = ["atomic_write", "write_npz", "read_npz"]
+__all__ = ["atomic_write", "atomic_write_text", "write_npz", "read_npz"]
 
 
 def atomic_write(path: str | os.PathLike, write: Callable[[str], None], suffix: str = "") -> Path:
@@ -57,6 +57,15 @@ def atomic_write(path: str | os.PathLike, write: Callable[[str], None], suffix: 
             os.unlink(tmp)
         raise
     return path
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
+    """Write ``text`` (UTF-8, line ends as given) to ``path`` through :func:`atomic_write`."""
+    def write(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8", newline="") as fh:
+            fh.write(text)
+
+    return atomic_write(path, write, suffix=Path(path).suffix or ".txt")
 
 
 def write_npz(path: str | os.PathLike, header: dict, arrays: dict[str, np.ndarray], *, compress: bool = False) -> Path:

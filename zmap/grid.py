@@ -17,11 +17,11 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ._npzfile import atomic_write, read_npz, write_npz
+from ._npzfile import atomic_write, atomic_write_text, read_npz, write_npz
 from .errors import ZMapFileError
 from .gridspec import GridSpec, OnGrid
 
-__all__ = ["ZMap", "FORMAT_NAME", "FORMAT_VERSION", "atomic_write"]
+__all__ = ["ZMap", "FORMAT_NAME", "FORMAT_VERSION", "atomic_write", "atomic_write_text"]
 
 FORMAT_NAME = "zmap.ZMap"
 FORMAT_VERSION = 1

@@ -43,3 +43,20 @@ def test_info(tmp_path, capsys):
     assert main(["info", str(p)]) == 0
     out = capsys.readouterr().out
     assert "2 x 2 points" in out and "3 with surface, 1 empty" in out and '"source": "t"' in out
+
+
+def test_command_modules_hold_commands_and_no_library_code():
+    # a command module parses, calls the library and prints: its public names are commands
+    import importlib
+    import inspect
+
+    import click
+
+    for name in ("zmap.cli.maps", "zmap.cli.sim", "zmap.cli.view", "zmap.cli.verify", "zmap.cli.cam",
+                 "cad_io.commands", "cad_io.access_commands"):
+        module = importlib.import_module(name)
+        commands = [v for v in vars(module).values() if isinstance(v, click.Command)
+                    and getattr(v.callback, "__module__", None) == name]
+        helpers = [k for k, v in vars(module).items() if not k.startswith("_") and (inspect.isfunction(v)
+                   or inspect.isclass(v)) and v.__module__ == name]
+        assert commands and not helpers, (name, helpers)

@@ -135,6 +135,6 @@ def test_pictures_are_drawn_only_where_they_are_shown():
     # the demos, the viewer and the verify report, which draw what they show)
     graph = import_graph()
     drawers = {m for m, ts in graph.items() if not m.startswith("zmap.plot") for t in ts if t.startswith("zmap.plot.")}
-    allowed = {m for m in drawers if m.endswith(("commands", ".demo")) or m in {"zmap.demo", "zmap.view.app",
-                                                                                   "zmap.verify.report"}}
+    allowed = {m for m in drawers if m.startswith("zmap.cli.") or m.endswith(("commands", ".demo"))
+               or m in {"zmap.demo", "zmap.view.app", "zmap.verify.report"}}
     assert drawers and drawers == allowed, sorted(drawers - allowed)

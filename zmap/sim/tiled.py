@@ -24,7 +24,7 @@ import numpy as np
 from .dexel import DexelWorkpiece, cutter_table
 from .history import IntervalTreap, Recorder, TimeTrace, ZTrace
 
-__all__ = ["TiledHistory", "simulate_tiles", "tile_positions"]
+__all__ = ["TiledHistory", "simulate_tiles", "tile_positions", "check_tiles"]
 
 _STRUCTS = {"ztrace": ZTrace, "ttrace": TimeTrace, "treap": IntervalTreap}
 #: what every tile task reads: the piece table, each stage's piece and tool, the stock
@@ -33,7 +33,8 @@ SMALL_TILE, MANY_TILES = 32, 256
 _SHARED = ("kind", "geo", "move", "t0", "t1", "slot", "off", "near", "far")
 
 
-def _check_tiles(tiles: Any) -> int:
+def check_tiles(tiles: Any) -> int:
+    """``tiles`` as a whole number of rays a tile side, ValueError unless one and at least 2."""
     try:
         t = int(tiles)
     except (TypeError, ValueError):
@@ -67,7 +68,7 @@ def tile_positions(stock: DexelWorkpiece, xyz: Any, slot: np.ndarray, cutters: l
     """
     from . import _tiled_kernels as K
 
-    tile = _check_tiles(tile)
+    tile = check_tiles(tile)
     ntx, nty = -(-stock.nx // tile), -(-stock.ny // tile)
     _code, radius, _corner, _length = cutter_table(cutters)
     pieces = _as_pieces(xyz)
@@ -354,7 +355,7 @@ def simulate_tiles(stock: DexelWorkpiece, xyz: np.ndarray, slot: np.ndarray, cut
     from zmap.tiled.cluster import cpu_figures, dask_client, share
     from zmap.tiled.handoff import Handoff, save_arrays
 
-    tile = _check_tiles(tiles)
+    tile = check_tiles(tiles)
     (ntx, nty), lists = tile_positions(stock, xyz, slot, cutters, tile)
     if tile < SMALL_TILE and ntx * nty > MANY_TILES:  # a task per handful of rays: slower than untiled
         from zmap.fmt import count

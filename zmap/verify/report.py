@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..grid import atomic_write
+from ..grid import atomic_write, atomic_write_text
 
 __all__ = ["format_markdown", "format_csv", "format_json", "regions_csv", "write_report",
            "deviation_png", "deviation_3d", "band_colours"]
@@ -98,14 +98,6 @@ def regions_csv(c: Any) -> str:
     return buf.getvalue()
 
 
-def _write_text(path: str | os.PathLike, text: str) -> Path:
-    def write(tmp: str) -> None:
-        with open(tmp, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-
-    return atomic_write(path, write, suffix=Path(path).suffix or ".txt")
-
-
 def write_report(c: Any, path: str | os.PathLike, *, fmt: str | None = None, **kw: Any) -> Path:
     """Write the report as markdown, CSV or JSON (``fmt`` default: from the suffix)."""
     fmt = fmt or {".md": "markdown", ".csv": "csv", ".json": "json"}.get(Path(path).suffix.lower(), "markdown")
@@ -117,7 +109,7 @@ def write_report(c: Any, path: str | os.PathLike, *, fmt: str | None = None, **k
         text = format_json(c, collisions=kw.get("collisions"))
     else:
         text = format_csv(c)
-    return _write_text(path, text)
+    return atomic_write_text(path, text)
 
 
 def band_colours(c: Any) -> tuple[list, list]:

@@ -38,8 +38,8 @@ def compare_cmd(run_path, design_path, stage, tol, offset, fmt, output, png, png
                 collisions, holders, no_holder) -> None:
     """Compare the stock of RUN.zsim at a stage with DESIGN: gouges, excesses, first offending lines."""
     from ..errors import ZMapFileError
-    from .deviation import compare
-    from .report import deviation_3d, deviation_png, format_csv, format_json, format_markdown, regions_csv, write_report
+    from ..verify.deviation import compare
+    from ..verify.report import deviation_3d, deviation_png, format_csv, format_json, format_markdown, regions_csv, write_report
 
     for p in (run_path, design_path, program, holders):
         if p is not None and not os.path.exists(p):
@@ -60,7 +60,7 @@ def compare_cmd(run_path, design_path, stage, tol, offset, fmt, output, png, png
         click.echo(f"zmap: warning: {w.message}", err=True)
     hits = None
     if collisions:
-        from .clash import COLLISION_KINDS, collisions as find
+        from ..verify.clash import COLLISION_KINDS, collisions as find
 
         kinds = [k for k in COLLISION_KINDS if not (no_holder and k == "holder")]
         hits = find(run, program, holders=holders, kinds=kinds)
@@ -82,9 +82,9 @@ def compare_cmd(run_path, design_path, stage, tol, offset, fmt, output, png, png
         suffix_fmt = {".md": "markdown", ".csv": "csv", ".json": "json"}.get(os.path.splitext(output)[1].lower())
         write_report(c, output, fmt=suffix_fmt or fmt, **({} if (suffix_fmt or fmt) == "csv" else kw))
     if regions:
-        from .report import _write_text
+        from ..grid import atomic_write_text
 
-        _write_text(regions, regions_csv(c))
+        atomic_write_text(regions, regions_csv(c))
     if png:
         deviation_png(c, png, title=f"{name} at stage {c.stage}/{c.n_stages} against {dname}: deviation (mm)")
     if png3d:

@@ -1,4 +1,4 @@
-"""The ``zmap`` command."""
+"""The ``zmap`` group: its commands, the plugins' commands, and one-line errors (:func:`main`)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,8 @@ import sys
 
 import click
 
-from .errors import ZMapError
-from .extras import missing_extra_message
-from .fmt import count, size
+from ..errors import ZMapError
+from ..extras import missing_extra_message
 
 __all__ = ["main", "cli"]
 
@@ -37,72 +36,15 @@ def cli() -> None:
     """Precision z-map modelling of die and mould surfaces."""
 
 
-@cli.command()
-@click.option("--surface", "surfaces", multiple=True, metavar="NAME",
-              help="Analytic surface (repeatable); default: the three rows of Table 1.")
-@click.option("--grid", "grids", multiple=True, type=float, metavar="MM",
-              help="Grid interval in mm (repeatable); default 1.")
-@click.option("--scheme", "schemes", multiple=True, metavar="NAME", help="Scheme (repeatable); default: all.")
-@click.option("--points", default=1_000_000, show_default=True, type=int, help="Random query points per row.")
-@click.option("--seed", default=0, show_default=True, type=int)
-@click.option("--format", "fmt", type=click.Choice(["markdown", "csv"]), default="markdown", show_default=True)
-def accuracy(surfaces, grids, schemes, points, seed, fmt) -> None:
-    """Interpolation accuracy against exact surfaces (a table shaped like paper 004's Table 1)."""
-    from . import accuracy as acc
-    from .surfaces import SURFACES, TABLE1
+# ---- the commands: one module per group in zmap/cli/; each parses, calls the library and prints
+from .cam import toolpath_cmd  # noqa: E402
+from .maps import accuracy_cmd, info_cmd  # noqa: E402
+from .sim import replay_cmd, simulate_cmd  # noqa: E402
+from .verify import compare_cmd  # noqa: E402
+from .view import view_cmd  # noqa: E402
 
-    for name in surfaces:
-        if name not in SURFACES:
-            raise click.BadParameter(f"{name!r} is not one of {', '.join(SURFACES)}", param_hint="--surface")
-    rows = acc.accuracy_rows(surfaces or TABLE1, grids or (1.0,), schemes or None, n_points=points, seed=seed)
-    click.echo(acc.format_csv(rows) if fmt == "csv" else acc.format_markdown(rows), nl=fmt != "csv")
-
-
-@cli.command()
-@click.argument("path", type=click.Path())
-def info(path: str) -> None:
-    """Describe a saved z-map (.zmap.npz or a tiled .zarr store): grid, domain, heights, memory, metadata."""
-    import json
-
-    import numpy as np
-
-    from .grid import ZMap
-
-    if os.path.isdir(path):  # tiled store (zmap/tiled): described from its metadata and tile markers
-        from .tiled import TiledZMap
-
-        click.echo("\n".join(TiledZMap.open(path, incomplete=True).describe()))
-        return
-    zm = ZMap.load(path)
-    z = zm.z
-    filled = np.isfinite(z)
-    click.echo(f"file     {path}")
-    click.echo(f"grid     {zm.nx:,} x {zm.ny:,} points, dx={zm.dx:g} dy={zm.dy:g} mm")
-    click.echo(f"domain   x {zm.x0:g} .. {zm.x1:g}, y {zm.y0:g} .. {zm.y1:g} mm"
-               + (f" (local frame: angle {zm.angle:g} rad, origin {zm.origin})" if zm.has_frame else ""))
-    if filled.any():
-        click.echo(f"heights  {z[filled].min():.6g} .. {z[filled].max():.6g} mm, "
-                   f"{count(filled.sum())} with surface, {count((~filled).sum())} empty")
-    else:
-        click.echo("heights  none: every grid point is empty")
-    click.echo(f"memory   {size(zm.nbytes)} (heights and {len(zm.layers)} layers: {', '.join(zm.layers) or '-'})")
-    click.echo(f"meta     {json.dumps(zm.meta, sort_keys=True)}")
-
-
-# ---- subcommands: each lives in the module of its feature and registers here --------------
-# sim commands (zmap/sim/commands.py): simulate, replay
-from .sim.commands import replay_cmd, simulate_cmd  # noqa: E402  (sim commands)
-cli.add_command(simulate_cmd)  # sim commands
-cli.add_command(replay_cmd)  # sim commands
-# view command (zmap/view/commands.py): pyvista and trame load only when it runs
-from .view.commands import view_cmd  # noqa: E402  (view command)
-cli.add_command(view_cmd)  # view command
-# verify command (zmap/verify/commands.py): compare a run's stock with its design
-from .verify.commands import compare_cmd  # noqa: E402  (verify command)
-cli.add_command(compare_cmd)  # verify command
-# cam command (zmap/cam/commands.py): raster finishing programs from a design
-from .cam.commands import toolpath_cmd  # noqa: E402  (cam command)
-cli.add_command(toolpath_cmd)  # cam command
+for _command in (accuracy_cmd, info_cmd, simulate_cmd, replay_cmd, view_cmd, compare_cmd, toolpath_cmd):
+    cli.add_command(_command)
 
 
 def add_plugin_commands(group: click.Group = cli) -> list[str]:
@@ -212,7 +154,3 @@ def main(argv: list[str] | None = None) -> int:
             raise
         return _report(exc, command)
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

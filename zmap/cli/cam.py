@@ -37,7 +37,7 @@ def toolpath_cmd(design_path, tool, stepover, angle, tol, step, bounds, feed, pl
     """Write a zig-zag finishing program over DESIGN (drop-cutter CL surface, chord tolerance)."""
     from ..errors import ZMapFileError
     from ..verify.deviation import load_design
-    from .raster import raster_program
+    from ..cam.raster import raster_program
 
     if not os.path.exists(design_path):
         raise ZMapFileError(design_path, "no such file")
@@ -53,7 +53,7 @@ def toolpath_cmd(design_path, tool, stepover, angle, tol, step, bounds, feed, pl
                                      param_hint="--outside") from None
         if not math.isfinite(outside):
             raise click.BadParameter(f"must be a finite height in mm, got {outside!r}", param_hint="--outside")
-    from .drop import as_cutter
+    from ..cam.drop import as_cutter
 
     cut = as_cutter(tool)
     model = load_design(design_path)

@@ -14,7 +14,7 @@ import re
 import click
 
 from ..fmt import count, size
-from .path import STAGE_MODES
+from ..sim.path import STAGE_MODES
 
 __all__ = ["simulate_cmd", "replay_cmd"]
 
@@ -37,9 +37,9 @@ def _cluster(tiles, scheduler, workers):
         return
     from zmap.tiled.cluster import dask_client
 
-    from .tiled import _check_tiles
+    from ..sim.tiled import check_tiles
 
-    _check_tiles(tiles)  # before starting a cluster
+    check_tiles(tiles)  # before starting a cluster
     with dask_client(scheduler, workers=workers) as cl:
         n = len(cl.scheduler_info().get("workers", {}))
         click.echo(f"dask     {n} workers at {cl.scheduler.address}, dashboard {cl.dashboard_link}", err=True)
@@ -81,15 +81,15 @@ def simulate_cmd(program, stock, tool, tools_path, project, pitch, stages, histo
     """Simulate PROGRAM on a dexel stock, recording a history, and save the run."""
     import warnings
 
-    from .gcode import parse
-    from .session import simulate
-    from .tools import load_tool_table
+    from ..sim.gcode import parse
+    from ..sim.session import simulate
+    from ..sim.tools import load_tool_table
 
     for path in (program, tools_path, project):
         _need_file(path)
     tools = {}
     if project:
-        from .tools import load_camotics_project
+        from ..sim.tools import load_camotics_project
 
         ptools, bounds, _units = load_camotics_project(project)
         tools.update(ptools)
@@ -149,7 +149,7 @@ def replay_cmd(run_path, stage, png, view3d, span, gif, frames, fps, scale, prog
     import numpy as np
 
     from ..plot.stages import StageFigure, program_lines, save_gif, save_png, stage_line, stage_title
-    from .session import Run
+    from ..sim.session import Run
 
     _need_file(program)
     if png and stage is None:

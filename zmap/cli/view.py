@@ -28,7 +28,7 @@ __all__ = ["view_cmd"]
 def view_cmd(run_path, design, program, tol, allowance, host, port, browser) -> None:
     """Serve a 3D view of RUN.zsim with a stage slider, play and rewind, in the browser."""
     from ..sim.session import Run
-    from .app import free_port, make_viewer
+    from ..view.app import free_port, make_viewer
 
     for path in (run_path, design, program):
         if path is not None and not os.path.isfile(path):

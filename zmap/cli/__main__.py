@@ -1,0 +1,7 @@
+"""``python -m zmap.cli``: the ``zmap`` command."""
+
+import sys
+
+from .app import main
+
+sys.exit(main())
