@@ -294,18 +294,23 @@ def main() -> None:
     res["cl_ref_points"] = int(pick.size)
     res["cl_offaxis_share"] = round(off.size / X.size, 4)
     # OpenCAMLib on the same part's triangles, same run
-    log("OpenCAMLib BatchDropCutter ...")
-    sel = rng.choice(X.size, args.ocl_points, replace=False)
-    res.update(ocl_rates(part, X.ravel()[sel], Y.ravel()[sel], cl.ravel()[sel]))
+    # one sample for both: OpenCAMLib's points first, the exact-part check on its first ones
+    sel = rng.choice(X.size, max(args.ocl_points, args.part_points), replace=False)
+    if args.ocl_points:  # --ocl-points 0 skips OpenCAMLib
+        log("OpenCAMLib BatchDropCutter ...")
+        o = sel[:args.ocl_points]
+        res.update(ocl_rates(part, X.ravel()[o], Y.ravel()[o], cl.ravel()[o]))
     if "ocl_pps_2thread" in res:
         res["cl_vs_ocl2"] = round(res["cl_pps"] / res["ocl_pps_2thread"], 1)
     # truth side by side: both against the exact part (the design the model stands for)
     k = min(args.part_points, sel.size)
+    if args.ocl_points:
+        k = min(k, args.ocl_points)  # OpenCAMLib's heights exist only at its points
     log(f"OCC distance from the ball to the part at {k} CL points, ours and OpenCAMLib's ...")
     res["part_points"] = k
-    res["cl_part_max_gouge_mm"] = float(np.nanmax(part_gouge(part, ball, X.ravel()[sel[:k]], Y.ravel()[sel[:k]],
+    res["cl_part_max_gouge_mm"] = None if k == 0 else float(np.nanmax(part_gouge(part, ball, X.ravel()[sel[:k]], Y.ravel()[sel[:k]],
                                                              cl.ravel()[sel[:k]])))
-    if "ocl_cl" in res:
+    if "ocl_cl" in res and k:
         z = np.asarray(res.pop("ocl_cl"))[:k]
         res["ocl_part_max_gouge_mm"] = float(np.nanmax(part_gouge(part, ball, X.ravel()[sel[:k]],
                                                                   Y.ravel()[sel[:k]], z)))
