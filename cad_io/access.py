@@ -15,36 +15,19 @@ part to the ball-end tool's axis (ball centre to shank top) and to the holder's 
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from cad_io.distance import faces_compound
 from cad_io.part import Part
-from zmap.access.voxelmap import (AccessModelError, AccessResult, Tool, VoxelMap, accessibility,
-                                  check_voxel_size, global_visibility, set_cover, three_axis)
+from zmap.access.pipeline import analyse_samples, check_args
+from zmap.access.samples import Samples
+from zmap.access.voxelmap import AccessModelError, AccessResult, Tool, VoxelMap
 
 __all__ = ["Samples", "surface_samples", "voxelize", "analyse", "agreement", "point_visibility", "point_access", "reference_visibility",
            "solid_rule", "top_faces",
            "reference_tool", "read_part"]
-
-
-@dataclass
-class Samples:
-    """Surface samples of a part: ``points`` (n, 3) mm, outward unit ``normals`` (n, 3),
-    ``curvature`` (n,) largest concave principal curvature (1/mm, negative where convex),
-    ``face`` (n,) face index, ``weight`` (n,) area each stands for (mm^2)."""
-
-    points: np.ndarray
-    normals: np.ndarray
-    curvature: np.ndarray
-    face: np.ndarray
-    weight: np.ndarray
-
-    def __len__(self) -> int:
-        return int(len(self.points))
 
 
 def _lattice(xyz: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -169,17 +152,6 @@ def surface_samples(part: Part, step: float, *, deflection: float | None = None)
                    np.concatenate(Wt))
 
 
-def _check_args(d, step, q) -> tuple[float, float, int]:
-    d = check_voxel_size(d)
-    step = d / 4 if step is None else float(step)
-    if not np.isfinite(step) or step <= 0 or step >= d:
-        raise AccessModelError(f"sampling step d' must be positive and smaller than the voxel d = {d:g} mm, "
-                               f"got d' = {step:g} mm")
-    if isinstance(q, bool) or not isinstance(q, (int, np.integer)) or q < 1:
-        raise AccessModelError(f"q must be an integer >= 1, got {q!r}")
-    return d, step, int(q)
-
-
 def solid_rule(part: Part, solid: str = "auto") -> tuple[str, str]:
     """The material rule for ``part`` and why (:mod:`zmap.access.solid`): ``'below'`` for an
     open model (free boundary edges: a quilt of faces with no closed shell) or where asked,
@@ -218,7 +190,7 @@ def voxelize(part: Part, d: float, *, step: float | None = None, q: int = 4, exa
     >>> import cad_io  # doctest: +SKIP
     >>> vm = voxelize(cad_io.read_step("data/pocket.step"), 0.5, q=4)  # doctest: +SKIP
     """
-    d, step, q = _check_args(d, step, q)
+    d, step, q = check_args(d, step, q)
     rule, note = solid_rule(part, solid)
     s = surface_samples(part, step)
     return VoxelMap.from_samples(s.points, s.normals, s.curvature, s.face, s.weight, d=d, q=q,
@@ -242,67 +214,11 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     ``solid``, ``floor``, ``max_uncertain``: the material rule, as :func:`voxelize`.
     ``progress(message)`` is called at each stage (the CLI prints it).
     """
-    say = progress or (lambda msg: None)
-    d, step, q = _check_args(d, step, q)
-    bb = np.array(part.bbox)
-    size = bb[3:] - bb[:3]
-    if tool.diameter > float(np.nanmax(size)):
-        raise AccessModelError(f"tool diameter {tool.diameter:g} mm is larger than the part "
-                               f"({size[0]:.1f} x {size[1]:.1f} x {size[2]:.1f} mm)")
     rule, note = solid_rule(part, solid)
-    from zmap.access.solid import check_solid
-    from zmap.access.voxelmap import MAX_VOXELS
-
-    check_solid(rule, floor)
-    # the grid's size from the part's box, before minutes of sampling (as from_samples counts it)
-    lo = bb[:3].copy()
-    if floor is not None:
-        lo[2] = min(lo[2], floor)
-    shape = np.floor((bb[3:] - lo) / d).astype(np.int64) + 5
-    if float(np.prod(shape.astype(np.float64))) > MAX_VOXELS:
-        total = int(np.prod(shape.astype(np.float64)))
-        raise AccessModelError(f"{shape[0]} x {shape[1]} x {shape[2]} = {total:,} voxels at d = {d:g} mm exceed "
-                               f"the limit of {MAX_VOXELS:,}: choose a larger --voxel (at least "
-                               f"{d * (total / MAX_VOXELS) ** (1 / 3):.2g} mm)")
-    sec = {}
-    t0 = time.perf_counter()
-    say(f"sampling faces at d' = {step:g} mm")
-    s = surface_samples(part, step)
-    sec["sample"] = time.perf_counter() - t0
-    t = time.perf_counter()
-    say(f"{len(s):,} samples; voxel map at d = {d:g} mm, q = {q} (k = {20 * q * q})")
-    vm = VoxelMap.from_samples(s.points, s.normals, s.curvature, s.face, s.weight, d=d, q=q, step=step,
-                               exact=exact, fine=refine, solid=rule, floor=floor, max_uncertain=max_uncertain,
-                               solid_note=note)
-    sec["voxelize"] = time.perf_counter() - t
-    t = time.perf_counter()
-    say(f"material: {vm.solid_note}")
-    say(f"{vm.n_boundary:,} boundary, {vm.n_interior:,} interior, {int(vm.uncertain.sum()):,} uncertain voxels; "
-        "cylinder casting")
-    stats: dict = {"refine": {}, "tool": {}}
-    if refine:
-        vg, vg_pieces, vg_fine = global_visibility(vm, rays=rays, pieces=True, refine=True, stats=stats["refine"])
-    else:
-        (vg, vg_pieces), vg_fine = global_visibility(vm, rays=rays, pieces=True), None
-    sec["visibility"] = time.perf_counter() - t
-    t = time.perf_counter()
-    say("accessibility for the tool")
-    tstep = max(step, d / 2) if tool_step is None else float(tool_step)
-    if not (np.isfinite(tstep) and tstep > 0):
-        raise AccessModelError(f"tool_step must be a positive number of mm, got {tool_step!r}")
-    ts = s if tstep == step else surface_samples(part, tstep)
-    amap, amap_pieces = accessibility(vm, vg, tool, pieces=True,
-                                      samples=(ts.points, vm.orient(ts.points, ts.normals, ts.face), ts.face),
-                                      vg_pieces=vg_pieces, stats=stats["tool"])
-    sec["access"] = time.perf_counter() - t
-    t = time.perf_counter()
-    verdict = three_axis(vm, amap)
-    setups = set_cover(vm, amap, cone=cone)
-    sec["setups"] = time.perf_counter() - t
-    sec["total"] = time.perf_counter() - t0
-    return AccessResult(vm=vm, vg=vg, amap=amap, tool=tool, verdict=verdict, setups=setups, seconds=sec,
-                        source=str(part.source or ""), vg_pieces=vg_pieces, vg_fine=vg_fine,
-                        amap_pieces=amap_pieces, stats=stats)
+    return analyse_samples(lambda st: surface_samples(part, st), d=d, q=q, tool=tool, step=step,
+                           bbox=part.bbox, source=str(part.source or ""), cone=cone, exact=exact, rays=rays,
+                           refine=refine, progress=progress, tool_step=tool_step, solid=rule, solid_note=note,
+                           floor=floor, max_uncertain=max_uncertain)
 
 
 def read_part(path) -> Part:

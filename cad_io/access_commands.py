@@ -1,6 +1,8 @@
-"""CLI command ``zmap access``: tool access directions of a STEP part (paper 002).
+"""CLI command ``zmap access``: tool access directions of a STEP part or a design (paper 002).
 
-It lives in cad_io because it reads the part with OCP (:func:`cad_io.access.analyse`); the
+A STEP part is sampled on its exact faces (:func:`cad_io.access.analyse`); a z-map, precision
+model or tiled z-map on its top-most surface, the material below it
+(:func:`zmap.access.analyse_design`). It lives in cad_io because it reads STEP with OCP; the
 voxel map itself is :mod:`zmap.access`.
 
 Registered on the ``zmap`` group in :mod:`zmap.cli`; OCP, numba and pyvista load only when
@@ -17,7 +19,7 @@ __all__ = ["access_cmd"]
 
 
 @click.command("access")
-@click.argument("part_path", metavar="PART.step", type=click.Path(dir_okay=False))
+@click.argument("part_path", metavar="PART.step|DESIGN", type=click.Path())
 @click.option("--voxel", "d", default=0.5, show_default=True, type=float, metavar="MM", help="Voxel edge d.")
 @click.option("--step", default=None, type=float, metavar="MM", help="Sampling step d' (default d/4; < d).")
 @click.option("--q", default=4, show_default=True, type=int, help="Direction set frequency (k = 20 q^2).")
@@ -52,19 +54,26 @@ __all__ = ["access_cmd"]
                    "thinner than the voxel), percent.")
 def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output, png, no_png, grid=None, rays=2,
                refine=True, solid="auto", floor=None, max_uncertain=25.0) -> None:
-    """Tool access directions from a visibility voxel map (paper 002): 3-axis verdict and set-ups."""
+    """Tool access directions from a visibility voxel map (paper 002): 3-axis verdict and set-ups.
+
+    PART.step is sampled on its exact faces; a DESIGN (.zmap.npz, .zpm, .zarr) on its top-most
+    surface, as a die seen from +z with the material below it.
+    """
     import math
     import time
 
     from cad_io.access import analyse
     from cad_io.step import read_step
-    from zmap.errors import StepImportError
+    from zmap.access import analyse_design
+    from zmap.design import as_design, read_design
+    from zmap.errors import StepImportError, ZMapFileError
 
     from zmap.access.voxelmap import AccessModelError, Tool, parse_holder, parse_tool
 
     t0 = time.perf_counter()
+    is_step = part_path.lower().endswith((".step", ".stp"))
     if not os.path.exists(part_path):
-        raise StepImportError(f"{part_path}: no such file")
+        raise (StepImportError if is_step else ZMapFileError)(f"{part_path}: no such file")
     dia = parse_tool(tool_spec)
     hd, hl = parse_holder(holder) if holder else (0.0, 0.0)
     tool = Tool(dia, stickout=stickout, holder_diameter=hd, holder_length=hl)
@@ -90,19 +99,28 @@ def access_cmd(part_path, d, step, q, tool_spec, holder, stickout, cone, output,
     def say(msg: str) -> None:
         click.echo(f"[{time.perf_counter() - t0:6.1f} s] {msg}", err=True)
 
+    if not is_step and solid == "closed":
+        raise AccessModelError(f"{part_path}: a design gives heights, not a closed shell: its material is what "
+                               "lies below its surface (--solid below or auto)")
     say(f"reading {part_path}")
-    part = read_step(part_path)
-    result = analyse(part, d=d, q=q, tool=tool, step=step, cone=None if cone is None else math.radians(cone),
-                     rays=rays, refine=refine, progress=say, solid=solid, floor=floor,
-                     max_uncertain=max_uncertain / 100.0)
+    common = dict(d=d, q=q, tool=tool, step=step, cone=None if cone is None else math.radians(cone), rays=rays,
+                  refine=refine, progress=say, floor=floor, max_uncertain=max_uncertain / 100.0)
+    if is_step:
+        part = read_step(part_path)
+        result = analyse(part, solid=solid, **common)
+        b = part.bbox
+        box = (b[0], b[1], b[3], b[4])
+    else:
+        design = read_design(part_path)
+        result = analyse_design(design, source=os.path.basename(part_path.rstrip("/\\")), **common)
+        box = as_design(design).bounds
     if grid is not None:
         import numpy as np
 
         from zmap.access.voxelmap import node_directions
 
-        b = part.bbox
-        xs = np.arange(b[0], b[3] + grid / 2, grid)
-        ys = np.arange(b[1], b[4] + grid / 2, grid)
+        xs = np.arange(box[0], box[2] + grid / 2, grid)
+        ys = np.arange(box[1], box[3] + grid / 2, grid)
         X, Y = np.meshgrid(xs, ys, indexing="ij")
         vox, cnt = node_directions(result.vm, result.amap, X, Y)
         result.nodes = {"node_x0": float(xs[0]), "node_y0": float(ys[0]), "node_grid": float(grid),

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.conftest import STEP_DATA
+from tests.conftest import DATA, STEP_DATA
 from zmap.access.directions import to_bool
 from zmap.access.voxelmap import AccessModelError, Tool, accessibility, global_visibility, three_axis
 
@@ -290,6 +290,31 @@ def test_command_without_refinement(slot, tmp_path):
         assert 0 < json.loads(bytes(z["header"]).decode())["verdict"]["share"] < 1
 
 
+def test_command_on_a_zmap_file(tmp_path, capsys):
+    """``zmap access`` on a saved z-map: the top-most surface with the material below it; its
+    per-node counts say a 6 mm ball reaches a 2 mm slot's floor from no direction and the
+    plateau from the upper hemisphere; ``--solid closed`` is refused before anything is read."""
+    import json
+
+    from zmap import ZMap
+    from zmap.cli import main
+
+    src = ZMap.from_function(lambda x, y: np.where(abs(x - 10) < 1, -5.0, 0.0), (0, 0, 20, 20), 0.25).save(
+        tmp_path / "slot.zmap.npz")
+    out = tmp_path / "slot.access.npz"
+    assert main(["access", str(src), "--solid", "closed", "-o", str(out), "--no-png"]) != 0
+    assert "not a closed shell" in capsys.readouterr().err and not out.exists()
+    rc = main(["access", str(src), "--voxel", "0.5", "--q", "2", "--tool", "ball:6", "--grid", "2", "--no-png",
+               "-o", str(out)])
+    assert rc == 0
+    with np.load(out) as z:
+        head = json.loads(bytes(z["header"]).decode())
+        assert head["node_grid"] == 2.0 and z["node_count"].shape == (11, 11)
+        assert (z["node_count"][5, 1:-1] == 0).all()  # x = 10: the slot's floor
+        assert (z["node_count"][2, 1:-1] == 40).all()  # x = 4: the plateau, k / 2 directions
+    assert "below the zmap's surface" in capsys.readouterr().out
+
+
 @pytest.mark.slow
 def test_command_end_to_end(slot, tmp_path):
     import json
@@ -421,3 +446,50 @@ def test_agreement_of_no_points_is_refused_not_nan(sample_data):
     assert set(res.stats) == {"refine", "tool"} and res.stats["tool"]["scanned"] >= 0
     with pytest.raises(ValueError, match="n_points must be at least 1"):
         agreement(part, res, n_points=0)
+
+
+@pytest.mark.slow
+def test_a_design_never_reaches_from_above_where_the_exact_part_does_not():
+    """The same part's access from its faces (cad_io) and as a design that gives heights (its
+    exact top-most heights, and a z-map sampled from it): from +z, the design path is never
+    less cautious than the faces, and agrees at most nodes (it is more cautious beside walls,
+    where a height field's wall is a steep stretch between two samples)."""
+    import cad_io
+    from cad_io.access import analyse
+    from zmap.access import analyse_design, node_directions
+
+    part = cad_io.read_step(DATA / "pocket.step")  # a pocket with vertical walls in a block
+    tool = Tool(6.0)
+    b = part.bbox
+    X, Y = np.meshgrid(np.arange(b[0] + 3, b[3] - 3, 1.0), np.arange(b[1] + 3, b[4] - 3, 1.0), indexing="ij")
+
+    def from_above(result):
+        vox, _ = node_directions(result.vm, result.amap, X, Y)
+        up = result.vm.directions.index("+z")
+        return (vox >= 0) & to_bool(result.amap, result.vm.directions.k)[np.maximum(vox, 0), up]
+
+    faces = from_above(analyse(part, d=1.0, q=2, tool=tool))
+    for design in (part, cad_io.sample(part, 0.25)):
+        heights = from_above(analyse_design(design, d=1.0, q=2, tool=tool))
+        assert not (heights & ~faces).any(), np.column_stack([X[heights & ~faces], Y[heights & ~faces]])[:5]
+        assert (heights == faces).mean() > 0.9
+
+
+@pytest.mark.xfail(strict=True, reason="known defect: the height sampler leaves a finer mesh on the part with "
+                   "long thin triangles (a 38 mm wedge 0.45 mm wide on boss.step's top plane); the face "
+                   "lattice samples only their middles, leaving gaps of 1 mm that open the voxel shell")
+def test_a_part_sampled_for_its_heights_first_still_maps():
+    """The height sampler meshes a part more finely, with long thin triangles on its planes;
+    the access pipeline on the same part afterwards (a notebook that drops a cutter first)
+    should give the same closed map, not a leaking shell."""
+    import cad_io
+    from cad_io.access import analyse
+    from zmap.design import as_design
+
+    fresh = analyse(cad_io.read_step(DATA / "boss.step"), d=1.0, q=2, tool=Tool(6.0))
+    part = cad_io.read_step(DATA / "boss.step")
+    as_design(part).heights(np.array([0.0]), np.array([0.0]))
+    after = analyse(part, d=1.0, q=2, tool=Tool(6.0))
+    assert after.vm.solid == fresh.vm.solid == "closed"
+    assert abs(after.vm.n_interior - fresh.vm.n_interior) <= 0.02 * fresh.vm.n_interior
+    assert after.verdict["uncertain_share"] < 0.01

@@ -3,8 +3,9 @@
 The kernel-free half: the icosahedral direction set and its bitsets
 (:mod:`zmap.access.directions`), paint spreading, cylinder casting, the ball-end
 accessibility map with shank and holder, the 3-axis verdict and set-up selection
-(:mod:`zmap.access.voxelmap`). The voxelisation of a part's exact faces lives in
-:mod:`cad_io.access`. Submodules load on first use: ``import zmap.access`` compiles nothing.
+(:mod:`zmap.access.voxelmap`), the whole pipeline over surface samples and over any design
+that gives heights, a die seen from +z (:mod:`zmap.access.pipeline`, samples from
+:mod:`zmap.access.samples`). The sampling of a part's exact faces lives in :mod:`cad_io.access`. Submodules load on first use: ``import zmap.access`` compiles nothing.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ _WHERE = {
     "three_axis": "voxelmap",
     "set_cover": "voxelmap", "node_directions": "voxelmap", "AccessResult": "voxelmap",
     "AccessModelError": "voxelmap", "voxels_3d": ".plot.access", "sphere_3d": ".plot.access",
+    "Samples": "samples", "design_samples": "samples",
+    "analyse_samples": "pipeline", "analyse_design": "pipeline", "voxelize_design": "pipeline",
 }
 
 __all__ = list(_WHERE)
