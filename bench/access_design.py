@@ -18,7 +18,7 @@ node's top-most point p (the part's exact heights) along its normal n has its ce
 c = p + a n, and ``ball_overlap`` measures how deep it then overlaps the material below the
 top-most surface (on a 0.02 mm lattice of columns, so to about 0.02 mm).
 ``reached_but_blocked``: smooth nodes (``smooth_nodes``: the surface rises less than a voxel
-over a voxel either way, away from walls, where a node's top-most point and normal are well
+over a voxel either way along x, y and the diagonals, away from walls, where a node's top-most point and normal are well
 defined and its voxel column holds no wall) answered "reached" where the ball overlaps by more than 0.02 mm;
 ``max_overlap_mm``: the largest. The voxel map decides at its resolution: its capsule test
 frees a direction when no material voxel centre is nearer the ball's centre than a less half
@@ -75,7 +75,8 @@ def ball_overlap(part, a: float, x: np.ndarray, y: np.ndarray, e: float = 0.01, 
 
 
 def smooth_nodes(part, X: np.ndarray, Y: np.ndarray, d: float) -> np.ndarray:
-    """Nodes whose surface rises less than a voxel over a voxel either way along x and y: away
+    """Nodes whose surface rises less than a voxel over a voxel either way along x, y and the
+    diagonals: away
     from walls, where a node's top-most point and its normal are well defined, and its voxel
     column holds no wall (the map answers for a column's top-most voxel, and a node on a voxel
     boundary beside a wall gets the wall's top)."""
@@ -84,7 +85,7 @@ def smooth_nodes(part, X: np.ndarray, Y: np.ndarray, d: float) -> np.ndarray:
     h = as_design(part).heights
     z = h(X, Y)
     ok = np.isfinite(z)
-    for dx, dy in ((d, 0), (-d, 0), (0, d), (0, -d)):
+    for dx, dy in ((d, 0), (-d, 0), (0, d), (0, -d), (d, d), (d, -d), (-d, d), (-d, -d)):
         ok &= np.abs(h(X + dx, Y + dy) - z) < d
     return ok
 

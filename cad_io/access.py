@@ -103,8 +103,10 @@ def surface_samples(part: Part, step: float, *, deflection: float | None = None)
     if not exact:
         raise AccessModelError(f"{part.source or 'part'}: no face has an exact surface (only triangles, "
                                "as in a tessellated AP242 file): access directions need exact faces")
-    if any(f.mesh is None for f in part.faces):
-        triangulate(part, deflection if deflection is not None else max(step, 0.01))
+    deflection = float(deflection) if deflection is not None else max(step, 0.01)
+    # meshed at this deflection, not reusing a mesh another step left (the sampler's finer one)
+    if any(f.mesh is None or (f.surface is not None and f.mesh.deflection != deflection) for f in part.faces):
+        triangulate(part, deflection)
     packed = pack([f.surface for f in part.faces])
     P, Nn, C, Fc, Wt = [], [], [], [], []
     for face in part.faces:
@@ -215,7 +217,10 @@ def analyse(part: Part, *, d: float = 0.5, q: int = 4, tool: Tool, step: float |
     ``progress(message)`` is called at each stage (the CLI prints it).
     """
     rule, note = solid_rule(part, solid)
-    return analyse_samples(lambda st: surface_samples(part, st), d=d, q=q, tool=tool, step=step,
+    # one mesh for the map's samples and the tool's (at their own steps)
+    deflection = max(check_args(d, step, q)[1], 0.01)
+    return analyse_samples(lambda st: surface_samples(part, st, deflection=deflection), d=d, q=q, tool=tool,
+                           step=step,
                            bbox=part.bbox, source=str(part.source or ""), cone=cone, exact=exact, rays=rays,
                            refine=refine, progress=progress, tool_step=tool_step, solid=rule, solid_note=note,
                            floor=floor, max_uncertain=max_uncertain)

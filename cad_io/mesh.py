@@ -86,6 +86,12 @@ def _occ_meshes(part: Part, deflection: float) -> None:
     has_surface = any(BRep_Tool.Surface_s(TopoDS.Face_s(fmap.FindKey(i))) is not None
                       for i in range(1, fmap.Extent() + 1))
     if has_surface:
+        from OCP.BRepTools import BRepTools
+
+        # OCC keeps a finer triangulation made before and would hand it back: the mesh at a
+        # deflection must not depend on what was meshed earlier (the height sampler's fine
+        # meshes carry slivers that the access lattice samples badly)
+        BRepTools.Clean_s(part.shape)
         BRepMesh_IncrementalMesh(part.shape, _OCC_SHARE * deflection, False, ANGULAR_DEFLECTION,
                                  True)
     for face in part.faces:

@@ -8,6 +8,7 @@ import pytest
 from cad_io.mesh import triangulate
 from cad_io.nurbs import evaluate
 from cad_io.step import read_step
+from tests.conftest import DATA
 
 cq = pytest.importorskip("cadquery")
 
@@ -258,3 +259,18 @@ def test_trimmed_grid_pairs_few_triangles_a_point(sample_data):
     on_face = fs.tri_face == 22
     per_point = counts[on_face].sum() / 5000
     assert 0.3 < per_point < 2.0, per_point
+
+
+def test_a_part_meshes_the_same_at_a_deflection_whatever_was_meshed_before():
+    """OCC keeps a shape's finer triangulation and hands it back to a coarser request; the
+    part's mesh at a deflection is the same after a finer one as on a fresh part."""
+    import cad_io
+    from cad_io.mesh import triangulate
+
+    fresh = cad_io.read_step(DATA / "boss.step")
+    triangulate(fresh, 0.25)
+    part = cad_io.read_step(DATA / "boss.step")
+    triangulate(part, 0.01)
+    triangulate(part, 0.25)
+    for a, b in zip(fresh.faces, part.faces):
+        assert np.array_equal(a.mesh.triangles, b.mesh.triangles) and np.allclose(a.mesh.nodes, b.mesh.nodes)
