@@ -22,7 +22,7 @@ import numpy as np
 from cad_io.distance import faces_compound
 from cad_io.part import Part
 from zmap.access.pipeline import analyse_samples, check_args
-from zmap.access.samples import Samples
+from zmap.access.samples import Samples, largest_curvature
 from zmap.access.voxelmap import AccessModelError, AccessResult, Tool, VoxelMap
 
 __all__ = ["Samples", "surface_samples", "voxelize", "analyse", "agreement", "point_visibility", "point_access", "reference_visibility",
@@ -72,17 +72,12 @@ def _curvatures(der: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """Largest principal curvature w.r.t. ``normal`` (positive = the surface bends toward it,
     concave seen from outside) from rows S, Su, Sv, Suu, Suv, Svv."""
     su, sv, suu, suv, svv = der[:, 1], der[:, 2], der[:, 3], der[:, 4], der[:, 5]
-    E = np.einsum("ij,ij->i", su, su)
-    F = np.einsum("ij,ij->i", su, sv)
-    G = np.einsum("ij,ij->i", sv, sv)
-    L = np.einsum("ij,ij->i", suu, normal)
-    M = np.einsum("ij,ij->i", suv, normal)
-    N = np.einsum("ij,ij->i", svv, normal)
-    det = E * G - F * F
-    with np.errstate(divide="ignore", invalid="ignore"):
-        H = (E * N - 2 * F * M + G * L) / (2 * det)
-        K = (L * N - M * M) / det
-        return H + np.sqrt(np.maximum(H * H - K, 0.0))
+
+    def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return np.einsum("ij,ij->i", a, b)
+
+    return largest_curvature(dot(su, su), dot(su, sv), dot(sv, sv), dot(suu, normal), dot(suv, normal),
+                             dot(svv, normal))
 
 
 def surface_samples(part: Part, step: float, *, deflection: float | None = None) -> Samples:

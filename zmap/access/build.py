@@ -285,10 +285,7 @@ class VoxelMap:
             lo[2] = base
         origin = lo - pad * d
         shape = tuple(int(s) for s in np.floor((hi - origin) / d).astype(np.int64) + pad + 1)
-        total = int(np.prod(np.array(shape, dtype=np.float64)))
-        if total > MAX_VOXELS:
-            raise AccessModelError(f"{shape[0]} x {shape[1]} x {shape[2]} = {total:,} voxels at d = {d:g} mm "
-                                   f"exceed the limit of {MAX_VOXELS:,}: choose a larger --voxel")
+        refuse_oversized(shape, d)
         ijk = np.floor((pts - origin) / d).astype(np.int64)
         flat = (ijk[:, 0] * shape[1] + ijk[:, 1]) * shape[2] + ijk[:, 2]
         uniq, vox = np.unique(flat, return_inverse=True)
@@ -570,6 +567,16 @@ def _direction_set(q) -> DirectionSet:
         except ValueError as exc:
             raise AccessModelError(str(exc)) from None
     return direction_set(int(q))
+
+
+def refuse_oversized(shape, d: float) -> None:
+    """Refuse a voxel grid of ``shape`` at edge ``d`` with more than :data:`MAX_VOXELS` voxels,
+    naming the smallest voxel that fits."""
+    total = float(np.prod(np.asarray(shape, dtype=np.float64)))
+    if total > MAX_VOXELS:
+        raise AccessModelError(f"{shape[0]} x {shape[1]} x {shape[2]} = {int(total):,} voxels at d = {d:g} mm "
+                               f"exceed the limit of {MAX_VOXELS:,}: choose a larger --voxel (at least "
+                               f"{d * (total / MAX_VOXELS) ** (1 / 3):.2g} mm)")
 
 
 def check_voxel_size(d) -> float:

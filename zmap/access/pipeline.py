@@ -31,7 +31,7 @@ from typing import Callable
 
 import numpy as np
 
-from .build import MAX_VOXELS, AccessModelError, VoxelMap, check_voxel_size
+from .build import AccessModelError, VoxelMap, check_voxel_size, refuse_oversized
 from .casting import global_visibility
 from .result import AccessResult, set_cover, three_axis
 from .samples import Samples, design_samples
@@ -56,17 +56,12 @@ def check_args(d, step, q) -> tuple[float, float, int]:
 def check_voxel_count(bbox, d: float, floor: float | None = None) -> None:
     """Refuse a box ``(xmin, ymin, zmin, xmax, ymax, zmax)`` whose voxel grid at ``d`` would
     exceed :data:`~zmap.access.build.MAX_VOXELS` (counted as ``from_samples`` counts it), before
-    minutes of sampling, with the smallest voxel that fits."""
+    minutes of sampling (:func:`~zmap.access.build.refuse_oversized`)."""
     bb = np.asarray(bbox, dtype=np.float64)
     lo = bb[:3].copy()
     if floor is not None:
         lo[2] = min(lo[2], floor)
-    shape = np.floor((bb[3:] - lo) / d).astype(np.int64) + 5
-    total = float(np.prod(shape.astype(np.float64)))
-    if total > MAX_VOXELS:
-        raise AccessModelError(f"{shape[0]} x {shape[1]} x {shape[2]} = {int(total):,} voxels at d = {d:g} mm "
-                               f"exceed the limit of {MAX_VOXELS:,}: choose a larger --voxel (at least "
-                               f"{d * (total / MAX_VOXELS) ** (1 / 3):.2g} mm)")
+    refuse_oversized(np.floor((bb[3:] - lo) / d).astype(np.int64) + 5, d)
 
 
 def _check_tool_fits(tool: Tool, bbox) -> None:
@@ -134,9 +129,8 @@ def analyse_samples(sample_at: Callable[[float], Samples], *, d: float = 0.5, q:
     t0 = time.perf_counter()
     say(f"sampling the surface at d' = {step:g} mm")
     s = sample_at(step)
-    if bbox is None:
+    if bbox is None:  # from_samples refuses an oversized grid itself
         _check_tool_fits(tool, _samples_box(s))
-        check_voxel_count(_samples_box(s), d, floor)
     sec["sample"] = time.perf_counter() - t0
     t = time.perf_counter()
     say(f"{len(s):,} samples; voxel map at d = {d:g} mm, q = {q} (k = {20 * q * q})")
@@ -198,7 +192,6 @@ def voxelize_design(design, d: float, *, step: float | None = None, q: int = 4, 
     d, step, q = check_args(d, step, q)
     rule = _design_solid(solid)
     s = design_samples(design, step, bounds=bounds)
-    check_voxel_count(_samples_box(s), d, floor)
     return VoxelMap.from_samples(s.points, s.normals, s.curvature, s.face, s.weight, d=d, q=q, step=step,
                                  exact=exact, check=check, solid=rule, floor=floor, max_uncertain=max_uncertain,
                                  solid_note=_design_note(design))

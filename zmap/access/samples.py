@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Samples", "design_samples", "MAX_SUBDIVISION"]
+__all__ = ["Samples", "design_samples", "largest_curvature", "MAX_SUBDIVISION"]
 
 #: most sub-samples across one sampling cell of a steep stretch (a slope of about 256)
 MAX_SUBDIVISION = 256
@@ -58,9 +58,11 @@ def _cells(lo: float, hi: float, step: float) -> tuple[np.ndarray, float]:
     return lo + (np.arange(n) + 0.5) * h, h
 
 
-def _derivatives(heights, x: np.ndarray, y: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, ...]:
+def _derivatives(heights, x: np.ndarray, y: np.ndarray, e: np.ndarray,
+                 second: bool = True) -> tuple[np.ndarray, ...]:
     """``(z, h_x, h_y, h_xx, h_xy, h_yy)`` at (x, y) by central differences of spacing ``e``;
-    one-sided where a neighbour has no surface, 0 where neither side has."""
+    one-sided where a neighbour has no surface, 0 where neither side has. ``second=False``:
+    ``(z, h_x, h_y)`` alone, from five height evaluations instead of nine."""
     def at(dx: float, dy: float) -> np.ndarray:
         return np.asarray(heights(x + dx * e, y + dy * e), dtype=np.float64)
 
@@ -73,6 +75,9 @@ def _derivatives(heights, x: np.ndarray, y: np.ndarray, e: np.ndarray) -> tuple[
         out = np.where(~both & np.isfinite(p), (p - z) / e, out)
         return np.where(~both & ~np.isfinite(p) & np.isfinite(m), (z - m) / e, out)
 
+    if not second:
+        return z, slope(xp, xm), slope(yp, ym)
+
     def bend(p: np.ndarray, m: np.ndarray) -> np.ndarray:
         return np.where(np.isfinite(p) & np.isfinite(m), (p - 2 * z + m) / (e * e), 0.0)
 
@@ -82,16 +87,22 @@ def _derivatives(heights, x: np.ndarray, y: np.ndarray, e: np.ndarray) -> tuple[
     return z, slope(xp, xm), slope(yp, ym), bend(xp, xm), hxy, bend(yp, ym)
 
 
+def largest_curvature(E, F, G, L, M, N) -> np.ndarray:
+    """Largest principal curvature from the first (E, F, G) and second (L, M, N) fundamental
+    forms, the second taken along the chosen normal: positive where the surface bends toward
+    it (concave seen from outside for an outward normal); NaN where the first form is singular."""
+    det = E * G - F * F
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H = (E * N - 2 * F * M + G * L) / (2 * det)
+        K = (L * N - M * M) / det
+        return H + np.sqrt(np.maximum(H * H - K, 0.0))
+
+
 def _concave_curvature(p, q, r, s, t) -> np.ndarray:
-    """Largest principal curvature of ``z = h(x, y)`` toward its upward normal (positive where
-    the surface bends up, concave seen from above), from ``h_x, h_y, h_xx, h_xy, h_yy``."""
+    """:func:`largest_curvature` of ``z = h(x, y)`` toward its upward normal (positive where the
+    surface bends up, concave seen from above), from ``h_x, h_y, h_xx, h_xy, h_yy``."""
     w = np.sqrt(1 + p * p + q * q)
-    E, F, G = 1 + p * p, p * q, 1 + q * q
-    L, M, N = r / w, s / w, t / w
-    det = E * G - F * F  # = w^2 > 0
-    H = (E * N - 2 * F * M + G * L) / (2 * det)
-    K = (L * N - M * M) / det
-    return H + np.sqrt(np.maximum(H * H - K, 0.0))
+    return largest_curvature(1 + p * p, p * q, 1 + q * q, r / w, s / w, t / w)
 
 
 def design_samples(design, step: float, *, bounds: tuple | None = None) -> Samples:
@@ -138,7 +149,7 @@ def design_samples(design, step: float, *, bounds: tuple | None = None) -> Sampl
     cy, hy = _cells(y0, y1, step)
     X, Y = (a.ravel() for a in np.meshgrid(cx, cy, indexing="ij"))
     # the mean slope over each cell (differences across its width) says how steep it is
-    z, p, q = _derivatives(d.heights, X, Y, np.full(X.shape, 0.5 * min(hx, hy)))[:3]
+    z, p, q = _derivatives(d.heights, X, Y, np.full(X.shape, 0.5 * min(hx, hy)), second=False)
     p, q = np.nan_to_num(p), np.nan_to_num(q)
     # sub-samples across a steep cell: its rise over the cell, in steps along the surface
     mx = np.clip(np.ceil(hx * np.sqrt(1 + p * p) / step - 1e-9), 1, MAX_SUBDIVISION).astype(np.int64)
